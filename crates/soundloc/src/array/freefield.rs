@@ -1,0 +1,1 @@
+//! Free-field (geometric) transfer functions from a geometry and a grid.

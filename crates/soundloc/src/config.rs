@@ -1,0 +1,197 @@
+//! What to compute: [`LocalizeConfig`], the typed, serialisable description of a
+//! localization run, with HARK LocalizeMUSIC's parameter names in the docs and its defaults.
+//!
+//! A config is plain data (it can be logged, saved as TOML/JSON, and rebuilt on another
+//! device). [`crate::plan::Plan::new`] validates it against the array and precomputes.
+
+use serde::{Deserialize, Serialize};
+
+/// Subspace decomposition (HARK's `MUSIC_ALGORITHM`). See `subspace/`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "kebab-case")]
+pub enum Algorithm {
+    /// Standard eigenvalue decomposition of R (plain MUSIC; HARK's default).
+    #[default]
+    Sevd,
+    /// Textbook generalized eigenproblem R e = λ K e (robust to coherent noise near the
+    /// array; soundloc's default when a noise matrix is given).
+    Gevd,
+    /// HARK's GEVD: eigenvectors of K^{-1/2} R K^{-1/2}, used without back-transform.
+    GevdHark,
+    /// HARK's GSVD: left singular vectors of K^{-1} R (the seed paper's algorithm).
+    Gsvd,
+}
+
+impl Algorithm {
+    /// Whether this algorithm uses the noise correlation matrix K.
+    pub fn uses_noise(self) -> bool {
+        !matches!(self, Algorithm::Sevd)
+    }
+    /// The name used on the command line and in outputs.
+    pub fn name(self) -> &'static str {
+        match self {
+            Algorithm::Sevd => "sevd",
+            Algorithm::Gevd => "gevd",
+            Algorithm::GevdHark => "gevd-hark",
+            Algorithm::Gsvd => "gsvd",
+        }
+    }
+    /// All algorithms, in a fixed order.
+    pub const ALL: [Algorithm; 4] = [
+        Algorithm::Sevd,
+        Algorithm::Gevd,
+        Algorithm::GevdHark,
+        Algorithm::Gsvd,
+    ];
+}
+
+/// Which frames a correlation window covers relative to the result frame c
+/// (HARK's `WINDOW_TYPE`). See [`crate::correlation`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "kebab-case")]
+pub enum WindowType {
+    /// The W frames ending at c (causal; what streaming uses).
+    Past,
+    /// Frames centred on c.
+    Middle,
+    /// Frames [c, c+W-1] (look-ahead; HARK's default).
+    #[default]
+    Future,
+}
+
+/// STFT analysis window (HARK MultiFFT `WINDOW`). See [`crate::stft`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "kebab-case")]
+pub enum WindowFunction {
+    /// HARK's CONJ window (default).
+    #[default]
+    Conj,
+    /// Hamming.
+    Hamming,
+    /// Hann ("HANNING" in HARK).
+    Hanning,
+    /// No window.
+    Rectangle,
+}
+
+/// Per-bin spectrum weight w_k (HARK's `SPECTRUM_WEIGHT_TYPE`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "kebab-case")]
+pub enum SpectrumWeight {
+    /// w_k = 1.
+    #[default]
+    Uniform,
+    /// The A-weighting curve (IEC 61672) at each bin's centre frequency, as a linear gain.
+    AWeighting,
+    /// One weight per used bin, in bin order.
+    Manual(Vec<f64>),
+}
+
+/// Denominator of the MUSIC spectrum.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "kebab-case")]
+pub enum Denominator {
+    /// Σ |a^H e_m|² (HARK's code; default).
+    #[default]
+    Squared,
+    /// Σ |a^H e_m| (as printed in the seed paper's equation 5).
+    Unsquared,
+}
+
+/// Everything that defines a localization run. Defaults are HARK LocalizeMUSIC's.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct LocalizeConfig {
+    /// `MUSIC_ALGORITHM`.
+    pub algorithm: Algorithm,
+    /// FFT length N in samples (`LENGTH`, 512).
+    pub nfft: usize,
+    /// Frame advance in samples (`ADVANCE`, 160).
+    pub hop: usize,
+    /// Sampling rate in Hz (`SAMPLING_RATE`, 16000).
+    pub sample_rate_hz: u32,
+    /// Analysis window function (MultiFFT `WINDOW`, CONJ).
+    pub window_function: WindowFunction,
+    /// Correlation window W in frames (`WINDOW`, 50).
+    pub window: usize,
+    /// `WINDOW_TYPE` (FUTURE).
+    pub window_type: WindowType,
+    /// One result every `period` frames (`PERIOD`, 50).
+    pub period: usize,
+    /// Signal subspace dimension Ns (`NUM_SOURCE`, 2); must be < number of mics.
+    pub num_sources: usize,
+    /// Peaks reported per result (`MAXNUM_OUT_PEAKS`): -1 = `num_sources`, 0 = all.
+    pub max_peaks: i64,
+    /// Azimuth range kept, in degrees (`MIN_DEG`, -180).
+    pub min_deg: f64,
+    /// Azimuth range kept, in degrees (`MAX_DEG`, 180).
+    pub max_deg: f64,
+    /// Lowest frequency used in Hz (`LOWER_BOUND_FREQUENCY`, 500).
+    pub lower_freq_hz: f64,
+    /// Frequency bound in Hz, exclusive bin (`UPPER_BOUND_FREQUENCY`, 2800).
+    pub upper_freq_hz: f64,
+    /// `SPECTRUM_WEIGHT_TYPE`.
+    pub spectrum_weight: SpectrumWeight,
+    /// `ENABLE_EIGENVALUE_WEIGHT` (true): weight each bin by √(largest eigenvalue).
+    pub eigenvalue_weight: bool,
+    /// Squared (default) or unsquared denominator.
+    pub denominator: Denominator,
+    /// Diagonal loading added to K (relative to its mean diagonal) before it is used;
+    /// 0 = none, and a K that is not positive definite is an error.
+    pub diagonal_loading: f64,
+}
+
+impl Default for LocalizeConfig {
+    fn default() -> Self {
+        LocalizeConfig {
+            algorithm: Algorithm::Sevd,
+            nfft: 512,
+            hop: 160,
+            sample_rate_hz: 16000,
+            window_function: WindowFunction::Conj,
+            window: 50,
+            window_type: WindowType::Future,
+            period: 50,
+            num_sources: 2,
+            max_peaks: -1,
+            min_deg: -180.0,
+            max_deg: 180.0,
+            lower_freq_hz: 500.0,
+            upper_freq_hz: 2800.0,
+            spectrum_weight: SpectrumWeight::Uniform,
+            eigenvalue_weight: true,
+            denominator: Denominator::Squared,
+            diagonal_loading: 0.0,
+        }
+    }
+}
+
+impl LocalizeConfig {
+    /// The used bins: k from ⌊lower·N/fs⌋ up to but not including ⌊upper·N/fs⌋.
+    pub fn bin_range(&self) -> std::ops::Range<usize> {
+        let n = self.nfft as f64;
+        let fs = self.sample_rate_hz as f64;
+        let lo = (self.lower_freq_hz * n / fs).floor().max(0.0) as usize;
+        let hi = (self.upper_freq_hz * n / fs).floor().max(0.0) as usize;
+        lo..hi.min(self.nfft / 2 + 1)
+    }
+    /// Peaks reported per result after resolving `max_peaks` (usize::MAX = all).
+    pub fn peaks_out(&self) -> usize {
+        match self.max_peaks {
+            x if x < 0 => self.num_sources,
+            0 => usize::MAX,
+            x => x as usize,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    #[test]
+    fn default_bins_are_16_to_88() {
+        let c = LocalizeConfig::default();
+        assert_eq!(c.bin_range(), 16..89);
+        assert_eq!(c.bin_range().len(), 73);
+    }
+}

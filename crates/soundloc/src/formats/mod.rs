@@ -1,0 +1,1 @@
+//! File formats robot-audition users already have (HARK's), read and written.

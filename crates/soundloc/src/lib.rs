@@ -1,0 +1,60 @@
+//! # soundloc — MUSIC sound source localization for microphone arrays
+//!
+//! soundloc finds where sounds come from (azimuth, elevation) with the MUSIC family —
+//! SEVD-, GEVD- and GSVD-MUSIC — as robot-audition users know it from HARK's
+//! LocalizeMUSIC, on the CPU (faer + rayon) or on a CUDA GPU.
+//!
+//! ## The pipeline (one module per stage, in order)
+//!
+//! | stage | module | in → out |
+//! |---|---|---|
+//! | audio in | [`audio`] | WAV/FLAC → `Audio` (channels × samples, raw PCM values) |
+//! | STFT | [`stft`] | samples → `Spectra` `[frame][bin][mic]` (used bins only) |
+//! | correlation windows | [`correlation`] | frames → R_k per window (1/W Σ x xᴴ), scaled |
+//! | noise | [`noise`] | noise audio / time range / file → K_k per bin |
+//! | subspace | [`subspace`] | R_k (and K_k) → signal/noise subspace (SEVD, GEVD, GEVD-HARK, GSVD) |
+//! | spectrum | [`music`] | subspace × transfer functions → P̄(d), dB |
+//! | peaks | [`peaks`] | spectrum → local maxima, top NUM_SOURCE |
+//! | tracking | [`tracking`] | peaks over time → sources with ids |
+//! | outputs | [`output`] | JSON lines, CSV, .npy, plots, HARK logs and streams |
+//!
+//! Beside it: the array description in [`array`] (geometry, direction grid, transfer
+//! functions), file formats in [`formats`], a scene simulator in [`sim`], and the compute
+//! backends in [`backend`] (CPU and CUDA behind one batch interface). [`engine`] is the
+//! only orchestration: it plans once ([`plan`]), then feeds batches of windows to a backend.
+//!
+//! ## Conventions
+//! - SI units inside: metres, seconds, Hz. Degrees only at I/O; names carry units
+//!   (`sample_rate_hz`, `azimuth_deg`).
+//! - Azimuth = atan2(y, x), from +x toward +y, in (−180°, 180°]; elevation from the x-y
+//!   plane.
+//! - FFT kernel e^{−j2πkn/N}, unnormalised; integer PCM is used as raw sample values (an
+//!   int16 sample 1000 is 1000.0), as HARK does: this sets the dB scale of results.
+//! - Compute precision is a type parameter `T: Real` (`f32` default, `f64` reference).
+#![deny(missing_docs)]
+
+pub mod array;
+pub mod audio;
+pub mod backend;
+pub mod bench;
+pub mod config;
+pub mod correlation;
+pub mod engine;
+pub mod error;
+pub mod formats;
+pub mod music;
+pub mod noise;
+pub mod output;
+pub mod peaks;
+pub mod plan;
+pub mod real;
+pub mod result;
+pub mod sim;
+pub mod stft;
+pub mod subspace;
+pub mod tracking;
+
+pub use config::{Algorithm, LocalizeConfig, WindowFunction, WindowType};
+pub use error::{Error, Result};
+pub use real::Real;
+pub use result::{LocalizationResult, Source};

@@ -1,0 +1,1 @@
+//! Outputs: JSON lines, CSV, .npy spectra, plots, HARK logs and network streams.

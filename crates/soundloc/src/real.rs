@@ -1,0 +1,71 @@
+//! One code path for `f32` and `f64`.
+//!
+//! [`Real`] is sealed and implemented for `f32` (the default, as HARK computes) and `f64`
+//! (the reference path that verifies it). Write numeric code once as `fn f<T: Real>`; take
+//! literals through [`Real::from_f64`].
+
+use num_complex::Complex;
+
+mod sealed {
+    pub trait Sealed {}
+    impl Sealed for f32 {}
+    impl Sealed for f64 {}
+}
+
+/// A complex number over `T`.
+pub type C<T> = Complex<T>;
+
+/// `f32` or `f64`, with everything faer, realfft and the backends need.
+pub trait Real:
+    sealed::Sealed
+    + faer::traits::RealField
+    + realfft::FftNum
+    + num_traits::Float
+    + num_traits::FloatConst
+    + num_traits::NumAssign
+    + std::iter::Sum
+    + Copy
+    + Default
+    + PartialOrd
+    + Send
+    + Sync
+    + std::fmt::Debug
+    + std::fmt::Display
+    + 'static
+{
+    /// `"f32"` or `"f64"`: used to pick kernels and name outputs.
+    const NAME: &'static str;
+    /// Machine epsilon.
+    const EPS: f64;
+    /// Convert from `f64` (rounding for `f32`).
+    fn from_f64(x: f64) -> Self;
+    /// Widen to `f64`.
+    fn to_f64(self) -> f64;
+}
+
+impl Real for f32 {
+    const NAME: &'static str = "f32";
+    const EPS: f64 = f32::EPSILON as f64;
+    #[inline(always)]
+    fn from_f64(x: f64) -> Self {
+        x as f32
+    }
+    #[inline(always)]
+    fn to_f64(self) -> f64 {
+        self as f64
+    }
+}
+
+impl Real for f64 {
+    const NAME: &'static str = "f64";
+    const EPS: f64 = f64::EPSILON;
+    #[inline(always)]
+    fn from_f64(x: f64) -> Self {
+        x
+    }
+    #[inline(always)]
+    fn to_f64(self) -> f64 {
+        self
+    }
+}
+

@@ -1,0 +1,1 @@
+//! Subspace decomposition per bin.
