@@ -1,1 +1,9 @@
 //! File formats robot-audition users already have (HARK's), read and written.
+//! Layouts: `shared/spec/hark-formats.md`.
+
+pub mod hark_mat;
+pub mod hark_zip;
+pub mod hgtf;
+pub mod noise_cm;
+pub mod source_log;
+pub mod xml;
