@@ -1,1 +1,286 @@
-//! (being written)
+//! The only orchestration: plan once, STFT, schedule windows, feed batches to a backend,
+//! turn peaks into results.
+//!
+//! ```text
+//! Audio ─► Stft ─► Spectra ─► correlation::schedule ─► Backend::process (batches)
+//!        ─► BatchOutput (peaks, dB spectrum) ─► LocalizationResult per window
+//! ```
+
+use crate::array::TransferFunctions;
+use crate::backend::{cpu::CpuBackend, Backend, BatchOutput, DeviceChoice, Spectra, StageTimes, WindowSpec};
+use crate::config::LocalizeConfig;
+use crate::correlation::schedule;
+use crate::noise::NoiseMatrices;
+use crate::plan::Plan;
+use crate::real::Real;
+use crate::result::{LocalizationResult, Source};
+use crate::stft::Stft;
+use crate::{Error, Result};
+use std::sync::Arc;
+
+/// The broadband spectrum of every result, dB, `[result][dir]`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SpectrumTable {
+    /// Result frame c of each row.
+    pub frames: Vec<usize>,
+    /// Time of each row in seconds.
+    pub times_s: Vec<f64>,
+    /// Number of directions (columns).
+    pub num_dirs: usize,
+    /// 10·log10(P̄ + 1), `[result][dir]`.
+    pub db: Vec<f32>,
+    /// Number of used bins.
+    pub num_bins: usize,
+    /// g_k (eigenvalue weight, or 1) per result and used bin, `[result][bin]`.
+    pub bin_weight: Vec<f32>,
+}
+
+/// Everything one localization run produces.
+#[derive(Debug, Clone)]
+pub struct Localization {
+    /// One result per correlation window, in time order.
+    pub results: Vec<LocalizationResult>,
+    /// The spectrum, when asked for.
+    pub spectrum: Option<SpectrumTable>,
+    /// The device that computed it.
+    pub device: String,
+    /// Time per stage in ms.
+    pub stage_times: StageTimes,
+}
+
+/// Build the backend for a device choice. `Auto` uses CUDA when a usable GPU and the
+/// libraries are present, else the CPU.
+pub fn make_backend<T: Real>(plan: Arc<Plan<T>>, device: DeviceChoice) -> Result<Box<dyn Backend<T>>> {
+    match device {
+        DeviceChoice::Cpu => Ok(Box::new(CpuBackend::new(plan))),
+        DeviceChoice::Cuda => crate::backend::cuda::new_backend(plan, 0),
+        DeviceChoice::Auto => match crate::backend::cuda::new_backend(plan.clone(), 0) {
+            Ok(b) => Ok(b),
+            Err(e) => {
+                tracing::info!("CUDA not used ({e}); running on the CPU");
+                Ok(Box::new(CpuBackend::new(plan)))
+            }
+        },
+    }
+}
+
+/// A localization engine: a plan, its STFT, and a backend.
+pub struct Engine<T: Real> {
+    plan: Arc<Plan<T>>,
+    stft: Stft<T>,
+    backend: Box<dyn Backend<T>>,
+}
+
+impl<T: Real> Engine<T> {
+    /// Plan and pick a device.
+    pub fn new(
+        config: &LocalizeConfig,
+        tf: &TransferFunctions,
+        noise: Option<&NoiseMatrices>,
+        device: DeviceChoice,
+    ) -> Result<Self> {
+        let plan = Arc::new(Plan::<T>::new(config, tf, noise)?);
+        let backend = make_backend(plan.clone(), device)?;
+        Self::with_backend(plan, backend)
+    }
+
+    /// Use a given plan and backend.
+    pub fn with_backend(plan: Arc<Plan<T>>, backend: Box<dyn Backend<T>>) -> Result<Self> {
+        let c = &plan.config;
+        let stft = Stft::new(c.nfft, c.hop, c.window_function, plan.bins.clone())?;
+        Ok(Engine { plan, stft, backend })
+    }
+
+    /// The plan.
+    pub fn plan(&self) -> &Plan<T> {
+        &self.plan
+    }
+
+    /// The backend's device description.
+    pub fn device_name(&self) -> String {
+        self.backend.device_name()
+    }
+
+    /// The backend (for benchmarks).
+    pub fn backend_mut(&mut self) -> &mut dyn Backend<T> {
+        &mut *self.backend
+    }
+
+    /// Replace the noise matrix K (online updates, iGSVD / iGEVD).
+    pub fn set_noise(&mut self, noise: &NoiseMatrices) -> Result<()> {
+        let plan = Arc::new(self.plan.with_noise(noise)?);
+        self.backend.set_plan(plan.clone())?;
+        self.plan = plan;
+        Ok(())
+    }
+
+    /// STFT of planar samples after checking them against the plan.
+    pub fn spectra(&self, sample_rate_hz: u32, channels: &[Vec<f32>]) -> Result<Spectra<T>> {
+        let c = &self.plan.config;
+        if channels.len() != self.plan.num_mics {
+            return Err(Error::Mismatch(format!(
+                "the audio has {} channels but the transfer functions have {} microphones \
+                 (select channels with --channels)",
+                channels.len(),
+                self.plan.num_mics
+            )));
+        }
+        if sample_rate_hz != c.sample_rate_hz {
+            return Err(Error::Mismatch(format!(
+                "the audio is sampled at {} Hz but the analysis (and transfer functions) at {} Hz",
+                sample_rate_hz, c.sample_rate_hz
+            )));
+        }
+        let len = channels.first().map_or(0, |c| c.len());
+        let need = c.nfft + (c.window.max(1) - 1) * c.hop;
+        if len < need {
+            return Err(Error::TooShort(format!(
+                "the audio has {} samples ({:.3} s); one correlation window of {} frames needs at least {} ({:.3} s)",
+                len,
+                len as f64 / sample_rate_hz as f64,
+                c.window,
+                need,
+                need as f64 / sample_rate_hz as f64
+            )));
+        }
+        self.stft.process(channels)
+    }
+
+    /// Localize planar samples: one result per correlation window.
+    pub fn localize_samples(
+        &mut self,
+        sample_rate_hz: u32,
+        channels: &[Vec<f32>],
+        want_spectrum: bool,
+        progress: &mut dyn FnMut(usize, usize),
+    ) -> Result<Localization> {
+        let spectra = self.spectra(sample_rate_hz, channels)?;
+        self.localize_spectra(&spectra, want_spectrum, progress)
+    }
+
+    /// Localize precomputed spectra (frame 0 of `spectra` is STFT frame 0).
+    pub fn localize_spectra(
+        &mut self,
+        spectra: &Spectra<T>,
+        want_spectrum: bool,
+        progress: &mut dyn FnMut(usize, usize),
+    ) -> Result<Localization> {
+        let c = self.plan.config.clone();
+        let windows = schedule(spectra.num_frames, c.window, c.period, c.window_type);
+        if windows.is_empty() {
+            return Err(Error::TooShort(format!(
+                "{} frames give no complete correlation window of {} frames",
+                spectra.num_frames, c.window
+            )));
+        }
+        self.backend.reset_stage_times();
+        let batch = self.backend.max_windows_per_batch().max(1);
+        let mut results = Vec::with_capacity(windows.len());
+        let mut table = want_spectrum.then(|| SpectrumTable {
+            frames: Vec::new(),
+            times_s: Vec::new(),
+            num_dirs: self.plan.num_dirs,
+            db: Vec::new(),
+            num_bins: self.plan.num_bins(),
+            bin_weight: Vec::new(),
+        });
+        let mut out = BatchOutput::default();
+        for (i, chunk) in windows.chunks(batch).enumerate() {
+            self.backend.process(spectra, chunk, want_spectrum, &mut out)?;
+            for (w, peaks) in chunk.iter().zip(&out.peaks) {
+                results.push(self.result(w, peaks));
+            }
+            if let Some(t) = table.as_mut() {
+                t.db.extend_from_slice(&out.spectrum_db);
+                t.bin_weight.extend_from_slice(&out.bin_weight);
+                for w in chunk {
+                    t.frames.push(w.frame);
+                    t.times_s.push(self.frame_time(w.frame));
+                }
+            }
+            progress((i * batch + chunk.len()).min(windows.len()), windows.len());
+        }
+        Ok(Localization {
+            results,
+            spectrum: table,
+            device: self.backend.device_name(),
+            stage_times: self.backend.stage_times(),
+        })
+    }
+
+    /// Time of STFT frame `frame` in seconds (its first sample).
+    pub fn frame_time(&self, frame: usize) -> f64 {
+        frame as f64 * self.plan.config.hop as f64 / self.plan.config.sample_rate_hz as f64
+    }
+
+    fn result(&self, w: &WindowSpec, peaks: &[crate::backend::Peak]) -> LocalizationResult {
+        LocalizationResult {
+            frame: w.frame,
+            time_s: self.frame_time(w.frame),
+            sources: peaks.iter().map(|p| source(&self.plan.grid, p.dir, p.power_db)).collect(),
+        }
+    }
+}
+
+/// A result source for grid direction `dir`: unit direction vector, azimuth, elevation.
+pub fn source(grid: &crate::array::Grid, dir: usize, power_db: f64) -> Source {
+    let [x, y, z] = grid.unit(dir);
+    Source {
+        id: None,
+        grid_index: dir,
+        azimuth_deg: grid.azimuth_deg(dir),
+        elevation_deg: grid.elevation_deg(dir),
+        x,
+        y,
+        z,
+        power_db,
+    }
+}
+
+/// Estimate K from planar samples: x xᴴ averaged over the complete STFT frames that start
+/// inside `range_s` (seconds; None = all), for the config's used bins, in f64.
+pub fn estimate_noise(
+    config: &LocalizeConfig,
+    sample_rate_hz: u32,
+    channels: &[Vec<f32>],
+    range_s: Option<(f64, f64)>,
+) -> Result<NoiseMatrices> {
+    if sample_rate_hz != config.sample_rate_hz {
+        return Err(Error::Mismatch(format!(
+            "the noise audio is sampled at {} Hz but the analysis runs at {} Hz",
+            sample_rate_hz, config.sample_rate_hz
+        )));
+    }
+    let bins = config.bin_range();
+    let stft = Stft::<f64>::new(config.nfft, config.hop, config.window_function, bins.clone())?;
+    let len = channels.first().map_or(0, |c| c.len());
+    let (s0, s1) = match range_s {
+        None => (0usize, len),
+        Some((a, b)) => {
+            if !(a.is_finite() && b.is_finite()) || a < 0.0 || b <= a {
+                return Err(Error::Config(format!("noise range {a}:{b} s: need 0 <= start < end")));
+            }
+            let fs = sample_rate_hz as f64;
+            let s0 = (a * fs).round() as usize;
+            let s1 = ((b * fs).round() as usize).min(len);
+            if s0 >= len {
+                return Err(Error::TooShort(format!(
+                    "noise range {a}:{b} s starts after the end of the audio ({:.3} s)",
+                    len as f64 / fs
+                )));
+            }
+            (s0, s1)
+        }
+    };
+    let part: Vec<Vec<f32>> = channels.iter().map(|c| c[s0..s1].to_vec()).collect();
+    let nf = stft.num_frames(s1 - s0);
+    if nf == 0 {
+        return Err(Error::TooShort(format!(
+            "the noise segment has {} samples, fewer than one {}-sample frame",
+            s1 - s0,
+            config.nfft
+        )));
+    }
+    let spectra = stft.process(&part)?;
+    NoiseMatrices::from_spectra(&spectra, bins.start, 0..nf)
+}

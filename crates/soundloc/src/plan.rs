@@ -1,1 +1,474 @@
-//! (being written)
+//! Plan once, run cheap: [`Plan`] validates a [`LocalizeConfig`] against the transfer
+//! functions and the noise matrix, and precomputes everything that does not change
+//! between windows:
+//!
+//! - the used bins k ∈ [⌊f_lo·N/fs⌋, ⌊f_hi·N/fs⌋) and the analysis window;
+//! - the steering vectors a_{d,k} of the used bins, laid out `[bin][dir][mic]` so that one
+//!   bin's D × M block feeds a GEMM, and their norms ‖a‖² = Re(aᴴa), `[bin][dir]`;
+//! - the spectrum weights w_k;
+//! - per bin, from K (in f64, once per K): K ← K / max|Re K_ij| (HARK's scaling), then the
+//!   whitening matrix W_k of the algorithm (K⁻¹ for GSVD, L⁻¹ with K = L Lᴴ for GEVD,
+//!   K^{-1/2} for GEVD-HARK), and for GEVD the whitened steering a_w = L⁻¹ a with ‖a_w‖²;
+//! - the peak table (neighbours, azimuth mask, number of peaks out).
+//!
+//! After `Plan::new` a backend's per-batch calls fail only on shape or device errors.
+
+use crate::array::{Grid, TransferFunctions};
+use crate::config::{Algorithm, LocalizeConfig, SpectrumWeight};
+use crate::noise::NoiseMatrices;
+use crate::peaks::PeakTable;
+use crate::real::{Real, C};
+use crate::stft::window_function;
+use crate::{Error, Result};
+use faer::linalg::solvers::DenseSolveCore;
+use faer::{c64, Mat, Side};
+use rayon::prelude::*;
+use std::ops::Range;
+
+/// Noise-dependent precomputation (absent for SEVD).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Whitening<T: Real> {
+    /// W_k per used bin, `[bin][i][j]` row-major M × M.
+    pub matrix: Vec<C<T>>,
+    /// GEVD only: whitened steering a_w = L⁻¹ a, `[bin][dir][mic]` (else empty).
+    pub steering: Vec<C<T>>,
+    /// GEVD only: ‖a_w‖², `[bin][dir]` (else empty).
+    pub steering_norm2: Vec<T>,
+}
+
+/// A validated, precomputed localization plan. Shared (`Arc`) by the engine and a backend.
+#[derive(Debug, Clone)]
+pub struct Plan<T: Real> {
+    /// The configuration it was built from.
+    pub config: LocalizeConfig,
+    /// Number of microphones M.
+    pub num_mics: usize,
+    /// Number of directions D.
+    pub num_dirs: usize,
+    /// Used absolute FFT bins.
+    pub bins: Range<usize>,
+    /// The direction grid.
+    pub grid: Grid,
+    /// Analysis window, N samples.
+    pub window: Vec<T>,
+    /// a_{d,k}, `[bin][dir][mic]`.
+    pub steering: Vec<C<T>>,
+    /// ‖a_{d,k}‖², `[bin][dir]`.
+    pub steering_norm2: Vec<T>,
+    /// Spectrum weight w_k per used bin.
+    pub weights: Vec<T>,
+    /// Whitening for GEVD / GEVD-HARK / GSVD.
+    pub whitening: Option<Whitening<T>>,
+    /// Peak search table.
+    pub peak_table: PeakTable,
+}
+
+impl<T: Real> Plan<T> {
+    /// Validate and precompute. `noise` is K (None = identity) and is ignored by SEVD.
+    pub fn new(
+        config: &LocalizeConfig,
+        tf: &TransferFunctions,
+        noise: Option<&NoiseMatrices>,
+    ) -> Result<Self> {
+        validate_config(config)?;
+        let m = tf.num_mics;
+        let d = tf.num_dirs();
+        if config.num_sources == 0 || config.num_sources >= m {
+            return Err(Error::Config(format!(
+                "num-sources must be between 1 and M-1 = {} for {} microphones, got {}",
+                m.saturating_sub(1),
+                m,
+                config.num_sources
+            )));
+        }
+        if tf.nfft != config.nfft {
+            return Err(Error::Mismatch(format!(
+                "transfer functions are for a {}-point FFT but the analysis uses {} (set --fft-length {})",
+                tf.nfft, config.nfft, tf.nfft
+            )));
+        }
+        if tf.sample_rate_hz != config.sample_rate_hz {
+            return Err(Error::Mismatch(format!(
+                "transfer functions are for {} Hz but the analysis runs at {} Hz",
+                tf.sample_rate_hz, config.sample_rate_hz
+            )));
+        }
+        let bins = config.bin_range();
+        if bins.is_empty() {
+            return Err(Error::Config(format!(
+                "no frequency bin between {} Hz and {} Hz at N = {}, fs = {} Hz",
+                config.lower_freq_hz, config.upper_freq_hz, config.nfft, config.sample_rate_hz
+            )));
+        }
+        if bins.start < tf.first_bin || bins.end > tf.first_bin + tf.num_bins {
+            return Err(Error::Mismatch(format!(
+                "the analysis uses bins {}..{} but the transfer functions hold bins {}..{}",
+                bins.start,
+                bins.end,
+                tf.first_bin,
+                tf.first_bin + tf.num_bins
+            )));
+        }
+        if d == 0 {
+            return Err(Error::Config("the direction grid is empty".into()));
+        }
+        let nb = bins.len();
+        // Steering [bin][dir][mic] and norms.
+        let mut steering = vec![C::new(T::zero(), T::zero()); nb * d * m];
+        let mut norm2 = vec![T::zero(); nb * d];
+        steering
+            .par_chunks_mut(d * m)
+            .zip(norm2.par_chunks_mut(d))
+            .enumerate()
+            .for_each(|(b, (s, n2))| {
+                let bin = bins.start + b;
+                for dir in 0..d {
+                    let mut acc = 0.0f64;
+                    for mic in 0..m {
+                        let a = tf.get(dir, mic, bin);
+                        acc += (a.re as f64).powi(2) + (a.im as f64).powi(2);
+                        s[dir * m + mic] = C::new(T::of_f64(a.re as f64), T::of_f64(a.im as f64));
+                    }
+                    n2[dir] = T::of_f64(acc);
+                }
+            });
+        if steering.iter().any(|z| !(z.re.is_finite() && z.im.is_finite())) {
+            return Err(Error::Numerical {
+                stage: "plan",
+                message: "transfer functions contain non-finite values".into(),
+            });
+        }
+        if let Some(dir) = (0..d).find(|&dir| (0..nb).all(|b| norm2[b * d + dir] == T::zero())) {
+            return Err(Error::Numerical {
+                stage: "plan",
+                message: format!("transfer function of direction {dir} is zero in every used bin"),
+            });
+        }
+        let weights = spectrum_weights::<T>(config, &bins)?;
+        let whitening = if config.algorithm.uses_noise() {
+            let identity;
+            let k = match noise {
+                Some(k) => k,
+                None => {
+                    identity = NoiseMatrices::identity(m, bins.clone());
+                    &identity
+                }
+            };
+            Some(whitening(config, k, &bins, m, d, &steering)?)
+        } else {
+            None
+        };
+        let peak_table = PeakTable::new(&tf.grid, config)?;
+        Ok(Plan {
+            config: config.clone(),
+            num_mics: m,
+            num_dirs: d,
+            bins,
+            grid: tf.grid.clone(),
+            window: window_function::<T>(config.window_function, config.nfft),
+            steering,
+            steering_norm2: norm2,
+            weights,
+            whitening,
+            peak_table,
+        })
+    }
+
+    /// The same plan with a new noise matrix K (online K updates: iGSVD / iGEVD).
+    pub fn with_noise(&self, noise: &NoiseMatrices) -> Result<Self> {
+        let mut p = self.clone();
+        if self.config.algorithm.uses_noise() {
+            p.whitening = Some(whitening(
+                &self.config,
+                noise,
+                &self.bins,
+                self.num_mics,
+                self.num_dirs,
+                &self.steering,
+            )?);
+        }
+        Ok(p)
+    }
+
+    /// Number of used bins.
+    pub fn num_bins(&self) -> usize {
+        self.bins.len()
+    }
+
+    /// The steering vectors and norms the spectrum's denominator uses: the whitened ones
+    /// for the textbook GEVD, the raw ones otherwise. `[bin][dir][mic]`, `[bin][dir]`.
+    pub fn denominator_steering(&self) -> (&[C<T>], &[T]) {
+        match (&self.whitening, self.config.algorithm) {
+            (Some(w), Algorithm::Gevd) => (&w.steering, &w.steering_norm2),
+            _ => (&self.steering, &self.steering_norm2),
+        }
+    }
+
+    /// W_k of used bin `b` (row-major M × M), for the noise-aware algorithms.
+    pub fn whitening_matrix(&self, b: usize) -> Option<&[C<T>]> {
+        let mm = self.num_mics * self.num_mics;
+        self.whitening.as_ref().map(|w| &w.matrix[b * mm..(b + 1) * mm])
+    }
+
+    /// Centre frequency of used bin `b` in Hz.
+    pub fn bin_hz(&self, b: usize) -> f64 {
+        (self.bins.start + b) as f64 * self.config.sample_rate_hz as f64 / self.config.nfft as f64
+    }
+}
+
+fn validate_config(c: &LocalizeConfig) -> Result<()> {
+    let bad = |m: String| Err(Error::Config(m));
+    if c.nfft < 4 {
+        return bad(format!("fft length must be at least 4, got {}", c.nfft));
+    }
+    if c.hop == 0 {
+        return bad("hop must be at least 1 sample".into());
+    }
+    if c.window == 0 {
+        return bad("window (frames per correlation) must be at least 1".into());
+    }
+    if c.period == 0 {
+        return bad("period must be at least 1 frame".into());
+    }
+    if c.sample_rate_hz == 0 {
+        return bad("sample rate must be positive".into());
+    }
+    if !(c.lower_freq_hz.is_finite() && c.upper_freq_hz.is_finite())
+        || c.lower_freq_hz < 0.0
+        || c.upper_freq_hz <= c.lower_freq_hz
+    {
+        return bad(format!(
+            "frequency range must satisfy 0 <= lower < upper, got {} .. {} Hz",
+            c.lower_freq_hz, c.upper_freq_hz
+        ));
+    }
+    if !(c.min_deg.is_finite() && c.max_deg.is_finite()) || c.min_deg > c.max_deg {
+        return bad(format!(
+            "azimuth range must satisfy min-deg <= max-deg, got {} .. {}",
+            c.min_deg, c.max_deg
+        ));
+    }
+    if !(c.diagonal_loading >= 0.0 && c.diagonal_loading.is_finite()) {
+        return bad(format!(
+            "diagonal loading must be >= 0, got {}",
+            c.diagonal_loading
+        ));
+    }
+    Ok(())
+}
+
+/// w_k per used bin.
+fn spectrum_weights<T: Real>(c: &LocalizeConfig, bins: &Range<usize>) -> Result<Vec<T>> {
+    let hz = |k: usize| k as f64 * c.sample_rate_hz as f64 / c.nfft as f64;
+    Ok(match &c.spectrum_weight {
+        SpectrumWeight::Uniform => vec![T::one(); bins.len()],
+        SpectrumWeight::AWeighting => bins.clone().map(|k| T::of_f64(a_weighting_gain(hz(k)))).collect(),
+        SpectrumWeight::Manual(w) => {
+            if w.len() != bins.len() {
+                return Err(Error::Config(format!(
+                    "manual spectrum weights: {} values given, {} bins used ({}..{})",
+                    w.len(),
+                    bins.len(),
+                    bins.start,
+                    bins.end
+                )));
+            }
+            if let Some(i) = w.iter().position(|x| !x.is_finite() || *x < 0.0) {
+                return Err(Error::Config(format!(
+                    "manual spectrum weight {i} is {}, must be finite and >= 0",
+                    w[i]
+                )));
+            }
+            w.iter().map(|&x| T::of_f64(x)).collect()
+        }
+    })
+}
+
+/// A-weighting (IEC 61672) as a linear amplitude gain at `f` Hz: 10^(A(f)/20) with
+/// A(f) = 20·log10(R_A(f)) + 2.00 dB.
+pub fn a_weighting_gain(f: f64) -> f64 {
+    let f2 = f * f;
+    let ra = 12194.0f64.powi(2) * f2 * f2
+        / ((f2 + 20.6f64.powi(2))
+            * ((f2 + 107.7f64.powi(2)) * (f2 + 737.9f64.powi(2))).sqrt()
+            * (f2 + 12194.0f64.powi(2)));
+    if ra <= 0.0 {
+        return 0.0;
+    }
+    10f64.powf((20.0 * ra.log10() + 2.0) / 20.0)
+}
+
+fn whitening<T: Real>(
+    config: &LocalizeConfig,
+    noise: &NoiseMatrices,
+    bins: &Range<usize>,
+    m: usize,
+    d: usize,
+    steering: &[C<T>],
+) -> Result<Whitening<T>> {
+    if noise.num_mics != m {
+        return Err(Error::Mismatch(format!(
+            "noise correlation matrix has {} channels, the transfer functions {}",
+            noise.num_mics, m
+        )));
+    }
+    if bins.start < noise.first_bin || bins.end > noise.first_bin + noise.num_bins {
+        return Err(Error::Mismatch(format!(
+            "noise correlation matrix holds bins {}..{}, the analysis uses {}..{}",
+            noise.first_bin,
+            noise.first_bin + noise.num_bins,
+            bins.start,
+            bins.end
+        )));
+    }
+    let alg = config.algorithm;
+    let nb = bins.len();
+    let per_bin: Vec<Result<(Vec<C<T>>, Vec<C<T>>, Vec<T>)>> = (0..nb)
+        .into_par_iter()
+        .map(|b| {
+            let bin = bins.start + b;
+            let hz = bin as f64 * config.sample_rate_hz as f64 / config.nfft as f64;
+            // Every bin in range is held (checked above).
+            let kraw = noise.bin(bin).unwrap_or(&[]);
+            bin_whitening::<T>(alg, kraw, m, d, config.diagonal_loading, &steering[b * d * m..(b + 1) * d * m])
+                .map_err(|msg| {
+                    Error::numerical(
+                        "noise",
+                        format!("noise correlation matrix K at bin {bin} ({hz:.0} Hz): {msg}"),
+                    )
+                })
+        })
+        .collect();
+    let mut w = Whitening {
+        matrix: Vec::with_capacity(nb * m * m),
+        steering: Vec::new(),
+        steering_norm2: Vec::new(),
+    };
+    for r in per_bin {
+        let (mat, st, n2) = r?;
+        w.matrix.extend(mat);
+        w.steering.extend(st);
+        w.steering_norm2.extend(n2);
+    }
+    Ok(w)
+}
+
+type BinWhitening<T> = (Vec<C<T>>, Vec<C<T>>, Vec<T>);
+
+/// One bin: scale K, factor it, and build W (and the whitened steering for GEVD).
+fn bin_whitening<T: Real>(
+    alg: Algorithm,
+    kraw: &[c64],
+    m: usize,
+    d: usize,
+    loading: f64,
+    steering: &[C<T>],
+) -> std::result::Result<BinWhitening<T>, String> {
+    if kraw.len() != m * m {
+        return Err("missing".into());
+    }
+    if kraw.iter().any(|z| !(z.re.is_finite() && z.im.is_finite())) {
+        return Err("contains non-finite values".into());
+    }
+    let mut k = Mat::<c64>::from_fn(m, m, |i, j| (kraw[i * m + j] + kraw[j * m + i].conj()) * 0.5);
+    if loading > 0.0 {
+        let mean_diag = (0..m).map(|i| k[(i, i)].re).sum::<f64>() / m as f64;
+        for i in 0..m {
+            k[(i, i)].re += loading * mean_diag;
+        }
+    }
+    // HARK's scaling for GEVD/GSVD: K ← K / max_ij |Re K_ij|.
+    let mut mx = 0.0f64;
+    for j in 0..m {
+        for i in 0..m {
+            mx = mx.max(k[(i, j)].re.abs());
+        }
+    }
+    if mx <= 0.0 {
+        return Err("is zero (silent noise recording?)".into());
+    }
+    for j in 0..m {
+        for i in 0..m {
+            k[(i, j)] /= mx;
+        }
+    }
+    let llt = k.llt(Side::Lower).map_err(|_| {
+        "is not positive definite (too few noise frames for the channel count, or a silent or duplicated channel); \
+         give more noise frames or use diagonal loading"
+            .to_string()
+    })?;
+    let to_t = |z: c64| C::new(T::of_f64(z.re), T::of_f64(z.im));
+    let row_major = |w: &Mat<c64>| -> Vec<C<T>> {
+        let mut v = Vec::with_capacity(m * m);
+        for i in 0..m {
+            for j in 0..m {
+                v.push(to_t(w[(i, j)]));
+            }
+        }
+        v
+    };
+    match alg {
+        Algorithm::Sevd => Ok((Vec::new(), Vec::new(), Vec::new())),
+        Algorithm::Gsvd => {
+            let kinv = llt.inverse();
+            Ok((row_major(&kinv), Vec::new(), Vec::new()))
+        }
+        Algorithm::GevdHark => {
+            let kinv = llt.inverse();
+            let kinv = Mat::<c64>::from_fn(m, m, |i, j| (kinv[(i, j)] + kinv[(j, i)].conj()) * 0.5);
+            let evd = kinv
+                .self_adjoint_eigen(Side::Lower)
+                .map_err(|e| format!("eigendecomposition of K⁻¹ failed: {e:?}"))?;
+            let (v, s) = (evd.U(), evd.S());
+            let sl: Vec<f64> = (0..m)
+                .map(|i| {
+                    let l = s[i].re;
+                    if l >= 0.0 {
+                        l.sqrt()
+                    } else {
+                        -(-l).sqrt()
+                    }
+                })
+                .collect();
+            let w = Mat::<c64>::from_fn(m, m, |i, j| {
+                let mut acc = c64::new(0.0, 0.0);
+                for t in 0..m {
+                    acc += v[(i, t)] * sl[t] * v[(j, t)].conj();
+                }
+                acc
+            });
+            Ok((row_major(&w), Vec::new(), Vec::new()))
+        }
+        Algorithm::Gevd => {
+            let l = llt.L();
+            let mut linv = Mat::<c64>::zeros(m, m);
+            faer::linalg::triangular_inverse::invert_lower_triangular(linv.as_mut(), l, faer::Par::Seq);
+            // Whitened steering a_w = L⁻¹ a for every direction.
+            let a = Mat::<c64>::from_fn(m, d, |i, dir| {
+                let z = steering[dir * m + i];
+                c64::new(z.re.to_f64(), z.im.to_f64())
+            });
+            let mut aw = Mat::<c64>::zeros(m, d);
+            faer::linalg::matmul::matmul(
+                aw.as_mut(),
+                faer::Accum::Replace,
+                linv.as_ref(),
+                a.as_ref(),
+                c64::new(1.0, 0.0),
+                faer::Par::Seq,
+            );
+            let mut st = Vec::with_capacity(d * m);
+            let mut n2 = Vec::with_capacity(d);
+            for dir in 0..d {
+                let mut acc = 0.0;
+                for i in 0..m {
+                    let z = aw[(i, dir)];
+                    acc += z.re * z.re + z.im * z.im;
+                    st.push(to_t(z));
+                }
+                n2.push(T::of_f64(acc));
+            }
+            Ok((row_major(&linv), st, n2))
+        }
+    }
+}

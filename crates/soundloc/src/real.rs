@@ -2,7 +2,7 @@
 //!
 //! [`Real`] is sealed and implemented for `f32` (the default, as HARK computes) and `f64`
 //! (the reference path that verifies it). Write numeric code once as `fn f<T: Real>`; take
-//! literals through [`Real::from_f64`].
+//! literals through [`Real::of_f64`].
 
 use num_complex::Complex;
 
@@ -18,7 +18,7 @@ pub type C<T> = Complex<T>;
 /// `f32` or `f64`, with everything faer, realfft and the backends need.
 pub trait Real:
     sealed::Sealed
-    + faer::traits::RealField
+    + faer::traits::RealField<Unit: faer::traits::ComplexField>
     + realfft::FftNum
     + num_traits::Float
     + num_traits::FloatConst
@@ -38,7 +38,7 @@ pub trait Real:
     /// Machine epsilon.
     const EPS: f64;
     /// Convert from `f64` (rounding for `f32`).
-    fn from_f64(x: f64) -> Self;
+    fn of_f64(x: f64) -> Self;
     /// Widen to `f64`.
     fn to_f64(self) -> f64;
 }
@@ -47,7 +47,7 @@ impl Real for f32 {
     const NAME: &'static str = "f32";
     const EPS: f64 = f32::EPSILON as f64;
     #[inline(always)]
-    fn from_f64(x: f64) -> Self {
+    fn of_f64(x: f64) -> Self {
         x as f32
     }
     #[inline(always)]
@@ -60,7 +60,7 @@ impl Real for f64 {
     const NAME: &'static str = "f64";
     const EPS: f64 = f64::EPSILON;
     #[inline(always)]
-    fn from_f64(x: f64) -> Self {
+    fn of_f64(x: f64) -> Self {
         x
     }
     #[inline(always)]

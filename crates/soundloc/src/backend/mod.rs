@@ -1,1 +1,139 @@
-//! Compute backends.
+//! Compute backends: the CPU (faer + rayon) and CUDA behind one batch interface.
+//!
+//! The engine ([`crate::engine`]) owns stage order, batching, peaks-to-results, tracking
+//! and outputs; a backend owns *where* the numeric stages run. Every call covers a batch of
+//! correlation windows, never one bin or one direction:
+//!
+//! ```text
+//! Spectra [frame][bin][mic] ──► correlate R_k per window ──► decompose (SEVD/GEVD/GSVD)
+//!      ──► MUSIC spectrum P̄(d) ──► dB ──► local maxima ──► BatchOutput (peaks, dB spectrum)
+//! ```
+//!
+//! Only plain data crosses this seam: [`Spectra`], [`WindowSpec`], [`BatchOutput`]. A
+//! backend is built from an `Arc<Plan<T>>` (everything precomputed once: steering vectors,
+//! their norms, whitening matrices, weights, the peak table) and keeps its own scratch or
+//! device buffers.
+
+pub mod cpu;
+pub mod cuda;
+
+use crate::plan::Plan;
+use crate::real::{Real, C};
+use crate::Result;
+use std::sync::Arc;
+
+/// Which compute device to use.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum DeviceChoice {
+    /// CUDA when a usable GPU and the CUDA libraries are present, else the CPU.
+    #[default]
+    Auto,
+    /// The CPU (faer + rayon).
+    Cpu,
+    /// CUDA device 0 (an error when unavailable).
+    Cuda,
+}
+
+/// STFT frames of the used bins, laid out `[frame][bin][mic]` (row-major): frame f, used
+/// bin index b (absolute bin = `plan.bins.start + b`), microphone m at
+/// `data[(f * num_bins + b) * num_mics + m]`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Spectra<T: Real> {
+    /// Number of frames.
+    pub num_frames: usize,
+    /// Number of used bins.
+    pub num_bins: usize,
+    /// Number of microphones.
+    pub num_mics: usize,
+    /// The frames.
+    pub data: Vec<C<T>>,
+}
+
+impl<T: Real> Spectra<T> {
+    /// Zeroed spectra of the given shape.
+    pub fn zeros(num_frames: usize, num_bins: usize, num_mics: usize) -> Self {
+        Spectra {
+            num_frames,
+            num_bins,
+            num_mics,
+            data: vec![C::new(T::zero(), T::zero()); num_frames * num_bins * num_mics],
+        }
+    }
+    /// x_{f,b} (length `num_mics`).
+    #[inline]
+    pub fn frame_bin(&self, frame: usize, bin: usize) -> &[C<T>] {
+        let o = (frame * self.num_bins + bin) * self.num_mics;
+        &self.data[o..o + self.num_mics]
+    }
+}
+
+/// One correlation window: frames `start .. start + len` of a [`Spectra`], producing the
+/// result for frame `frame` (the result frame c of [`crate::correlation`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+pub struct WindowSpec {
+    /// Result frame c (absolute STFT frame index).
+    pub frame: usize,
+    /// First frame of the window, as an index into the `Spectra` passed with it.
+    pub start: usize,
+    /// Number of frames W.
+    pub len: usize,
+}
+
+/// A local maximum of the broadband spectrum.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct Peak {
+    /// Grid index of the direction.
+    pub dir: usize,
+    /// 10·log10(P̄ + 1) in dB.
+    pub power_db: f64,
+}
+
+/// What a batch produces.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct BatchOutput {
+    /// Peaks per window, strongest first, after the azimuth filter and the top-N cut.
+    pub peaks: Vec<Vec<Peak>>,
+    /// dB spectrum `[window][dir]`, filled only when asked for (else empty).
+    pub spectrum_db: Vec<f32>,
+    /// √(largest eigen/singular value) per window and used bin `[window][bin]` (the
+    /// eigenvalue weight g_k), filled only with the spectrum.
+    pub bin_weight: Vec<f32>,
+}
+
+/// Wall time spent per stage, in milliseconds, summed over calls since the last reset.
+#[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize)]
+pub struct StageTimes {
+    /// Correlation matrices and scaling.
+    pub correlation_ms: f64,
+    /// Whitening and decomposition.
+    pub decomposition_ms: f64,
+    /// MUSIC spectrum, bin sum, dB.
+    pub spectrum_ms: f64,
+    /// Peak search and transfer of results.
+    pub peaks_ms: f64,
+}
+
+/// A compute device that runs the numeric stages on batches of windows.
+pub trait Backend<T: Real>: Send {
+    /// Human-readable device description, e.g. `cpu (2 threads)` or `cuda:0 NVIDIA H200`.
+    fn device_name(&self) -> String;
+    /// Largest number of windows one `process` call accepts.
+    fn max_windows_per_batch(&self) -> usize;
+    /// Run correlation → decomposition → spectrum → peaks for `windows` over `spectra`.
+    /// `out` is overwritten.
+    fn process(
+        &mut self,
+        spectra: &Spectra<T>,
+        windows: &[WindowSpec],
+        want_spectrum: bool,
+        out: &mut BatchOutput,
+    ) -> Result<()>;
+    /// Replace the plan (e.g. after the noise matrix K changed online); the shapes (mics,
+    /// bins, directions) must be unchanged.
+    fn set_plan(&mut self, plan: Arc<Plan<T>>) -> Result<()>;
+    /// Stage times accumulated since the last `reset_stage_times`.
+    fn stage_times(&self) -> StageTimes;
+    /// Zero the stage times.
+    fn reset_stage_times(&mut self);
+}

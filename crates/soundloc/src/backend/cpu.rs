@@ -1,0 +1,168 @@
+//! The CPU backend: faer for the per-bin decompositions and products, rayon across
+//! (window, bin) pairs — never inside faer (`Par::Seq`), so small 60 × 60 problems do not
+//! pay for nested threading.
+//!
+//! Each batch runs the stages one after another over all (window, bin) pairs, which keeps
+//! every core busy even for a single window (73 bins) and gives exact stage times.
+
+use super::{Backend, BatchOutput, Spectra, StageTimes, WindowSpec};
+use crate::correlation::correlate;
+use crate::music::{accumulate_bin, bin_gain, to_db, SpectrumScratch};
+use crate::peaks::find_peaks;
+use crate::plan::Plan;
+use crate::real::{Real, C};
+use crate::subspace::{decompose, Decomposition, Workspace};
+use crate::{Error, Result};
+use rayon::prelude::*;
+use std::sync::Arc;
+use std::time::Instant;
+
+/// Runs the pipeline's numeric stages on the CPU.
+pub struct CpuBackend<T: Real> {
+    plan: Arc<Plan<T>>,
+    times: StageTimes,
+    r: Vec<C<T>>,
+    decs: Vec<Decomposition<T>>,
+}
+
+impl<T: Real> CpuBackend<T> {
+    /// A CPU backend for `plan`, using rayon's global pool.
+    pub fn new(plan: Arc<Plan<T>>) -> Self {
+        CpuBackend {
+            plan,
+            times: StageTimes::default(),
+            r: Vec::new(),
+            decs: Vec::new(),
+        }
+    }
+}
+
+fn ms(t: Instant) -> f64 {
+    t.elapsed().as_secs_f64() * 1e3
+}
+
+impl<T: Real> Backend<T> for CpuBackend<T> {
+    fn device_name(&self) -> String {
+        format!("cpu ({} threads, {})", rayon::current_num_threads(), T::NAME)
+    }
+
+    fn max_windows_per_batch(&self) -> usize {
+        16
+    }
+
+    fn process(
+        &mut self,
+        spectra: &Spectra<T>,
+        windows: &[WindowSpec],
+        want_spectrum: bool,
+        out: &mut BatchOutput,
+    ) -> Result<()> {
+        let plan = &*self.plan;
+        let (m, nb, d) = (plan.num_mics, plan.num_bins(), plan.num_dirs);
+        if spectra.num_mics != m || spectra.num_bins != nb {
+            return Err(Error::Mismatch(format!(
+                "cpu backend: spectra have {} mics × {} bins, plan expects {} × {}",
+                spectra.num_mics, spectra.num_bins, m, nb
+            )));
+        }
+        if let Some(w) = windows.iter().find(|w| w.start + w.len > spectra.num_frames || w.len == 0) {
+            return Err(Error::Mismatch(format!(
+                "cpu backend: window {}..{} outside the {} frames given",
+                w.start,
+                w.start + w.len,
+                spectra.num_frames
+            )));
+        }
+        let nw = windows.len();
+        let mm = m * m;
+        // 1. Correlation matrices, [window][bin][M×M].
+        let t = Instant::now();
+        self.r.resize(nw * nb * mm, C::new(T::zero(), T::zero()));
+        self.r.par_chunks_mut(mm).enumerate().for_each(|(i, r)| {
+            correlate(spectra, &windows[i / nb], i % nb, r);
+        });
+        self.times.correlation_ms += ms(t);
+
+        // 2. Decompositions, [window][bin].
+        let t = Instant::now();
+        self.decs.resize_with(nw * nb, || Decomposition::new(m));
+        let r = &self.r;
+        let alg = plan.config.algorithm;
+        self.decs
+            .par_iter_mut()
+            .enumerate()
+            .try_for_each_init(
+                || Workspace::new(m),
+                |ws, (i, dec)| decompose(alg, &r[i * mm..(i + 1) * mm], plan.whitening_matrix(i % nb), ws, dec),
+            )?;
+        self.times.decomposition_ms += ms(t);
+
+        // 3. Broadband spectrum per window: Σ_k w_k g_k P_k(d), then dB.
+        let t = Instant::now();
+        let decs = &self.decs;
+        let spectra_lin: Vec<Vec<T>> = (0..nw)
+            .into_par_iter()
+            .map(|w| {
+                (0..nb)
+                    .into_par_iter()
+                    .fold(
+                        || (vec![T::zero(); d], SpectrumScratch::new(plan)),
+                        |(mut acc, mut sc), b| {
+                            accumulate_bin(plan, b, &decs[w * nb + b], &mut sc, &mut acc);
+                            (acc, sc)
+                        },
+                    )
+                    .map(|(acc, _)| acc)
+                    .reduce(
+                        || vec![T::zero(); d],
+                        |mut a, b| {
+                            for (x, y) in a.iter_mut().zip(&b) {
+                                *x += *y;
+                            }
+                            a
+                        },
+                    )
+            })
+            .collect();
+        let db: Vec<Vec<f64>> = spectra_lin
+            .par_iter()
+            .map(|p| p.iter().map(|&v| to_db(v)).collect())
+            .collect();
+        self.times.spectrum_ms += ms(t);
+
+        // 4. Peaks.
+        let t = Instant::now();
+        out.peaks = db.iter().map(|s| find_peaks(s, &plan.peak_table)).collect();
+        out.spectrum_db.clear();
+        out.bin_weight.clear();
+        if want_spectrum {
+            for s in &db {
+                out.spectrum_db.extend(s.iter().map(|&v| v as f32));
+            }
+            for dec in decs.iter().take(nw * nb) {
+                out.bin_weight.push(bin_gain(plan, dec).to_f64() as f32);
+            }
+        }
+        self.times.peaks_ms += ms(t);
+        Ok(())
+    }
+
+    fn set_plan(&mut self, plan: Arc<Plan<T>>) -> Result<()> {
+        if plan.num_mics != self.plan.num_mics
+            || plan.num_bins() != self.plan.num_bins()
+            || plan.num_dirs != self.plan.num_dirs
+        {
+            return Err(Error::Mismatch("cpu backend: a new plan must keep mics, bins and directions".into()));
+        }
+        self.plan = plan;
+        Ok(())
+    }
+
+    fn stage_times(&self) -> StageTimes {
+        self.times
+    }
+
+    fn reset_stage_times(&mut self) {
+        self.times = StageTimes::default();
+    }
+}
