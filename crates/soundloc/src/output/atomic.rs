@@ -1,1 +1,221 @@
-//! (being written)
+//! Atomic file replacement: nothing half-written is ever left at the target path.
+//!
+//! [`AtomicFile::create`] opens a new, uniquely named hidden temporary file in the target's
+//! own directory (so the final rename never crosses file systems). Writes go to it;
+//! [`AtomicFile::commit`] flushes, syncs and renames it over the target in one step. An
+//! `AtomicFile` dropped without `commit` (an error, a panic, an early return) deletes its
+//! temporary file, and the target keeps its previous content, or stays absent.
+//!
+//! Every writer in [`crate::output`] and [`crate::audio::Audio::write_wav`] goes through it.
+
+use crate::{Error, Result};
+use std::fs::{File, OpenOptions};
+use std::io::{self, BufWriter, Seek, SeekFrom, Write};
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicU64, Ordering};
+
+static COUNTER: AtomicU64 = AtomicU64::new(0);
+
+/// A file being written that appears at its target path only on [`commit`](Self::commit).
+///
+/// Implements [`Write`] and [`Seek`] (buffered), so it can be handed to any writer,
+/// including `hound::WavWriter`.
+#[derive(Debug)]
+pub struct AtomicFile {
+    target: PathBuf,
+    temp: PathBuf,
+    file: Option<BufWriter<File>>,
+}
+
+impl AtomicFile {
+    /// Start writing `path`: creates `.<name>.<pid>-<n>.tmp` next to it.
+    pub fn create(path: impl AsRef<Path>) -> Result<Self> {
+        Self::create_with_suffix(path, "")
+    }
+
+    /// Like [`create`](Self::create), with `suffix` appended to the temporary file's name
+    /// (e.g. `".png"` for a library that picks the format from the extension).
+    pub fn create_with_suffix(path: impl AsRef<Path>, suffix: &str) -> Result<Self> {
+        let target = path.as_ref().to_path_buf();
+        let name = target.file_name().ok_or_else(|| {
+            Error::io(
+                &target,
+                io::Error::new(io::ErrorKind::InvalidInput, "not a file path"),
+            )
+        })?;
+        let dir = match target.parent() {
+            Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+            _ => PathBuf::from("."),
+        };
+        let pid = std::process::id();
+        // A few attempts in case a stale temporary file with the same name exists.
+        let mut last_err = None;
+        for _ in 0..16 {
+            let n = COUNTER.fetch_add(1, Ordering::Relaxed);
+            let mut temp_name = std::ffi::OsString::from(".");
+            temp_name.push(name);
+            temp_name.push(format!(".{pid}-{n}.tmp{suffix}"));
+            let temp = dir.join(temp_name);
+            match OpenOptions::new().write(true).create_new(true).open(&temp) {
+                Ok(f) => {
+                    return Ok(AtomicFile {
+                        target,
+                        temp,
+                        file: Some(BufWriter::new(f)),
+                    })
+                }
+                Err(e) if e.kind() == io::ErrorKind::AlreadyExists => last_err = Some(e),
+                Err(e) => return Err(Error::io(&target, e)),
+            }
+        }
+        Err(Error::io(
+            &target,
+            last_err.unwrap_or_else(|| io::Error::other("cannot create a temporary file")),
+        ))
+    }
+
+    /// The path the file will have after `commit`.
+    pub fn target(&self) -> &Path {
+        &self.target
+    }
+
+    /// The temporary file's path (for libraries that insist on writing by path; whatever
+    /// they write there is what `commit` moves into place).
+    pub fn temp_path(&self) -> &Path {
+        &self.temp
+    }
+
+    /// Flush, sync to disk and rename over the target.
+    pub fn commit(mut self) -> Result<()> {
+        if let Some(w) = self.file.take() {
+            let f = w
+                .into_inner()
+                .map_err(|e| Error::io(&self.target, e.into_error()))?;
+            f.sync_all().map_err(|e| Error::io(&self.target, e))?;
+        }
+        std::fs::rename(&self.temp, &self.target).map_err(|e| Error::io(&self.target, e))?;
+        // Renamed: nothing left to clean up.
+        self.temp = PathBuf::new();
+        Ok(())
+    }
+
+    fn inner(&mut self) -> io::Result<&mut BufWriter<File>> {
+        self.file
+            .as_mut()
+            .ok_or_else(|| io::Error::other("atomic file already closed"))
+    }
+}
+
+impl Write for AtomicFile {
+    fn write(&mut self, buf: &[u8]) -> io::Result<usize> {
+        self.inner()?.write(buf)
+    }
+    fn write_all(&mut self, buf: &[u8]) -> io::Result<()> {
+        self.inner()?.write_all(buf)
+    }
+    fn flush(&mut self) -> io::Result<()> {
+        self.inner()?.flush()
+    }
+}
+
+impl Seek for AtomicFile {
+    fn seek(&mut self, pos: SeekFrom) -> io::Result<u64> {
+        self.inner()?.seek(pos)
+    }
+}
+
+impl Drop for AtomicFile {
+    fn drop(&mut self) {
+        drop(self.file.take());
+        if !self.temp.as_os_str().is_empty() {
+            let _ = std::fs::remove_file(&self.temp);
+        }
+    }
+}
+
+/// Write `path` atomically with `f`, which receives the open temporary file.
+pub fn write_atomically<F>(path: impl AsRef<Path>, f: F) -> Result<()>
+where
+    F: FnOnce(&mut AtomicFile) -> io::Result<()>,
+{
+    let mut file = AtomicFile::create(path)?;
+    if let Err(e) = f(&mut file) {
+        return Err(Error::io(file.target().to_path_buf(), e));
+    }
+    file.commit()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    pub(crate) fn temp_dir(tag: &str) -> PathBuf {
+        let n = COUNTER.fetch_add(1, Ordering::Relaxed);
+        let d =
+            std::env::temp_dir().join(format!("soundloc-atomic-{tag}-{}-{n}", std::process::id()));
+        std::fs::create_dir_all(&d).unwrap();
+        d
+    }
+
+    fn entries(dir: &Path) -> Vec<String> {
+        let mut v: Vec<String> = std::fs::read_dir(dir)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect();
+        v.sort();
+        v
+    }
+
+    #[test]
+    fn commit_places_file_and_leaves_no_temp() {
+        let d = temp_dir("commit");
+        let target = d.join("out.txt");
+        let mut f = AtomicFile::create(&target).unwrap();
+        f.write_all(b"hello").unwrap();
+        assert!(!target.exists(), "target must not appear before commit");
+        f.commit().unwrap();
+        assert_eq!(std::fs::read(&target).unwrap(), b"hello");
+        assert_eq!(entries(&d), vec!["out.txt".to_string()]);
+        std::fs::remove_dir_all(&d).unwrap();
+    }
+
+    #[test]
+    fn drop_without_commit_keeps_old_content() {
+        let d = temp_dir("drop");
+        let target = d.join("out.txt");
+        std::fs::write(&target, b"old").unwrap();
+        {
+            let mut f = AtomicFile::create(&target).unwrap();
+            f.write_all(b"new but abandoned").unwrap();
+        }
+        assert_eq!(std::fs::read(&target).unwrap(), b"old");
+        assert_eq!(entries(&d), vec!["out.txt".to_string()]);
+        // A failing closure leaves nothing either.
+        let r = write_atomically(d.join("x.bin"), |w| {
+            w.write_all(b"partial")?;
+            Err(io::Error::other("boom"))
+        });
+        assert!(r.is_err());
+        assert_eq!(entries(&d), vec!["out.txt".to_string()]);
+        std::fs::remove_dir_all(&d).unwrap();
+    }
+
+    #[test]
+    fn replaces_existing_and_suffix_is_kept() {
+        let d = temp_dir("suffix");
+        let target = d.join("plot.dat");
+        std::fs::write(&target, b"old").unwrap();
+        let f = AtomicFile::create_with_suffix(&target, ".png").unwrap();
+        assert!(f.temp_path().to_string_lossy().ends_with(".png"));
+        std::fs::write(f.temp_path(), b"by path").unwrap();
+        f.commit().unwrap();
+        assert_eq!(std::fs::read(&target).unwrap(), b"by path");
+        std::fs::remove_dir_all(&d).unwrap();
+    }
+
+    #[test]
+    fn missing_directory_is_an_error_naming_the_file() {
+        let e = AtomicFile::create("/nonexistent-dir-soundloc/x.txt").unwrap_err();
+        assert!(e.to_string().contains("x.txt"), "{e}");
+    }
+}
