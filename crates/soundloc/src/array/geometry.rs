@@ -1,4 +1,27 @@
 //! Microphone positions in metres.
+//!
+//! A geometry file is TOML, positions in metres in channel order, either
+//!
+//! ```toml
+//! mics = [[0.0365, 0.0, 0.0], [0.0258, 0.0258, 0.0]]
+//! ```
+//!
+//! or one table per microphone:
+//!
+//! ```toml
+//! [[mic]]
+//! x = 0.0365
+//! y = 0.0
+//! z = 0.0       # optional, default 0
+//! ```
+//!
+//! Built-in shapes: [`Geometry::circle`] puts mic i at
+//! (r cos 2πi/n, r sin 2πi/n, z) — the TAMAGO-03 array is `circle(8, 0.0365, 0.0)`;
+//! [`Geometry::sphere`] spreads n mics near-uniformly over a sphere (Fibonacci lattice).
+//! Non-finite or duplicate positions (closer than 1 µm) are errors.
+
+use crate::{Error, Result};
+use std::path::Path;
 
 /// Microphone positions, one `[x, y, z]` in metres per channel, in channel order.
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -7,9 +30,269 @@ pub struct Geometry {
     pub mics: Vec<[f64; 3]>,
 }
 
+/// Two microphones closer than this (metres) are "the same position".
+pub const DUPLICATE_TOLERANCE_M: f64 = 1e-6;
+
 impl Geometry {
     /// Number of microphones.
     pub fn num_mics(&self) -> usize {
         self.mics.len()
+    }
+
+    /// A geometry from positions, checked like a file (finite, no duplicates, at least
+    /// one microphone). `what` names the source in error messages.
+    pub fn new(mics: Vec<[f64; 3]>, what: &Path) -> Result<Self> {
+        let g = Geometry { mics };
+        g.validate(what)?;
+        Ok(g)
+    }
+
+    /// Check positions: at least one mic, all finite, no two closer than 1 µm.
+    pub fn validate(&self, what: &Path) -> Result<()> {
+        if self.mics.is_empty() {
+            return Err(Error::format(what, "no microphones"));
+        }
+        for (i, p) in self.mics.iter().enumerate() {
+            if p.iter().any(|v| !v.is_finite()) {
+                return Err(Error::format(
+                    what,
+                    format!("mic {i}: position {p:?} is not finite"),
+                ));
+            }
+        }
+        for i in 0..self.mics.len() {
+            for j in 0..i {
+                if dist(self.mics[i], self.mics[j]) < DUPLICATE_TOLERANCE_M {
+                    return Err(Error::format(
+                        what,
+                        format!(
+                            "mic {i}: same position as mic {j} ({:?})",
+                            self.mics[i]
+                        ),
+                    ));
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Parse the TOML text of a geometry file (see the module docs). Errors name
+    /// `path_for_errors` and the microphone, e.g.
+    /// `ring8.toml: mic 3: expected 3 coordinates, found 2`.
+    pub fn from_toml_str(text: &str, path_for_errors: &Path) -> Result<Self> {
+        let fail = |m: String| Error::format(path_for_errors, m);
+        let value: toml::Table = text
+            .parse()
+            .map_err(|e: toml::de::Error| fail(format!("invalid TOML: {}", e.message())))?;
+        let mut mics = Vec::new();
+        match (value.get("mics"), value.get("mic")) {
+            (Some(_), Some(_)) => {
+                return Err(fail(
+                    "give either `mics = [[x, y, z], ...]` or `[[mic]]` tables, not both".into(),
+                ))
+            }
+            (Some(list), None) => {
+                let list = list.as_array().ok_or_else(|| {
+                    fail("`mics` must be a list of [x, y, z] lists (metres)".into())
+                })?;
+                for (i, m) in list.iter().enumerate() {
+                    let coords = m.as_array().ok_or_else(|| {
+                        fail(format!("mic {i}: expected a list [x, y, z], found {}", m.type_str()))
+                    })?;
+                    if coords.len() != 3 {
+                        return Err(fail(format!(
+                            "mic {i}: expected 3 coordinates, found {}",
+                            coords.len()
+                        )));
+                    }
+                    let mut p = [0.0; 3];
+                    for (k, c) in coords.iter().enumerate() {
+                        p[k] = number(c).ok_or_else(|| {
+                            fail(format!(
+                                "mic {i}: coordinate {k} must be a number, found {}",
+                                c.type_str()
+                            ))
+                        })?;
+                    }
+                    mics.push(p);
+                }
+            }
+            (None, Some(tables)) => {
+                let tables = tables
+                    .as_array()
+                    .ok_or_else(|| fail("`mic` must be an array of tables ([[mic]])".into()))?;
+                for (i, t) in tables.iter().enumerate() {
+                    let t = t.as_table().ok_or_else(|| {
+                        fail(format!("mic {i}: expected a table with x, y, z"))
+                    })?;
+                    if let Some(k) = t.keys().find(|k| !matches!(k.as_str(), "x" | "y" | "z")) {
+                        return Err(fail(format!("mic {i}: unknown key `{k}` (expected x, y, z)")));
+                    }
+                    let mut p = [0.0; 3];
+                    for (k, name) in ["x", "y", "z"].iter().enumerate() {
+                        match t.get(*name) {
+                            Some(v) => {
+                                p[k] = number(v).ok_or_else(|| {
+                                    fail(format!(
+                                        "mic {i}: {name} must be a number, found {}",
+                                        v.type_str()
+                                    ))
+                                })?
+                            }
+                            None if *name == "z" => {}
+                            None => return Err(fail(format!("mic {i}: missing {name}"))),
+                        }
+                    }
+                    mics.push(p);
+                }
+            }
+            (None, None) => {
+                return Err(fail(
+                    "no microphones: expected `mics = [[x, y, z], ...]` or `[[mic]]` tables (metres)"
+                        .into(),
+                ))
+            }
+        }
+        Geometry::new(mics, path_for_errors)
+    }
+
+    /// Read a geometry TOML file.
+    pub fn load(path: &Path) -> Result<Self> {
+        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+        Self::from_toml_str(&text, path)
+    }
+
+    /// The geometry as TOML (`mics = [[x, y, z], ...]`, metres), readable by
+    /// [`Geometry::from_toml_str`] to the same numbers.
+    pub fn to_toml_string(&self) -> String {
+        let mut s = String::from("# microphone positions in metres, channel order\nmics = [\n");
+        for p in &self.mics {
+            s.push_str(&format!("    [{:?}, {:?}, {:?}],\n", p[0], p[1], p[2]));
+        }
+        s.push_str("]\n");
+        s
+    }
+
+    /// `n` microphones on a circle of radius `radius_m` in the plane z = `z_m`; mic i at
+    /// azimuth 2πi/n from +x toward +y.
+    pub fn circle(n: usize, radius_m: f64, z_m: f64) -> Self {
+        let mics = (0..n)
+            .map(|i| {
+                let a = 2.0 * std::f64::consts::PI * i as f64 / n as f64;
+                [radius_m * a.cos(), radius_m * a.sin(), z_m]
+            })
+            .collect();
+        Geometry { mics }
+    }
+
+    /// `n` microphones spread near-uniformly over a sphere of radius `radius_m` centred on
+    /// the origin (Fibonacci lattice: z_i = 1 − (2i + 1)/n, azimuth i·π(3 − √5)).
+    pub fn sphere(n: usize, radius_m: f64) -> Self {
+        Geometry {
+            mics: fibonacci_sphere(n)
+                .into_iter()
+                .map(|u| [u[0] * radius_m, u[1] * radius_m, u[2] * radius_m])
+                .collect(),
+        }
+    }
+
+    /// Largest distance between two microphones (the aperture), metres.
+    pub fn aperture_m(&self) -> f64 {
+        let mut d: f64 = 0.0;
+        for i in 0..self.mics.len() {
+            for j in 0..i {
+                d = d.max(dist(self.mics[i], self.mics[j]));
+            }
+        }
+        d
+    }
+}
+
+fn number(v: &toml::Value) -> Option<f64> {
+    match v {
+        toml::Value::Float(f) => Some(*f),
+        toml::Value::Integer(i) => Some(*i as f64),
+        _ => None,
+    }
+}
+
+pub(crate) fn dist(a: [f64; 3], b: [f64; 3]) -> f64 {
+    ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
+}
+
+/// Unit vectors of an `n`-point Fibonacci lattice on the sphere:
+/// z_i = 1 − (2i + 1)/n, azimuth_i = i·π(3 − √5).
+pub(crate) fn fibonacci_sphere(n: usize) -> Vec<[f64; 3]> {
+    let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
+    (0..n)
+        .map(|i| {
+            let z = 1.0 - (2.0 * i as f64 + 1.0) / n as f64;
+            let r = (1.0 - z * z).max(0.0).sqrt();
+            let a = golden * i as f64;
+            [r * a.cos(), r * a.sin(), z]
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn p() -> &'static Path {
+        Path::new("ring8.toml")
+    }
+
+    #[test]
+    fn parse_both_forms() {
+        let g = Geometry::from_toml_str("mics = [[0.1, 0, 0], [0, 0.1, 0.05]]", p()).unwrap();
+        assert_eq!(g.mics, vec![[0.1, 0.0, 0.0], [0.0, 0.1, 0.05]]);
+        let g2 = Geometry::from_toml_str(
+            "[[mic]]\nx = 0.1\ny = 0\n[[mic]]\nx = 0\ny = 0.1\nz = 0.05\n",
+            p(),
+        )
+        .unwrap();
+        assert_eq!(g, g2);
+        let c = Geometry::circle(8, 0.0365, 0.0);
+        let back = Geometry::from_toml_str(&c.to_toml_string(), p()).unwrap();
+        assert_eq!(back, c);
+    }
+
+    #[test]
+    fn errors_name_file_and_mic() {
+        let e = |t: &str| Geometry::from_toml_str(t, p()).unwrap_err().to_string();
+        assert_eq!(
+            e("mics = [[0,0,0],[1,0,0],[0,1,0],[1,1]]"),
+            "ring8.toml: mic 3: expected 3 coordinates, found 2"
+        );
+        assert_eq!(
+            e("mics = [[0,0,0],[0,0,0]]"),
+            "ring8.toml: mic 1: same position as mic 0 ([0.0, 0.0, 0.0])"
+        );
+        assert!(e("mics = [[nan,0,0]]").starts_with("ring8.toml: mic 0: position"));
+        assert!(e("mics = [[0,\"a\",0]]").contains("mic 0: coordinate 1 must be a number"));
+        assert!(e("[[mic]]\nx=1\n").contains("mic 0: missing y"));
+        assert!(e("[[mic]]\nx=1\ny=2\nw=3").contains("unknown key `w`"));
+        assert!(e("mics = [").starts_with("ring8.toml: invalid TOML"));
+        assert!(e("").contains("no microphones"));
+        let missing = Geometry::load(Path::new("/nonexistent/ring8.toml")).unwrap_err();
+        assert!(missing.to_string().starts_with("/nonexistent/ring8.toml: "));
+    }
+
+    #[test]
+    fn builtins() {
+        let c = Geometry::circle(8, 0.0365, 0.2);
+        assert_eq!(c.num_mics(), 8);
+        assert!((c.mics[2][0]).abs() < 1e-12 && (c.mics[2][1] - 0.0365).abs() < 1e-12);
+        assert!(c.mics.iter().all(|m| m[2] == 0.2));
+        assert!((c.aperture_m() - 0.073).abs() < 1e-12);
+        let s = Geometry::sphere(60, 0.1);
+        assert_eq!(s.num_mics(), 60);
+        s.validate(p()).unwrap();
+        for m in &s.mics {
+            assert!((dist(*m, [0.0; 3]) - 0.1).abs() < 1e-12);
+        }
+        // Near-uniform: centroid close to the origin.
+        let cz: f64 = s.mics.iter().map(|m| m[2]).sum::<f64>() / 60.0;
+        assert!(cz.abs() < 1e-12);
     }
 }

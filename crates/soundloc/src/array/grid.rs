@@ -1,4 +1,25 @@
 //! Candidate directions (the search grid) and their neighbour relation.
+//!
+//! A grid point is a position in metres (HARK stores the measurement position, e.g. a
+//! source 1 m away); its direction is the unit vector p/|p|, azimuth = atan2(y, x) in
+//! (−180°, 180°], elevation = atan2(z, √(x² + y²)).
+//!
+//! - [`Grid::ring`]`(step, elevation, r)`: n = round(360/step) points at azimuths
+//!   0, 360/n, 2·360/n, … (counter-clockwise from +x toward +y), all at one elevation,
+//!   radius r. This is the order of HARKTOOL5's geometric TFs (tamago_geotf.zip: id 0 at
+//!   0°, id 1 at 5°, …, id 36 at 180°, id 71 at −5°). Older measured sets start at −180°
+//!   (tamago_rectf.zip and kinect_loc.dat: id 0 at −180°, id 36 at 0°) — also
+//!   counter-clockwise. Neighbours: left and right, wrapping (HARK's `<neighbors>` for
+//!   both files say the same).
+//! - [`Grid::sphere`]`(n, r)`: a Fibonacci lattice over the full sphere,
+//!   z_i = 1 − (2i + 1)/n, azimuth_i = i·π(3 − √5); neighbours: the 6 nearest points by
+//!   angle, made symmetric (j ∈ N(i) ⇔ i ∈ N(j)), so most points have 6–8. Mean spacing
+//!   is about √(4π/n) rad (4.0° at n = 2522).
+//! - [`Grid::with_neighbors`]: any points with an explicit table.
+
+use crate::{Error, Result};
+use std::fmt;
+use std::str::FromStr;
 
 /// How the grid points are arranged; decides the peak search's neighbour relation.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
@@ -10,6 +31,16 @@ pub enum GridKind {
     Sphere,
     /// Any other set of points with an explicit neighbour table (e.g. from a TF zip).
     Irregular,
+}
+
+impl fmt::Display for GridKind {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            GridKind::Ring => "ring",
+            GridKind::Sphere => "sphere",
+            GridKind::Irregular => "irregular",
+        })
+    }
 }
 
 /// Candidate source directions.
@@ -27,6 +58,14 @@ pub struct Grid {
     pub neighbors: Vec<Vec<usize>>,
 }
 
+/// Number of nearest points (by angle) taken as neighbours of a sphere or table-less
+/// irregular grid, before symmetrisation.
+pub const SPHERE_NEIGHBORS: usize = 6;
+
+/// Points whose elevations differ by less than this (degrees) count as one ring (HARK
+/// files store 3–4 decimals: tamago_rectf's ring spans 30.96°–30.97°).
+pub const RING_ELEVATION_TOLERANCE_DEG: f64 = 0.5;
+
 impl Grid {
     /// Number of directions.
     pub fn len(&self) -> usize {
@@ -39,7 +78,13 @@ impl Grid {
     /// Azimuth of direction `i` in degrees, atan2(y, x), in (-180, 180].
     pub fn azimuth_deg(&self, i: usize) -> f64 {
         let [x, y, _] = self.points[i];
-        y.atan2(x).to_degrees()
+        let a = y.atan2(x).to_degrees();
+        // atan2(-0.0, -1) is -180 (HARK files write y="-0.000"): fold into (-180, 180].
+        if a <= -180.0 {
+            a + 360.0
+        } else {
+            a
+        }
     }
     /// Elevation of direction `i` in degrees from the x-y plane.
     pub fn elevation_deg(&self, i: usize) -> f64 {
@@ -48,12 +93,540 @@ impl Grid {
     }
     /// Unit vector of direction `i`.
     pub fn unit(&self, i: usize) -> [f64; 3] {
-        let [x, y, z] = self.points[i];
-        let r = (x * x + y * y + z * z).sqrt();
-        if r > 0.0 {
-            [x / r, y / r, z / r]
+        unit(self.points[i])
+    }
+    /// Distance of point `i` from the origin (metres).
+    pub fn radius_m(&self, i: usize) -> f64 {
+        norm(self.points[i])
+    }
+
+    /// A ring of n = round(360/`step_deg`) points (at least 1) at elevation
+    /// `elevation_deg`, radius `radius_m`, azimuths 0, 360/n, … counter-clockwise (the
+    /// HARKTOOL5 order); neighbours left/right with wrap. A `step_deg` that does not divide
+    /// 360 is rounded to one that does ([`GridSpec`] rejects it instead).
+    pub fn ring(step_deg: f64, elevation_deg: f64, radius_m: f64) -> Grid {
+        let n = if step_deg.is_finite() && step_deg > 0.0 {
+            ((360.0 / step_deg).round() as usize).max(1)
         } else {
-            [1.0, 0.0, 0.0]
+            1
+        };
+        let el = elevation_deg.to_radians();
+        let points = (0..n)
+            .map(|i| {
+                let az = (360.0 * i as f64 / n as f64).to_radians();
+                [
+                    radius_m * el.cos() * az.cos(),
+                    radius_m * el.cos() * az.sin(),
+                    radius_m * el.sin(),
+                ]
+            })
+            .collect();
+        Grid {
+            points,
+            kind: GridKind::Ring,
+            neighbors: ring_neighbors(n),
+        }
+    }
+
+    /// `n_points` directions over the full sphere (Fibonacci lattice, see the module
+    /// docs) at radius `radius_m`, with a symmetric 6-nearest neighbour table.
+    pub fn sphere(n_points: usize, radius_m: f64) -> Grid {
+        let units = super::geometry::fibonacci_sphere(n_points);
+        let neighbors = nearest_neighbors(&units, SPHERE_NEIGHBORS);
+        Grid {
+            points: units
+                .into_iter()
+                .map(|u| [u[0] * radius_m, u[1] * radius_m, u[2] * radius_m])
+                .collect(),
+            kind: GridKind::Sphere,
+            neighbors,
+        }
+    }
+
+    /// A grid with an explicit neighbour table. Checks that there is one list per point,
+    /// that every index is in range and that every point is finite and not at the origin;
+    /// a point listed as its own neighbour and repeated entries are dropped (HARK's tables
+    /// list each point first).
+    pub fn with_neighbors(
+        points: Vec<[f64; 3]>,
+        kind: GridKind,
+        neighbors: Vec<Vec<usize>>,
+    ) -> Result<Grid> {
+        let n = points.len();
+        if neighbors.len() != n {
+            return Err(Error::Mismatch(format!(
+                "grid: {} neighbour lists for {n} points",
+                neighbors.len()
+            )));
+        }
+        for (i, p) in points.iter().enumerate() {
+            if p.iter().any(|v| !v.is_finite()) || norm(*p) == 0.0 {
+                return Err(Error::Mismatch(format!(
+                    "grid: point {i} {p:?} is not a usable direction (non-finite or at the origin)"
+                )));
+            }
+        }
+        let mut clean = Vec::with_capacity(n);
+        for (i, list) in neighbors.into_iter().enumerate() {
+            let mut out: Vec<usize> = Vec::with_capacity(list.len());
+            for j in list {
+                if j >= n {
+                    return Err(Error::Mismatch(format!(
+                        "grid: point {i} lists neighbour {j}, but there are only {n} points"
+                    )));
+                }
+                if j != i && !out.contains(&j) {
+                    out.push(j);
+                }
+            }
+            clean.push(out);
+        }
+        Ok(Grid {
+            points,
+            kind,
+            neighbors: clean,
+        })
+    }
+
+    /// A grid from points alone (e.g. an HGTF file, which stores no neighbour table):
+    /// [`GridKind::Ring`] with left/right neighbours when [`Grid::is_ring_order`] holds
+    /// with those neighbours, else [`GridKind::Irregular`] with the symmetric 6-nearest
+    /// table.
+    pub fn from_points(points: Vec<[f64; 3]>) -> Result<Grid> {
+        let n = points.len();
+        let ring = ring_neighbors(n);
+        if is_ring_order(&points, &ring) {
+            return Grid::with_neighbors(points, GridKind::Ring, ring);
+        }
+        let units: Vec<[f64; 3]> = points.iter().map(|p| unit(*p)).collect();
+        let nb = nearest_neighbors(&units, SPHERE_NEIGHBORS);
+        Grid::with_neighbors(points, GridKind::Irregular, nb)
+    }
+
+    /// A grid from points and a stored table (e.g. a TF zip): [`GridKind::Ring`] when the
+    /// table is exactly left/right in the stored order and [`Grid::is_ring_order`] holds,
+    /// else [`GridKind::Irregular`] with the table as given.
+    pub fn from_table(points: Vec<[f64; 3]>, neighbors: Vec<Vec<usize>>) -> Result<Grid> {
+        let g = Grid::with_neighbors(points, GridKind::Irregular, neighbors)?;
+        let ring = ring_neighbors(g.len());
+        let same = g.neighbors.iter().zip(&ring).all(|(a, b)| {
+            let mut a = a.clone();
+            let mut b = b.clone();
+            a.sort_unstable();
+            b.sort_unstable();
+            a == b
+        });
+        if same && is_ring_order(&g.points, &g.neighbors) {
+            Ok(Grid {
+                kind: GridKind::Ring,
+                ..g
+            })
+        } else {
+            Ok(g)
+        }
+    }
+
+    /// True when all points share one elevation (within 0.5°) and consecutive points step
+    /// around the circle in one direction, by equal steps, covering 360° exactly once.
+    pub fn is_ring_order(&self) -> bool {
+        is_ring_order(&self.points, &self.neighbors)
+    }
+
+    /// A one-line description of the neighbour relation, for summaries, e.g.
+    /// `left/right in azimuth, wrapping (72-point ring)` or
+    /// `table: 6–8 neighbours per point (mean 6.4)`.
+    pub fn neighbor_relation(&self) -> String {
+        if self.kind == GridKind::Ring {
+            return format!("left/right in azimuth, wrapping ({}-point ring)", self.len());
+        }
+        let counts: Vec<usize> = self.neighbors.iter().map(|v| v.len()).collect();
+        let min = counts.iter().copied().min().unwrap_or(0);
+        let max = counts.iter().copied().max().unwrap_or(0);
+        let mean = if counts.is_empty() {
+            0.0
+        } else {
+            counts.iter().sum::<usize>() as f64 / counts.len() as f64
+        };
+        if min == max {
+            format!("table: {min} neighbours per point")
+        } else {
+            format!("table: {min}–{max} neighbours per point (mean {mean:.1})")
+        }
+    }
+
+    /// Largest angle (degrees) between a point and one of its neighbours.
+    pub fn max_neighbor_angle_deg(&self) -> f64 {
+        let mut m: f64 = 0.0;
+        for (i, list) in self.neighbors.iter().enumerate() {
+            for &j in list {
+                m = m.max(angle_between(self.unit(i), self.unit(j)).to_degrees());
+            }
+        }
+        m
+    }
+
+    /// True when j ∈ neighbors[i] ⇔ i ∈ neighbors[j] for all pairs.
+    pub fn neighbors_symmetric(&self) -> bool {
+        self.neighbors
+            .iter()
+            .enumerate()
+            .all(|(i, l)| l.iter().all(|&j| self.neighbors[j].contains(&i)))
+    }
+
+    /// (min, max) azimuth and (min, max) elevation over all points, degrees.
+    pub fn angle_ranges_deg(&self) -> Option<((f64, f64), (f64, f64))> {
+        if self.is_empty() {
+            return None;
+        }
+        let mut az = (f64::INFINITY, f64::NEG_INFINITY);
+        let mut el = (f64::INFINITY, f64::NEG_INFINITY);
+        for i in 0..self.len() {
+            let a = self.azimuth_deg(i);
+            let e = self.elevation_deg(i);
+            az = (az.0.min(a), az.1.max(a));
+            el = (el.0.min(e), el.1.max(e));
+        }
+        Some((az, el))
+    }
+}
+
+/// Left/right neighbours of an n-point ring in stored order: [i−1, i+1] mod n.
+pub fn ring_neighbors(n: usize) -> Vec<Vec<usize>> {
+    (0..n)
+        .map(|i| {
+            let mut v = Vec::with_capacity(2);
+            if n > 1 {
+                v.push((i + n - 1) % n);
+                let r = (i + 1) % n;
+                if !v.contains(&r) {
+                    v.push(r);
+                }
+            }
+            v
+        })
+        .collect()
+}
+
+fn is_ring_order(points: &[[f64; 3]], neighbors: &[Vec<usize>]) -> bool {
+    let n = points.len();
+    if n < 3 || neighbors.len() != n {
+        return false;
+    }
+    let el = |p: [f64; 3]| p[2].atan2((p[0] * p[0] + p[1] * p[1]).sqrt()).to_degrees();
+    let e0 = el(points[0]);
+    if points
+        .iter()
+        .any(|p| (el(*p) - e0).abs() > RING_ELEVATION_TOLERANCE_DEG || (p[0] == 0.0 && p[1] == 0.0))
+    {
+        return false;
+    }
+    // Signed azimuth steps between consecutive points, each wrapped into (-180, 180].
+    let step = 360.0 / n as f64;
+    let az = |p: [f64; 3]| p[1].atan2(p[0]).to_degrees();
+    let steps: Vec<f64> = (0..n)
+        .map(|i| {
+            let mut d = az(points[(i + 1) % n]) - az(points[i]);
+            while d > 180.0 {
+                d -= 360.0;
+            }
+            while d <= -180.0 {
+                d += 360.0;
+            }
+            d
+        })
+        .collect();
+    let tol = (0.2 * step).min(1.0);
+    let ccw = steps.iter().all(|d| (d - step).abs() < tol);
+    let cw = steps.iter().all(|d| (d + step).abs() < tol);
+    ccw || cw
+}
+
+fn norm(p: [f64; 3]) -> f64 {
+    (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt()
+}
+
+fn unit(p: [f64; 3]) -> [f64; 3] {
+    let r = norm(p);
+    if r > 0.0 {
+        [p[0] / r, p[1] / r, p[2] / r]
+    } else {
+        [1.0, 0.0, 0.0]
+    }
+}
+
+/// Angle between two unit vectors, radians.
+pub(crate) fn angle_between(a: [f64; 3], b: [f64; 3]) -> f64 {
+    let d = a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+    d.clamp(-1.0, 1.0).acos()
+}
+
+/// For unit vectors, the `k` nearest by angle of each point, then symmetrised (union).
+/// Sorted by polar angle so the search scans outward and stops once the polar-angle gap
+/// alone exceeds the current k-th best (angle(a, b) ≥ |θ_a − θ_b|).
+pub fn nearest_neighbors(units: &[[f64; 3]], k: usize) -> Vec<Vec<usize>> {
+    let n = units.len();
+    let k = k.min(n.saturating_sub(1));
+    let theta: Vec<f64> = units.iter().map(|u| u[2].clamp(-1.0, 1.0).acos()).collect();
+    let mut order: Vec<usize> = (0..n).collect();
+    order.sort_by(|&a, &b| theta[a].total_cmp(&theta[b]));
+    let mut rank = vec![0usize; n];
+    for (r, &i) in order.iter().enumerate() {
+        rank[i] = r;
+    }
+    let mut lists: Vec<Vec<usize>> = vec![Vec::new(); n];
+    if k == 0 {
+        return lists;
+    }
+    for i in 0..n {
+        // best: (angle, index), kept sorted ascending, at most k long.
+        let mut best: Vec<(f64, usize)> = Vec::with_capacity(k + 1);
+        let consider = |j: usize, best: &mut Vec<(f64, usize)>| {
+            let a = angle_between(units[i], units[j]);
+            if best.len() < k || a < best[best.len() - 1].0 {
+                let pos = best.partition_point(|&(b, bj)| (b, bj) < (a, j));
+                best.insert(pos, (a, j));
+                best.truncate(k);
+            }
+        };
+        let r = rank[i];
+        let (mut lo, mut hi) = (r, r + 1);
+        loop {
+            let bound = if best.len() < k {
+                f64::INFINITY
+            } else {
+                best[k - 1].0
+            };
+            let down = if lo > 0 { Some(order[lo - 1]) } else { None };
+            let up = if hi < n { Some(order[hi]) } else { None };
+            let down_ok = down.filter(|&j| (theta[i] - theta[j]).abs() <= bound);
+            let up_ok = up.filter(|&j| (theta[j] - theta[i]).abs() <= bound);
+            if down_ok.is_none() && up_ok.is_none() {
+                break;
+            }
+            if let Some(j) = down_ok {
+                consider(j, &mut best);
+                lo -= 1;
+            }
+            if let Some(j) = up_ok {
+                consider(j, &mut best);
+                hi += 1;
+            }
+        }
+        lists[i] = best.into_iter().map(|(_, j)| j).collect();
+    }
+    // Symmetrise.
+    let mut sym = lists.clone();
+    for (i, l) in lists.iter().enumerate() {
+        for &j in l {
+            if !sym[j].contains(&i) {
+                sym[j].push(i);
+            }
+        }
+    }
+    for l in &mut sym {
+        l.sort_unstable();
+    }
+    sym
+}
+
+/// A grid as written on the command line: `ring:STEP_DEG[:ELEV_DEG]` (elevation default
+/// 0) or `sphere:N`. [`GridSpec::build`] makes the [`Grid`].
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "kebab-case", tag = "kind")]
+pub enum GridSpec {
+    /// A ring every `step_deg` degrees (must divide 360) at `elevation_deg`.
+    Ring {
+        /// Azimuth step, degrees.
+        step_deg: f64,
+        /// Elevation, degrees in [−90, 90].
+        elevation_deg: f64,
+    },
+    /// A full-sphere Fibonacci lattice of `n` points (n ≥ 2).
+    Sphere {
+        /// Number of points.
+        n: usize,
+    },
+}
+
+impl GridSpec {
+    /// The grid, with points at `radius_m` from the origin.
+    pub fn build(&self, radius_m: f64) -> Grid {
+        match *self {
+            GridSpec::Ring {
+                step_deg,
+                elevation_deg,
+            } => Grid::ring(step_deg, elevation_deg, radius_m),
+            GridSpec::Sphere { n } => Grid::sphere(n, radius_m),
+        }
+    }
+}
+
+impl FromStr for GridSpec {
+    type Err = Error;
+    fn from_str(s: &str) -> Result<Self> {
+        let bad = |why: &str| {
+            Error::Config(format!(
+                "grid {s:?}: {why} (expected ring:STEP_DEG[:ELEV_DEG] or sphere:N, e.g. ring:5, ring:5:16.7, sphere:2522)"
+            ))
+        };
+        let parts: Vec<&str> = s.trim().split(':').map(str::trim).collect();
+        match parts.as_slice() {
+            ["ring", step, rest @ ..] if rest.len() <= 1 => {
+                let step_deg: f64 = step
+                    .parse()
+                    .map_err(|_| bad("the step must be a number of degrees"))?;
+                if !(step_deg.is_finite() && step_deg > 0.0 && step_deg <= 360.0) {
+                    return Err(bad("the step must be in (0, 360] degrees"));
+                }
+                let n = 360.0 / step_deg;
+                if (n - n.round()).abs() > 1e-6 {
+                    return Err(bad("the step must divide 360 degrees"));
+                }
+                let elevation_deg: f64 = match rest.first() {
+                    Some(e) => e
+                        .parse()
+                        .map_err(|_| bad("the elevation must be a number of degrees"))?,
+                    None => 0.0,
+                };
+                if !(elevation_deg.is_finite() && (-90.0..=90.0).contains(&elevation_deg)) {
+                    return Err(bad("the elevation must be in [-90, 90] degrees"));
+                }
+                Ok(GridSpec::Ring {
+                    step_deg,
+                    elevation_deg,
+                })
+            }
+            ["sphere", n] => {
+                let n: usize = n
+                    .parse()
+                    .map_err(|_| bad("N must be a whole number of points"))?;
+                if n < 2 {
+                    return Err(bad("N must be at least 2"));
+                }
+                Ok(GridSpec::Sphere { n })
+            }
+            _ => Err(bad("unknown form")),
+        }
+    }
+}
+
+impl fmt::Display for GridSpec {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            GridSpec::Ring {
+                step_deg,
+                elevation_deg,
+            } => {
+                if *elevation_deg == 0.0 {
+                    write!(f, "ring:{step_deg}")
+                } else {
+                    write!(f, "ring:{step_deg}:{elevation_deg}")
+                }
+            }
+            GridSpec::Sphere { n } => write!(f, "sphere:{n}"),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn ring_order_and_neighbors() {
+        let g = Grid::ring(5.0, 16.7, 1.0);
+        assert_eq!(g.len(), 72);
+        assert_eq!(g.kind, GridKind::Ring);
+        assert!((g.azimuth_deg(0) - 0.0).abs() < 1e-9);
+        assert!((g.azimuth_deg(1) - 5.0).abs() < 1e-9);
+        assert!((g.azimuth_deg(36) - 180.0).abs() < 1e-9);
+        assert!((g.azimuth_deg(71) + 5.0).abs() < 1e-9);
+        assert!((g.elevation_deg(10) - 16.7).abs() < 1e-9);
+        assert!((g.radius_m(3) - 1.0).abs() < 1e-12);
+        assert_eq!(g.neighbors[0], vec![71, 1]);
+        assert_eq!(g.neighbors[71], vec![70, 0]);
+        assert!(g.neighbors_symmetric());
+        assert!(g.is_ring_order());
+        assert!((g.max_neighbor_angle_deg() - 5.0 * 16.7f64.to_radians().cos()).abs() < 0.01);
+        assert_eq!(g.neighbor_relation(), "left/right in azimuth, wrapping (72-point ring)");
+        // From points alone, the same ring is recognised.
+        let g2 = Grid::from_points(g.points.clone()).unwrap();
+        assert_eq!(g2, g);
+        // -180 start (the rectf order) is a ring too; -0.0 y folds to +180.
+        let mut pts = g.points.clone();
+        pts.rotate_left(36);
+        pts[0][1] = -0.0;
+        let g3 = Grid::from_points(pts).unwrap();
+        assert_eq!(g3.kind, GridKind::Ring);
+        assert_eq!(g3.azimuth_deg(0), 180.0);
+        // Tiny rings.
+        assert_eq!(Grid::ring(180.0, 0.0, 1.0).neighbors, vec![vec![1], vec![0]]);
+        assert_eq!(Grid::ring(360.0, 0.0, 1.0).neighbors, vec![Vec::<usize>::new()]);
+    }
+
+    #[test]
+    fn sphere_2522() {
+        let g = Grid::sphere(2522, 1.0);
+        assert_eq!(g.len(), 2522);
+        assert_eq!(g.kind, GridKind::Sphere);
+        assert!(g.neighbors_symmetric());
+        let spacing = (4.0 * std::f64::consts::PI / 2522.0).sqrt().to_degrees();
+        let max = g.max_neighbor_angle_deg();
+        assert!(max < 2.0 * spacing, "max neighbour angle {max}° vs spacing {spacing}°");
+        for (i, l) in g.neighbors.iter().enumerate() {
+            assert!(l.len() >= 6 && l.len() <= 12, "point {i}: {} neighbours", l.len());
+            assert!(!l.contains(&i));
+        }
+        // Brute-force check of the pruned search on a smaller lattice.
+        let s = Grid::sphere(300, 1.0);
+        let units: Vec<_> = (0..300).map(|i| s.unit(i)).collect();
+        for i in (0..300).step_by(7) {
+            let mut d: Vec<(f64, usize)> = (0..300)
+                .filter(|&j| j != i)
+                .map(|j| (angle_between(units[i], units[j]), j))
+                .collect();
+            d.sort_by(|a, b| a.partial_cmp(b).unwrap());
+            for &(_, j) in &d[..6] {
+                assert!(s.neighbors[i].contains(&j), "point {i} misses {j}");
+            }
+        }
+        // Full coverage: elevations span nearly ±90°.
+        let ((_, _), (el_lo, el_hi)) = g.angle_ranges_deg().unwrap();
+        assert!(el_lo < -88.0 && el_hi > 88.0);
+        assert!(!Grid::from_points(g.points.clone()).unwrap().is_ring_order());
+    }
+
+    #[test]
+    fn with_neighbors_validates() {
+        let pts = vec![[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0]];
+        let g = Grid::with_neighbors(pts.clone(), GridKind::Irregular, vec![vec![0, 1, 1], vec![0], vec![]])
+            .unwrap();
+        assert_eq!(g.neighbors[0], vec![1]);
+        let e = Grid::with_neighbors(pts.clone(), GridKind::Irregular, vec![vec![5], vec![], vec![]])
+            .unwrap_err()
+            .to_string();
+        assert_eq!(e, "grid: point 0 lists neighbour 5, but there are only 3 points");
+        assert!(Grid::with_neighbors(pts.clone(), GridKind::Irregular, vec![]).is_err());
+        let mut bad = pts;
+        bad[1] = [f64::NAN, 0.0, 0.0];
+        assert!(Grid::with_neighbors(bad, GridKind::Irregular, vec![vec![]; 3]).is_err());
+    }
+
+    #[test]
+    fn grid_spec_strings() {
+        for s in ["ring:5", "ring:5:16.7", "sphere:2522", "ring:2.5:-30"] {
+            let g: GridSpec = s.parse().unwrap();
+            assert_eq!(g.to_string(), s);
+        }
+        assert_eq!(
+            "ring:5:16.7".parse::<GridSpec>().unwrap(),
+            GridSpec::Ring { step_deg: 5.0, elevation_deg: 16.7 }
+        );
+        assert_eq!("sphere:2522".parse::<GridSpec>().unwrap().build(1.0).len(), 2522);
+        assert_eq!("ring:10".parse::<GridSpec>().unwrap().build(2.0).len(), 36);
+        for bad in ["ring:7", "ring:0", "ring:x", "ring:5:100", "sphere:1", "sphere:x", "cube:3", "ring:5:1:2"] {
+            let e = bad.parse::<GridSpec>().unwrap_err().to_string();
+            assert!(e.contains(bad), "{e}");
         }
     }
 }
