@@ -1,0 +1,465 @@
+//! SourceTracker, SourceIntervalExtender and summaries on synthetic peak sequences.
+
+use rand::{Rng, SeedableRng};
+use soundloc::tracking::{
+    extend, summarize, IntervalExtender, IntervalExtenderConfig, SourceTracker, TrackerConfig,
+};
+use soundloc::{LocalizationResult, Source};
+
+fn peak(az_deg: f64, el_deg: f64, power_db: f64) -> Source {
+    let (az, el) = (az_deg.to_radians(), el_deg.to_radians());
+    Source {
+        id: None,
+        grid_index: 0,
+        azimuth_deg: az_deg,
+        elevation_deg: el_deg,
+        x: el.cos() * az.cos(),
+        y: el.cos() * az.sin(),
+        z: el.sin(),
+        power_db,
+    }
+}
+
+fn result(frame: usize, sources: Vec<Source>) -> LocalizationResult {
+    LocalizationResult {
+        frame,
+        time_s: frame as f64 * 0.01,
+        sources,
+    }
+}
+
+/// Id of the output source nearest (in azimuth/elevation) to (az, el), if within 1e-9.
+fn id_at(r: &LocalizationResult, az: f64, el: f64) -> Option<i64> {
+    r.sources
+        .iter()
+        .find(|s| (s.azimuth_deg - az).abs() < 1e-9 && (s.elevation_deg - el).abs() < 1e-9)
+        .and_then(|s| s.id)
+}
+
+fn ids(r: &LocalizationResult) -> Vec<i64> {
+    let mut v: Vec<i64> = r.sources.iter().filter_map(|s| s.id).collect();
+    v.sort();
+    v
+}
+
+#[test]
+fn moving_source_keeps_its_id() {
+    let mut t = SourceTracker::new(TrackerConfig {
+        min_id: 7,
+        ..TrackerConfig::with_thresh(20.0)
+    });
+    for f in 0..120 {
+        let az = -100.0 + 2.0 * f as f64;
+        let out = t.update(&result(f, vec![peak(az, 10.0, 30.0)]));
+        assert_eq!(out.sources.len(), 1, "frame {f}");
+        assert_eq!(out.sources[0].id, Some(7), "frame {f}");
+        assert_eq!(out.sources[0].azimuth_deg, az);
+        assert_eq!(out.frame, f);
+    }
+}
+
+#[test]
+fn new_source_gets_next_id() {
+    let mut t = SourceTracker::new(TrackerConfig::with_thresh(20.0));
+    for f in 0..60 {
+        let mut s = vec![peak(0.0, 0.0, 30.0)];
+        if f >= 30 {
+            s.push(peak(90.0, 0.0, 35.0));
+        }
+        let out = t.update(&result(f, s));
+        assert_eq!(id_at(&out, 0.0, 0.0), Some(0));
+        if f >= 30 {
+            assert_eq!(id_at(&out, 90.0, 0.0), Some(1));
+            // Strongest first.
+            assert_eq!(out.sources[0].id, Some(1));
+        } else {
+            assert_eq!(out.sources.len(), 1);
+        }
+    }
+}
+
+#[test]
+fn source_ends_after_pause_length_without_peaks() {
+    let cfg = TrackerConfig::with_thresh(20.0); // PAUSE_LENGTH 800 = 80 frames
+    let mut t = SourceTracker::new(cfg);
+    for f in 0..10 {
+        t.update(&result(f, vec![peak(45.0, 0.0, 30.0 + f as f64)]));
+    }
+    // Last peak at frame 9: carried at its last position and power through frame 89.
+    for f in 10..=89 {
+        let out = t.update(&result(f, vec![]));
+        assert_eq!(out.sources.len(), 1, "frame {f}");
+        assert_eq!(out.sources[0].id, Some(0));
+        assert_eq!(out.sources[0].azimuth_deg, 45.0);
+        assert_eq!(out.sources[0].power_db, 39.0);
+    }
+    let out = t.update(&result(90, vec![]));
+    assert!(out.sources.is_empty(), "ended at frame 90: {out:?}");
+    assert_eq!(t.num_alive(), 0);
+    // Same direction again: a new source, new id (ids are never reused).
+    let out = t.update(&result(100, vec![peak(45.0, 0.0, 30.0)]));
+    assert_eq!(ids(&out), vec![1]);
+    // reset() restarts ids at MIN_ID.
+    t.reset();
+    let out = t.update(&result(101, vec![peak(45.0, 0.0, 30.0)]));
+    assert_eq!(ids(&out), vec![0]);
+}
+
+#[test]
+fn pause_length_counts_stft_frames_between_results() {
+    // Results every 50 frames (PERIOD 50): a miss costs 500.
+    let mut t = SourceTracker::new(TrackerConfig::with_thresh(0.0));
+    t.update(&result(0, vec![peak(0.0, 0.0, 30.0)]));
+    assert_eq!(t.update(&result(50, vec![])).sources.len(), 1); // 800 - 500 = 300
+    assert!(t.update(&result(100, vec![])).sources.is_empty()); // 300 - 500 < 0
+}
+
+#[test]
+fn a_gap_shorter_than_pause_length_keeps_the_id() {
+    let mut t = SourceTracker::new(TrackerConfig::with_thresh(20.0));
+    for f in 0..200 {
+        let s = if (50..100).contains(&f) {
+            vec![]
+        } else {
+            vec![peak(-30.0 + 0.1 * f as f64, 0.0, 30.0)]
+        };
+        let out = t.update(&result(f, s));
+        assert_eq!(ids(&out), vec![0], "frame {f}");
+    }
+}
+
+#[test]
+fn threshold_gates_starts_and_matches() {
+    let mut t = SourceTracker::new(TrackerConfig::with_thresh(20.0));
+    // Below THRESH: never starts a source and never appears.
+    let out = t.update(&result(0, vec![peak(0.0, 0.0, 19.99)]));
+    assert!(out.sources.is_empty());
+    // Exactly THRESH is accepted (power >= THRESH).
+    let out = t.update(&result(1, vec![peak(0.0, 0.0, 20.0)]));
+    assert_eq!(ids(&out), vec![0]);
+    // Weak peaks at the same place do not sustain it: it is carried (last power 20) and ends.
+    for f in 2..=81 {
+        let out = t.update(&result(f, vec![peak(1.0, 0.0, 5.0)]));
+        assert_eq!(out.sources.len(), 1, "frame {f}");
+        assert_eq!(out.sources[0].power_db, 20.0);
+        assert_eq!(out.sources[0].azimuth_deg, 0.0);
+    }
+    assert!(t
+        .update(&result(82, vec![peak(1.0, 0.0, 5.0)]))
+        .sources
+        .is_empty());
+    // NaN power never passes.
+    assert!(t
+        .update(&result(83, vec![peak(50.0, 0.0, f64::NAN)]))
+        .sources
+        .is_empty());
+}
+
+#[test]
+fn near_duplicate_peaks_start_one_source() {
+    let mut t = SourceTracker::new(TrackerConfig::with_thresh(0.0));
+    let out = t.update(&result(
+        0,
+        vec![peak(10.0, 0.0, 30.0), peak(15.0, 0.0, 31.0)],
+    ));
+    assert_eq!(out.sources.len(), 1);
+    assert_eq!(
+        out.sources[0].azimuth_deg, 15.0,
+        "the strongest peak starts it"
+    );
+    // Just inside MIN_SRC_INTERVAL of the source: dropped; just outside: a new source.
+    let out = t.update(&result(
+        1,
+        vec![peak(15.0, 0.0, 30.0), peak(34.99, 0.0, 30.0)],
+    ));
+    assert_eq!(ids(&out), vec![0]);
+    let out = t.update(&result(
+        2,
+        vec![peak(15.0, 0.0, 30.0), peak(35.01, 0.0, 30.0)],
+    ));
+    assert_eq!(ids(&out), vec![0, 1]);
+}
+
+#[test]
+fn a_peak_is_claimed_by_the_closest_source_only() {
+    let mut t = SourceTracker::new(TrackerConfig::with_thresh(0.0));
+    let out = t.update(&result(
+        0,
+        vec![peak(0.0, 0.0, 30.0), peak(30.0, 0.0, 30.0)],
+    ));
+    assert_eq!(id_at(&out, 0.0, 0.0), Some(0));
+    assert_eq!(id_at(&out, 30.0, 0.0), Some(1));
+    // Peak at 16° is 16° from source 0 and 14° from source 1: source 1 claims it; source 0
+    // is carried at 0°; the peak at 50° (34° from source 1's new place) starts source 2.
+    let out = t.update(&result(
+        1,
+        vec![peak(16.0, 0.0, 30.0), peak(50.0, 0.0, 30.0)],
+    ));
+    assert_eq!(id_at(&out, 16.0, 0.0), Some(1));
+    assert_eq!(id_at(&out, 0.0, 0.0), Some(0));
+    assert_eq!(id_at(&out, 50.0, 0.0), Some(2));
+    assert_eq!(out.sources.len(), 3);
+}
+
+#[test]
+fn crossing_paths_at_distinct_speeds_keep_ids() {
+    // A moves along the equator at 3°/frame, B along the azimuth-0 meridian at 2°/frame;
+    // their paths cross at (0°, 0°), A passes there at frame 20, B at frame 30. They come
+    // within MIN_SRC_INTERVAL (about 17° apart around frame 24).
+    let mut t = SourceTracker::new(TrackerConfig::with_thresh(20.0));
+    let mut min_sep = f64::INFINITY;
+    for f in 0..=60usize {
+        let (a_az, b_el) = (-60.0 + 3.0 * f as f64, -60.0 + 2.0 * f as f64);
+        let (a, b) = (peak(a_az, 0.0, 30.0), peak(0.0, b_el, 28.0));
+        let dot = a.x * b.x + a.y * b.y + a.z * b.z;
+        min_sep = min_sep.min(dot.clamp(-1.0, 1.0).acos().to_degrees());
+        let out = t.update(&result(f, vec![a, b]));
+        assert_eq!(id_at(&out, a_az, 0.0), Some(0), "frame {f}: {out:?}");
+        assert_eq!(id_at(&out, 0.0, b_el), Some(1), "frame {f}: {out:?}");
+        assert_eq!(out.sources.len(), 2);
+    }
+    assert!(
+        min_sep < 20.0,
+        "the test must bring them within MIN_SRC_INTERVAL: {min_sep}"
+    );
+}
+
+/// Head-on on one circle: A at −40 + 4t, B at 40 − 2t (crossing between frames 13 and 14).
+fn head_on(t: &mut SourceTracker) -> Vec<(Option<i64>, Option<i64>)> {
+    (0..=30usize)
+        .map(|f| {
+            let (a, b) = (-40.0 + 4.0 * f as f64, 40.0 - 2.0 * f as f64);
+            let out = t.update(&result(f, vec![peak(a, 0.0, 30.0), peak(b, 0.0, 25.0)]));
+            (id_at(&out, a, 0.0), id_at(&out, b, 0.0))
+        })
+        .collect()
+}
+
+#[test]
+fn head_on_crossing_bounces_without_motion_model() {
+    // Documented HARK behaviour: proximity matching keeps ids in angular order.
+    let got = head_on(&mut SourceTracker::new(TrackerConfig::with_thresh(20.0)));
+    for (f, &(a, b)) in got.iter().enumerate() {
+        let want = if f <= 13 {
+            (Some(0), Some(1))
+        } else {
+            (Some(1), Some(0))
+        };
+        assert_eq!((a, b), want, "frame {f}");
+    }
+}
+
+#[test]
+fn head_on_crossing_keeps_ids_with_motion_prediction() {
+    let mut t = SourceTracker::new(TrackerConfig::with_thresh(20.0)).with_motion_prediction(true);
+    for (f, &(a, b)) in head_on(&mut t).iter().enumerate() {
+        assert_eq!((a, b), (Some(0), Some(1)), "frame {f}");
+    }
+}
+
+#[test]
+fn exact_crossing_merged_peak_one_claims_other_carried() {
+    // A at −40 + 4t, B at 44 − 2t meet at 16° at frame 14, where the peak finder gives a
+    // single peak. With prediction, both predict 16° (tie → lower id claims it), B is
+    // carried at its frame-13 position (18°) and re-acquired at frame 15 on its own path.
+    let mut t = SourceTracker::new(TrackerConfig::with_thresh(20.0)).with_motion_prediction(true);
+    for f in 0..=30usize {
+        let (a, b) = (-40.0 + 4.0 * f as f64, 44.0 - 2.0 * f as f64);
+        let peaks = if f == 14 {
+            vec![peak(16.0, 0.0, 33.0)]
+        } else {
+            vec![peak(a, 0.0, 30.0), peak(b, 0.0, 25.0)]
+        };
+        let out = t.update(&result(f, peaks));
+        if f == 14 {
+            assert_eq!(id_at(&out, 16.0, 0.0), Some(0));
+            assert_eq!(
+                id_at(&out, 18.0, 0.0),
+                Some(1),
+                "carried at its last position"
+            );
+        } else {
+            assert_eq!(
+                (id_at(&out, a, 0.0), id_at(&out, b, 0.0)),
+                (Some(0), Some(1)),
+                "frame {f}"
+            );
+        }
+    }
+}
+
+#[test]
+fn random_peaks_never_repeat_an_id_within_a_result() {
+    let mut rng = rand::rngs::StdRng::seed_from_u64(7);
+    let mut t = SourceTracker::new(TrackerConfig::with_thresh(10.0));
+    for f in 0..500 {
+        let n = rng.gen_range(0..5);
+        let peaks = (0..n)
+            .map(|_| {
+                peak(
+                    rng.gen_range(-180.0..180.0),
+                    rng.gen_range(-30.0..30.0),
+                    rng.gen_range(0.0..40.0),
+                )
+            })
+            .collect();
+        let out = t.update(&result(f, peaks));
+        let mut v = ids(&out);
+        let len = v.len();
+        v.dedup();
+        assert_eq!(v.len(), len, "frame {f}");
+        assert_eq!(len, out.sources.len(), "every output source has an id");
+        assert!(out
+            .sources
+            .windows(2)
+            .all(|w| w[0].power_db >= w[1].power_db));
+    }
+}
+
+fn onset_run() -> Vec<LocalizationResult> {
+    // Results every 10 frames; source 0 from frame 0; source 1 first seen at frame 100.
+    (0..20usize)
+        .map(|i| {
+            let f = 10 * i;
+            let mut s = vec![Source {
+                id: Some(0),
+                ..peak(0.0, 0.0, 30.0)
+            }];
+            if f >= 100 {
+                s.push(Source {
+                    id: Some(1),
+                    ..peak(90.0, 0.0, 20.0 + i as f64)
+                });
+            }
+            s.sort_by(|a, b| b.power_db.total_cmp(&a.power_db));
+            result(f, s)
+        })
+        .collect()
+}
+
+#[test]
+fn interval_extender_shifts_onset_by_preroll() {
+    let run = onset_run();
+    let out = extend(&run, IntervalExtenderConfig::default()); // PREROLL_LENGTH 50
+    assert_eq!(out.len(), run.len());
+    for r in &out {
+        let has1 = r.sources.iter().find(|s| s.id == Some(1));
+        if r.frame >= 50 {
+            let s = has1.unwrap_or_else(|| panic!("frame {}: {r:?}", r.frame));
+            if r.frame < 100 {
+                // Emitted at its first position and power.
+                assert_eq!(s.power_db, 30.0);
+                assert_eq!(s.azimuth_deg, 90.0);
+            }
+        } else {
+            assert!(has1.is_none(), "frame {}", r.frame);
+        }
+        assert!(r.sources.iter().any(|s| s.id == Some(0)));
+        assert!(r.sources.windows(2).all(|w| w[0].power_db >= w[1].power_db));
+    }
+    // Source 0 exists from the start: nothing to extend before frame 0.
+    assert_eq!(out[0].sources.len(), 1);
+}
+
+#[test]
+fn streaming_extender_delays_by_preroll_and_matches_batch() {
+    let run = onset_run();
+    let mut ex = IntervalExtender::new(IntervalExtenderConfig { preroll_length: 50 });
+    let mut streamed = Vec::new();
+    for r in &run {
+        let newest = r.frame;
+        for o in ex.push(r.clone()) {
+            assert!(
+                o.frame + 50 < newest,
+                "released too early: {} at {newest}",
+                o.frame
+            );
+            streamed.push(o);
+        }
+        // Everything older than the preroll has been released.
+        assert!(streamed
+            .last()
+            .map_or(newest < 60, |o| o.frame + 60 >= newest));
+    }
+    streamed.extend(ex.finish());
+    assert_eq!(
+        streamed,
+        extend(&run, IntervalExtenderConfig { preroll_length: 50 })
+    );
+    let none = extend(&run, IntervalExtenderConfig { preroll_length: 0 });
+    assert_eq!(none, run);
+}
+
+#[test]
+fn summary_reports_interval_mean_direction_and_power() {
+    let mut run = Vec::new();
+    for i in 0..11usize {
+        // Source 3 sweeps from 170° through 180° to −170°: the mean of unit vectors is 180°.
+        let az = 170.0 + 2.0 * i as f64;
+        let az = if az > 180.0 { az - 360.0 } else { az };
+        let mut s = vec![Source {
+            id: Some(3),
+            ..peak(az, 10.0, 20.0 + i as f64)
+        }];
+        if i >= 5 {
+            s.push(Source {
+                id: Some(1),
+                ..peak(-90.0, -5.0, 12.0)
+            });
+        }
+        s.push(peak(0.0, 0.0, 99.0)); // untracked: ignored
+        run.push(result(100 + 50 * i, s));
+    }
+    let sum = summarize(&run);
+    assert_eq!(sum.len(), 2);
+    let (a, b) = (&sum[0], &sum[1]);
+    assert_eq!(
+        (a.id, a.start_frame, a.end_frame, a.num_results),
+        (1, 350, 600, 6)
+    );
+    assert!((a.start_s - 3.5).abs() < 1e-12 && (a.end_s - 6.0).abs() < 1e-12);
+    assert!((a.mean_azimuth_deg + 90.0).abs() < 1e-9 && (a.mean_elevation_deg + 5.0).abs() < 1e-9);
+    assert_eq!(
+        (b.id, b.start_frame, b.end_frame, b.num_results),
+        (3, 100, 600, 11)
+    );
+    assert!(
+        (b.mean_azimuth_deg.abs() - 180.0).abs() < 1e-9,
+        "{}",
+        b.mean_azimuth_deg
+    );
+    // Mean of unit vectors, not of angles: spread in azimuth lifts the elevation a little.
+    assert!(
+        b.mean_elevation_deg > 10.0 && b.mean_elevation_deg < 10.2,
+        "{}",
+        b.mean_elevation_deg
+    );
+    assert_eq!(b.max_power_db, 30.0);
+    let json = serde_json::to_string(&sum).expect("serialize");
+    assert!(json.contains("\"mean_azimuth_deg\""));
+}
+
+#[test]
+fn tracker_config_defaults_and_validation() {
+    let c = TrackerConfig::default();
+    assert_eq!(
+        (c.pause_length, c.min_src_interval_deg, c.min_id),
+        (800.0, 20.0, 0)
+    );
+    assert_eq!(IntervalExtenderConfig::default().preroll_length, 50);
+    assert!(c.validate().is_ok());
+    let bad = TrackerConfig {
+        pause_length: -1.0,
+        ..c
+    };
+    assert!(bad
+        .validate()
+        .unwrap_err()
+        .to_string()
+        .contains("PAUSE_LENGTH"));
+    let bad = TrackerConfig {
+        thresh_db: f64::NAN,
+        ..c
+    };
+    assert!(bad.validate().unwrap_err().to_string().contains("THRESH"));
+}
