@@ -48,35 +48,36 @@ pub fn schedule(num_frames: usize, window: usize, period: usize, window_type: Wi
 /// M × M into `out`, then HARK's scaling. Returns the scale divisor max|Re R_ij| + 1.
 pub fn correlate<T: Real>(spectra: &Spectra<T>, w: &WindowSpec, bin: usize, out: &mut [C<T>]) -> T {
     let m = spectra.num_mics;
+    let nb = spectra.num_bins;
     debug_assert_eq!(out.len(), m * m);
-    for v in out.iter_mut() {
-        *v = C::new(T::zero(), T::zero());
-    }
-    for f in w.start..w.start + w.len {
-        let x = spectra.frame_bin(f, bin);
-        for i in 0..m {
-            let xi = x[i];
-            let row = &mut out[i * m..(i + 1) * m];
-            for j in i..m {
-                row[j] += xi * x[j].conj();
-            }
-        }
-    }
+    // X: the window's W × M block of this bin (row stride = one frame).
+    let first = (w.start * nb + bin) * m;
+    let last = ((w.start + w.len - 1) * nb + bin) * m + m;
+    let x = faer::MatRef::from_row_major_slice_with_stride(&spectra.data[first..last], w.len, m, nb * m);
+    // Rᵀ = Xᴴ X, i.e. R_ij = Σ_f x_i conj(x_j); written column-major into `out`, which is
+    // then R in row-major order.
+    let mut r = faer::MatMut::from_column_major_slice_mut(out, m, m);
     let inv_w = T::one() / T::of_f64(w.len as f64);
+    faer::linalg::matmul::matmul(
+        r.as_mut(),
+        faer::Accum::Replace,
+        x.adjoint(),
+        x,
+        C::new(inv_w, T::zero()),
+        faer::Par::Seq,
+    );
     let mut mx = T::zero();
-    for i in 0..m {
-        for j in i..m {
-            let v = out[i * m + j] * inv_w;
-            out[i * m + j] = v;
-            if v.re.abs() > mx {
-                mx = v.re.abs();
-            }
+    for v in out.iter() {
+        if v.re.abs() > mx {
+            mx = v.re.abs();
         }
     }
     let s = mx + T::one();
+    let inv_s = T::one() / s;
     for i in 0..m {
         for j in i..m {
-            let v = out[i * m + j] / s;
+            // Average the two triangles: exactly Hermitian.
+            let v = (out[i * m + j] + out[j * m + i].conj()) * C::new(inv_s * T::of_f64(0.5), T::zero());
             out[i * m + j] = v;
             out[j * m + i] = v.conj();
         }

@@ -1,0 +1,102 @@
+//! `soundloc bench`: the seed-config benchmark.
+
+use super::{AlgorithmArg, DeviceArg, PrecisionArg};
+use soundloc::bench::{run as run_bench, BenchConfig, BenchReport};
+use std::process::ExitCode;
+
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    /// Algorithms to run (repeatable; default: gsvd and gevd).
+    #[arg(long = "algorithm", value_enum)]
+    pub algorithms: Vec<AlgorithmArg>,
+    /// Compute device.
+    #[arg(long, value_enum, default_value = "auto")]
+    pub device: DeviceArg,
+    /// Precision.
+    #[arg(long, value_enum, default_value = "f32")]
+    pub precision: PrecisionArg,
+    /// Microphones.
+    #[arg(long, default_value_t = 60)]
+    pub mics: usize,
+    /// Directions (full-sphere grid).
+    #[arg(long, default_value_t = 2522)]
+    pub directions: usize,
+    /// Correlation window W (frames).
+    #[arg(long, default_value_t = 50)]
+    pub window: usize,
+    /// NUM_SOURCE.
+    #[arg(long, default_value_t = 2)]
+    pub num_sources: usize,
+    /// Windows per batch for the throughput figure.
+    #[arg(long, default_value_t = 16)]
+    pub batch: usize,
+    /// Timed repeats (median).
+    #[arg(long, default_value_t = 10)]
+    pub repeats: usize,
+    /// Print the reports as JSON (one object per line) instead of a table.
+    #[arg(long)]
+    pub json: bool,
+}
+
+pub fn run(a: Args) -> anyhow::Result<ExitCode> {
+    let algs = if a.algorithms.is_empty() {
+        vec![AlgorithmArg::Gsvd, AlgorithmArg::Gevd]
+    } else {
+        a.algorithms.clone()
+    };
+    for alg in algs {
+        let cfg = BenchConfig {
+            algorithm: alg.into(),
+            num_mics: a.mics,
+            num_dirs: a.directions,
+            window: a.window,
+            num_sources: a.num_sources,
+            batch: a.batch,
+            repeats: a.repeats,
+            device: a.device.into(),
+        };
+        let r = match a.precision {
+            PrecisionArg::F32 => run_bench::<f32>(&cfg)?,
+            PrecisionArg::F64 => run_bench::<f64>(&cfg)?,
+        };
+        if a.json {
+            println!("{}", serde_json::to_string(&r)?);
+        } else {
+            print_report(&r);
+        }
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+fn print_report(r: &BenchReport) {
+    let c = &r.config;
+    let s = &r.stages_per_localization;
+    println!(
+        "{} on {} ({}): M={} bins={} D={} W={} Ns={}",
+        c.algorithm.name(),
+        r.device,
+        r.precision,
+        c.num_mics,
+        r.num_bins,
+        c.num_dirs,
+        c.window,
+        c.num_sources
+    );
+    println!("  ms per localization (one window, median)  {:>10.3}", r.ms_per_localization);
+    println!(
+        "  localizations per second (batch of {:>3})  {:>10.1}",
+        c.batch, r.localizations_per_s
+    );
+    println!(
+        "  ms compute per s of audio, PERIOD 50     {:>10.3}   (real-time factor {:.4})",
+        r.ms_per_audio_s_period50, r.rtf_period50
+    );
+    println!(
+        "  ms compute per s of audio, PERIOD 1      {:>10.3}   (real-time factor {:.4})",
+        r.ms_per_audio_s_period1, r.rtf_period1
+    );
+    println!(
+        "  stage split per localization (ms): correlation {:.3}, decomposition {:.3}, spectrum {:.3}, peaks {:.3}",
+        s.correlation_ms, s.decomposition_ms, s.spectrum_ms, s.peaks_ms
+    );
+}

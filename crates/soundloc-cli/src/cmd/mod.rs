@@ -1,0 +1,82 @@
+//! Subcommands.
+
+pub mod bench;
+
+use clap::{Parser, Subcommand, ValueEnum};
+use std::process::ExitCode;
+
+/// MUSIC sound source localization for microphone arrays (SEVD / GEVD / GSVD), CPU and CUDA.
+#[derive(Parser, Debug)]
+#[command(name = "soundloc", version, about, long_about = None)]
+pub struct Cli {
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+#[derive(Subcommand, Debug)]
+pub enum Command {
+    /// Benchmark the seed configuration (GSVD, 60 mics, 73 bins, W 50, 2522 directions).
+    Bench(bench::Args),
+}
+
+/// Compute device.
+#[derive(ValueEnum, Clone, Copy, Debug, Default)]
+pub enum DeviceArg {
+    /// CUDA when a usable GPU and the CUDA libraries are present, else the CPU.
+    #[default]
+    Auto,
+    /// The CPU.
+    Cpu,
+    /// CUDA GPU 0.
+    Cuda,
+}
+
+impl From<DeviceArg> for soundloc::backend::DeviceChoice {
+    fn from(d: DeviceArg) -> Self {
+        match d {
+            DeviceArg::Auto => Self::Auto,
+            DeviceArg::Cpu => Self::Cpu,
+            DeviceArg::Cuda => Self::Cuda,
+        }
+    }
+}
+
+/// Compute precision.
+#[derive(ValueEnum, Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum PrecisionArg {
+    /// Single precision (as HARK; default).
+    #[default]
+    F32,
+    /// Double precision (reference).
+    F64,
+}
+
+/// MUSIC algorithm.
+#[derive(ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum AlgorithmArg {
+    /// Standard eigendecomposition of R (plain MUSIC; HARK's default).
+    Sevd,
+    /// Textbook generalized eigenvectors R e = λ K e (robust in coherent noise).
+    Gevd,
+    /// HARK's GEVD (eigenvectors of K^-1/2 R K^-1/2, no back-transform).
+    GevdHark,
+    /// HARK's GSVD (left singular vectors of K^-1 R; the seed paper's algorithm).
+    Gsvd,
+}
+
+impl From<AlgorithmArg> for soundloc::Algorithm {
+    fn from(a: AlgorithmArg) -> Self {
+        match a {
+            AlgorithmArg::Sevd => Self::Sevd,
+            AlgorithmArg::Gevd => Self::Gevd,
+            AlgorithmArg::GevdHark => Self::GevdHark,
+            AlgorithmArg::Gsvd => Self::Gsvd,
+        }
+    }
+}
+
+pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
+    match cli.command {
+        Command::Bench(a) => bench::run(a),
+    }
+}
