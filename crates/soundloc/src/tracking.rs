@@ -536,8 +536,8 @@ pub fn summarize(results: &[LocalizationResult]) -> Vec<SourceSummary> {
             }
             a.s.num_results += 1;
             if v.iter().all(|c| c.is_finite()) {
-                for k in 0..3 {
-                    a.sum[k] += v[k];
+                for (acc_k, v_k) in a.sum.iter_mut().zip(v) {
+                    *acc_k += v_k;
                 }
             }
         }

@@ -460,7 +460,12 @@ fn check_bin(k: &[Complex<f64>], m: usize) -> std::result::Result<(), String> {
     let mut scale = 0.0f64;
     for (idx, z) in k.iter().enumerate() {
         if !(z.re.is_finite() && z.im.is_finite()) {
-            return Err(format!("K({}, {}) = {z} is not finite", idx / m, idx % m));
+            return Err(format!(
+                "K({}, {}) = {} is not finite",
+                idx / m,
+                idx % m,
+                fmt_c(*z)
+            ));
         }
         scale = scale.max(z.norm());
     }
@@ -470,12 +475,18 @@ fn check_bin(k: &[Complex<f64>], m: usize) -> std::result::Result<(), String> {
             let (a, b) = (k[i * m + j], k[j * m + i].conj());
             if (a - b).norm() > tol {
                 return Err(format!(
-                    "not Hermitian: K({i}, {j}) = {a} but conj K({j}, {i}) = {b} (tolerance {tol:.3e})"
+                    "not Hermitian: K({i}, {j}) = {} but conj K({j}, {i}) = {} (tolerance {tol:.3e})",
+                    fmt_c(a),
+                    fmt_c(b)
                 ));
             }
         }
     }
     Ok(())
+}
+
+fn fmt_c(z: Complex<f64>) -> String {
+    format!("{}{:+}i", z.re, z.im)
 }
 
 struct TextMatrix {
