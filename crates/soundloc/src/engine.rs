@@ -174,6 +174,18 @@ impl<T: Real> Engine<T> {
             )));
         }
         self.backend.reset_stage_times();
+        self.localize_windows(spectra, &windows, want_spectrum, progress)
+    }
+
+    /// Localize an explicit list of windows over `spectra` (e.g. one at a time between
+    /// online noise updates). Stage times accumulate across calls.
+    pub fn localize_windows(
+        &mut self,
+        spectra: &Spectra<T>,
+        windows: &[WindowSpec],
+        want_spectrum: bool,
+        progress: &mut dyn FnMut(usize, usize),
+    ) -> Result<Localization> {
         let batch = self.backend.max_windows_per_batch().max(1);
         let mut results = Vec::with_capacity(windows.len());
         let mut table = want_spectrum.then(|| SpectrumTable {

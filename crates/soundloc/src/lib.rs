@@ -39,6 +39,7 @@ pub mod backend;
 pub mod bench;
 pub mod config;
 pub mod correlation;
+pub mod demo;
 pub mod engine;
 pub mod error;
 pub mod formats;
