@@ -1,1 +1,564 @@
-//! (being written)
+//! Plots of the MUSIC spectrum over time: a heat map of power in dB, time (x, seconds)
+//! against azimuth (y, degrees, −180..180), with detected peaks as markers, true
+//! directions as dashed lines and a colour bar.
+//!
+//! For a grid with several elevations (a sphere), each azimuth bin of
+//! [`AZIMUTH_BIN_DEG`] degrees shows the **maximum over all directions in the bin**
+//! (all elevations); a bin that holds no grid direction takes the value of the nearest
+//! non-empty bin (circularly), so a 5° ring shows as 5° stripes. When there are more
+//! results than about one per horizontal pixel, neighbouring results are merged by
+//! maximum. The colour scale (viridis) runs from the smallest to the largest finite dB
+//! value.
+//!
+//! Text uses the embedded DejaVu Sans font (`assets/DejaVuSans.ttf`, Bitstream Vera
+//! licence, see `assets/DejaVuSans-LICENSE.txt`); no system font is looked up. The
+//! format is SVG when the path ends in `.svg` (any case), PNG otherwise. The file is
+//! written atomically.
+
+use super::atomic::AtomicFile;
+use crate::{Error, Result};
+use plotters::coord::Shift;
+use plotters::prelude::*;
+use std::path::Path;
+use std::sync::OnceLock;
+
+/// Width of an azimuth bin of the heat map, degrees.
+pub const AZIMUTH_BIN_DEG: f64 = 2.0;
+
+/// Image size in pixels (width, height).
+pub const PLOT_SIZE: (u32, u32) = (1200, 600);
+
+const FONT: &[u8] = include_bytes!("../../assets/DejaVuSans.ttf");
+const FAMILY: &str = "sans-serif";
+
+/// What to draw: a dB spectrum `[result][direction]` and its annotations.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct SpectrumPlot {
+    /// Time of each result in seconds (one per row of `db`), ascending.
+    pub times_s: Vec<f64>,
+    /// Azimuth of each grid direction in degrees (one per column of `db`).
+    pub azimuth_deg: Vec<f64>,
+    /// Elevation of each grid direction in degrees (same length as `azimuth_deg`, or
+    /// empty when all are 0).
+    pub elevation_deg: Vec<f64>,
+    /// Power in dB, row-major: rows = results, columns = directions.
+    pub db: Vec<f32>,
+    /// Detected peaks per result: (azimuth in degrees, power in dB). Empty, or one list
+    /// per result.
+    pub peaks: Vec<Vec<(f64, f64)>>,
+    /// True source azimuths in degrees, drawn as dashed horizontal lines.
+    pub truth_azimuths_deg: Vec<f64>,
+    /// Title above the plot.
+    pub title: String,
+}
+
+/// The heat map after binning: `values[col * bins + bin]`, column `col` spanning
+/// `edges[col] .. edges[col + 1]` seconds, bin `b` spanning azimuths
+/// −180 + b·Δ .. −180 + (b + 1)·Δ.
+#[derive(Debug, Clone, PartialEq)]
+struct HeatMap {
+    edges: Vec<f64>,
+    bins: usize,
+    values: Vec<f32>,
+    lo: f32,
+    hi: f32,
+}
+
+fn wrap_az(az: f64) -> f64 {
+    (az + 180.0).rem_euclid(360.0) - 180.0
+}
+
+fn validate(p: &SpectrumPlot) -> Result<()> {
+    let (r, d) = (p.times_s.len(), p.azimuth_deg.len());
+    if r == 0 || d == 0 {
+        return Err(Error::TooShort(format!(
+            "plot: nothing to draw ({r} results, {d} directions)"
+        )));
+    }
+    if !p.elevation_deg.is_empty() && p.elevation_deg.len() != d {
+        return Err(Error::Mismatch(format!(
+            "plot: {} elevations for {d} azimuths",
+            p.elevation_deg.len()
+        )));
+    }
+    if p.db.len() != r * d {
+        return Err(Error::Mismatch(format!(
+            "plot: spectrum has {} values, expected {r} results × {d} directions = {}",
+            p.db.len(),
+            r * d
+        )));
+    }
+    if !p.peaks.is_empty() && p.peaks.len() != r {
+        return Err(Error::Mismatch(format!(
+            "plot: {} peak lists for {r} results",
+            p.peaks.len()
+        )));
+    }
+    if p.times_s.iter().any(|t| !t.is_finite()) || p.azimuth_deg.iter().any(|a| !a.is_finite()) {
+        return Err(Error::Mismatch(
+            "plot: times and azimuths must be finite".into(),
+        ));
+    }
+    if p.times_s.windows(2).any(|w| w[1] <= w[0]) {
+        return Err(Error::Mismatch(
+            "plot: result times must be strictly increasing".into(),
+        ));
+    }
+    Ok(())
+}
+
+fn heat_map(p: &SpectrumPlot, max_cols: usize) -> HeatMap {
+    let (r, d) = (p.times_s.len(), p.azimuth_deg.len());
+    let bins = (360.0 / AZIMUTH_BIN_DEG).round() as usize;
+    let bin_of: Vec<usize> = p
+        .azimuth_deg
+        .iter()
+        .map(|&a| (((wrap_az(a) + 180.0) / AZIMUTH_BIN_DEG).floor() as usize).min(bins - 1))
+        .collect();
+    // Nearest occupied bin for every bin (circular).
+    let mut occupied = vec![false; bins];
+    bin_of.iter().for_each(|&b| occupied[b] = true);
+    let source: Vec<usize> = (0..bins)
+        .map(|b| {
+            (0..=bins / 2)
+                .flat_map(|k| [(b + k) % bins, (b + bins - k) % bins])
+                .find(|&c| occupied[c])
+                .unwrap_or(b)
+        })
+        .collect();
+    // Time columns: groups of consecutive results.
+    let group = r.div_ceil(max_cols.max(1));
+    let cols = r.div_ceil(group);
+    let dt_last = if r > 1 {
+        p.times_s[r - 1] - p.times_s[r - 2]
+    } else {
+        1.0
+    };
+    let mut edges: Vec<f64> = (0..cols).map(|c| p.times_s[c * group]).collect();
+    edges.push(p.times_s[r - 1] + dt_last);
+    let mut values = vec![f32::NEG_INFINITY; cols * bins];
+    for row in 0..r {
+        let col = row / group;
+        let dst = &mut values[col * bins..(col + 1) * bins];
+        for (j, &b) in bin_of.iter().enumerate() {
+            let v = p.db[row * d + j];
+            if v.is_finite() && v > dst[b] {
+                dst[b] = v;
+            }
+        }
+    }
+    for col in 0..cols {
+        let row: Vec<f32> = values[col * bins..(col + 1) * bins].to_vec();
+        for b in 0..bins {
+            values[col * bins + b] = row[source[b]];
+        }
+    }
+    let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
+    for &v in values.iter().filter(|v| v.is_finite()) {
+        lo = lo.min(v);
+        hi = hi.max(v);
+    }
+    if !lo.is_finite() {
+        (lo, hi) = (0.0, 1.0);
+    }
+    if hi <= lo {
+        hi = lo + 1.0;
+    }
+    HeatMap {
+        edges,
+        bins,
+        values,
+        lo,
+        hi,
+    }
+}
+
+/// Viridis, sampled at 9 points.
+const VIRIDIS: [(u8, u8, u8); 9] = [
+    (68, 1, 84),
+    (71, 44, 122),
+    (59, 81, 139),
+    (44, 113, 142),
+    (33, 144, 141),
+    (39, 173, 129),
+    (92, 200, 99),
+    (170, 220, 50),
+    (253, 231, 37),
+];
+
+fn colour(v: f32, lo: f32, hi: f32) -> RGBColor {
+    if !v.is_finite() {
+        return RGBColor(40, 40, 40);
+    }
+    let x = (((v - lo) / (hi - lo)).clamp(0.0, 1.0) * 8.0) as f64;
+    let i = (x.floor() as usize).min(7);
+    let f = x - i as f64;
+    let (a, b) = (VIRIDIS[i], VIRIDIS[i + 1]);
+    let mix = |p: u8, q: u8| (p as f64 + (q as f64 - p as f64) * f).round() as u8;
+    RGBColor(mix(a.0, b.0), mix(a.1, b.1), mix(a.2, b.2))
+}
+
+fn register_font() -> Result<()> {
+    static DONE: OnceLock<bool> = OnceLock::new();
+    let ok = *DONE
+        .get_or_init(|| plotters::style::register_font(FAMILY, FontStyle::Normal, FONT).is_ok());
+    if ok {
+        Ok(())
+    } else {
+        Err(Error::format(
+            "assets/DejaVuSans.ttf",
+            "the embedded font could not be loaded",
+        ))
+    }
+}
+
+/// The azimuth axis, −180..180 degrees, with ticks every 45°.
+struct AzimuthAxis;
+
+impl plotters::coord::ranged1d::Ranged for AzimuthAxis {
+    type ValueType = f64;
+    type FormatOption = plotters::coord::ranged1d::DefaultFormatting;
+    fn range(&self) -> std::ops::Range<f64> {
+        -180.0..180.0
+    }
+    fn map(&self, value: &f64, limit: (i32, i32)) -> i32 {
+        let f = (value + 180.0) / 360.0;
+        limit.0 + (f * (limit.1 - limit.0) as f64).round() as i32
+    }
+    fn key_points<Hint: plotters::coord::ranged1d::KeyPointHint>(&self, _hint: Hint) -> Vec<f64> {
+        (-4..=4).map(|k| k as f64 * 45.0).collect()
+    }
+}
+
+type DrawResult<E> = std::result::Result<(), DrawingAreaErrorKind<E>>;
+
+fn draw<DB: DrawingBackend>(
+    root: DrawingArea<DB, Shift>,
+    p: &SpectrumPlot,
+    hm: &HeatMap,
+) -> DrawResult<DB::ErrorType> {
+    root.fill(&WHITE)?;
+    let title = if p.title.is_empty() {
+        "MUSIC spectrum"
+    } else {
+        p.title.as_str()
+    };
+    let root = root.titled(title, (FAMILY, 22))?;
+    let (main, bar) = root.split_horizontally(root.dim_in_pixel().0.saturating_sub(130));
+    let (t0, t1) = (hm.edges[0], hm.edges[hm.edges.len() - 1]);
+    let multi_el = p
+        .elevation_deg
+        .iter()
+        .any(|&e| (e - p.elevation_deg[0]).abs() > 1e-9);
+    let y_desc = if multi_el {
+        "azimuth (deg), max over elevation"
+    } else {
+        "azimuth (deg)"
+    };
+
+    let mut chart = ChartBuilder::on(&main)
+        .margin(10)
+        .x_label_area_size(45)
+        .y_label_area_size(70)
+        .build_cartesian_2d(t0..t1, AzimuthAxis)?;
+    let int_fmt = |v: &f64| format!("{v:.0}");
+    chart
+        .configure_mesh()
+        .disable_mesh()
+        .x_desc("time (s)")
+        .y_desc(y_desc)
+        .y_label_formatter(&int_fmt)
+        .label_style((FAMILY, 14))
+        .axis_desc_style((FAMILY, 16))
+        .draw()?;
+    let bins = hm.bins;
+    let cols = hm.edges.len() - 1;
+    // One rectangle per run of equal colour within a column (keeps SVG files small).
+    let mut cells = Vec::new();
+    for c in 0..cols {
+        let mut b = 0;
+        while b < bins {
+            let col = colour(hm.values[c * bins + b], hm.lo, hm.hi);
+            let mut e = b + 1;
+            while e < bins && colour(hm.values[c * bins + e], hm.lo, hm.hi) == col {
+                e += 1;
+            }
+            let y0 = -180.0 + b as f64 * AZIMUTH_BIN_DEG;
+            let y1 = -180.0 + e as f64 * AZIMUTH_BIN_DEG;
+            cells.push(Rectangle::new(
+                [(hm.edges[c], y0), (hm.edges[c + 1], y1)],
+                col.filled(),
+            ));
+            b = e;
+        }
+    }
+    chart.draw_series(cells)?;
+    let dash = RGBColor(255, 255, 255).stroke_width(2);
+    for (k, &az) in p.truth_azimuths_deg.iter().enumerate() {
+        let az = wrap_az(az);
+        let s = chart.draw_series(DashedLineSeries::new(vec![(t0, az), (t1, az)], 10, 6, dash))?;
+        if k == 0 {
+            s.label("true direction").legend(move |(x, y)| {
+                PathElement::new(
+                    vec![(x, y), (x + 20, y)],
+                    RGBColor(120, 120, 120).stroke_width(2),
+                )
+            });
+        }
+    }
+    let half_dt = |i: usize| {
+        if p.times_s.len() > 1 {
+            let j = if i + 1 < p.times_s.len() { i } else { i - 1 };
+            (p.times_s[j + 1] - p.times_s[j]) / 2.0
+        } else {
+            (t1 - t0) / 2.0
+        }
+    };
+    let marks: Vec<(f64, f64)> = p
+        .peaks
+        .iter()
+        .enumerate()
+        .flat_map(|(i, list)| {
+            let t = p.times_s[i] + half_dt(i);
+            list.iter()
+                .filter(|(az, _)| az.is_finite())
+                .map(move |&(az, _)| (t, wrap_az(az)))
+        })
+        .collect();
+    if !marks.is_empty() {
+        chart
+            .draw_series(
+                marks
+                    .iter()
+                    .map(|&c| Circle::new(c, 3, RGBColor(230, 30, 30).filled())),
+            )?
+            .label("detected peak")
+            .legend(|(x, y)| Circle::new((x + 10, y), 3, RGBColor(230, 30, 30).filled()));
+        chart.draw_series(
+            marks
+                .iter()
+                .map(|&c| Circle::new(c, 3, WHITE.stroke_width(1))),
+        )?;
+    }
+    if !marks.is_empty() || !p.truth_azimuths_deg.is_empty() {
+        chart
+            .configure_series_labels()
+            .label_font((FAMILY, 13))
+            .background_style(WHITE.mix(0.85))
+            .border_style(BLACK)
+            .position(SeriesLabelPosition::UpperRight)
+            .draw()?;
+    }
+
+    // Colour bar.
+    let mut cb = ChartBuilder::on(&bar)
+        .margin_top(10)
+        .margin_bottom(55)
+        .margin_right(10)
+        .y_label_area_size(70)
+        .build_cartesian_2d(0f64..1f64, hm.lo as f64..hm.hi as f64)?;
+    let db_fmt = |v: &f64| {
+        if hm.hi - hm.lo >= 5.0 {
+            format!("{v:.0}")
+        } else {
+            format!("{v:.2}")
+        }
+    };
+    cb.configure_mesh()
+        .disable_mesh()
+        .disable_x_axis()
+        .y_desc("power (dB)")
+        .y_labels(8)
+        .y_label_formatter(&db_fmt)
+        .label_style((FAMILY, 14))
+        .axis_desc_style((FAMILY, 16))
+        .draw()?;
+    let steps = 128;
+    let (lo, hi) = (hm.lo as f64, hm.hi as f64);
+    cb.draw_series((0..steps).map(|i| {
+        let a = lo + (hi - lo) * i as f64 / steps as f64;
+        let b = lo + (hi - lo) * (i + 1) as f64 / steps as f64;
+        Rectangle::new(
+            [(0.0, a), (1.0, b)],
+            colour(((a + b) / 2.0) as f32, hm.lo, hm.hi).filled(),
+        )
+    }))?;
+    root.present()?;
+    Ok(())
+}
+
+/// Draw `plot` to `path`: SVG when the path ends in `.svg`, PNG otherwise
+/// ([`PLOT_SIZE`] pixels), atomically.
+pub fn plot_spectrum(path: impl AsRef<Path>, plot: &SpectrumPlot) -> Result<()> {
+    let path = path.as_ref();
+    validate(plot)?;
+    register_font()?;
+    let perr = |e: String| Error::io(path, std::io::Error::other(format!("drawing: {e}")));
+    let svg = path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("svg"));
+    if svg {
+        let hm = heat_map(plot, 300);
+        let mut text = String::new();
+        {
+            let root = SVGBackend::with_string(&mut text, PLOT_SIZE).into_drawing_area();
+            draw(root, plot, &hm).map_err(|e| perr(e.to_string()))?;
+        }
+        super::atomic::write_atomically(path, |f| std::io::Write::write_all(f, text.as_bytes()))
+    } else {
+        let hm = heat_map(plot, PLOT_SIZE.0 as usize);
+        // The image encoder picks the format from the extension: give the temporary
+        // file a `.png` one.
+        let file = AtomicFile::create_with_suffix(path, ".png")?;
+        {
+            let root = BitMapBackend::new(file.temp_path(), PLOT_SIZE).into_drawing_area();
+            draw(root, plot, &hm).map_err(|e| perr(e.to_string()))?;
+        }
+        file.commit()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Two sources moving slowly on a 5°-ring grid plus a sphere-like elevation layer.
+    fn synthetic(rings: &[f64]) -> SpectrumPlot {
+        let mut az = Vec::new();
+        let mut el = Vec::new();
+        for &e in rings {
+            for k in 0..72 {
+                az.push(wrap_az(k as f64 * 5.0));
+                el.push(e);
+            }
+        }
+        let times: Vec<f64> = (0..60).map(|i| i as f64 * 0.5).collect();
+        let mut db = Vec::new();
+        let mut peaks = Vec::new();
+        for &t in &times {
+            let s1 = 30.0 + t;
+            let s2 = -120.0;
+            for (j, &a) in az.iter().enumerate() {
+                let d1 = wrap_az(a - s1).abs();
+                let d2 = wrap_az(a - s2).abs();
+                let elev_drop = el[j].abs() / 10.0;
+                db.push(
+                    (25.0 * (-d1 * d1 / 200.0).exp() + 18.0 * (-d2 * d2 / 200.0).exp() + 2.0
+                        - elev_drop) as f32,
+                );
+            }
+            peaks.push(vec![(s1, 27.0), (s2, 20.0)]);
+        }
+        SpectrumPlot {
+            times_s: times,
+            azimuth_deg: az,
+            elevation_deg: el,
+            db,
+            peaks,
+            truth_azimuths_deg: vec![30.0, -120.0],
+            title: "synthetic spectrum".into(),
+        }
+    }
+
+    fn temp_dir() -> std::path::PathBuf {
+        use std::sync::atomic::{AtomicU64, Ordering};
+        static N: AtomicU64 = AtomicU64::new(0);
+        let d = std::env::temp_dir().join(format!(
+            "soundloc-plot-{}-{}",
+            std::process::id(),
+            N.fetch_add(1, Ordering::Relaxed)
+        ));
+        std::fs::create_dir_all(&d).unwrap();
+        d
+    }
+
+    #[test]
+    fn heat_map_bins_max_over_elevation_and_fills_gaps() {
+        let p = synthetic(&[0.0, 30.0]);
+        let hm = heat_map(&p, 1000);
+        assert_eq!(hm.bins, 180);
+        assert_eq!(hm.edges.len(), 61);
+        assert_eq!(hm.edges[60], 30.0);
+        // Bin of azimuth 30° (bin 105) holds the ring-0 value (the max over elevations).
+        let d = p.azimuth_deg.len();
+        let j = p.azimuth_deg.iter().position(|&a| a == 30.0).unwrap();
+        assert_eq!(hm.values[105], p.db[j].max(p.db[j + d / 2]));
+        // No empty bins: all values finite.
+        assert!(hm.values.iter().all(|v| v.is_finite()));
+        // Merging columns by max.
+        let hm2 = heat_map(&p, 25);
+        assert_eq!(hm2.edges.len(), 21);
+        assert!(hm2.values[105] >= hm.values[105]);
+    }
+
+    #[test]
+    fn renders_png() {
+        let d = temp_dir();
+        let path = d.join("spectrum.png");
+        plot_spectrum(&path, &synthetic(&[0.0, 20.0, -20.0])).unwrap();
+        let decoder = png::Decoder::new(std::fs::File::open(&path).unwrap());
+        let mut reader = decoder.read_info().unwrap();
+        let mut buf = vec![0; reader.output_buffer_size()];
+        let info = reader.next_frame(&mut buf).unwrap();
+        assert_eq!((info.width, info.height), PLOT_SIZE);
+        let px = &buf[..info.buffer_size()];
+        let n = px.len() as f64;
+        let mean = px.iter().map(|&v| v as f64).sum::<f64>() / n;
+        let var = px.iter().map(|&v| (v as f64 - mean).powi(2)).sum::<f64>() / n;
+        assert!(var > 1000.0, "pixel variance {var}");
+        // Many distinct colours (heat map), and text pixels exist (dark grey/black).
+        let distinct: std::collections::HashSet<&[u8]> = px.chunks(3).collect();
+        assert!(distinct.len() > 50, "{} colours", distinct.len());
+        // Nothing else was left in the directory.
+        assert_eq!(std::fs::read_dir(&d).unwrap().count(), 1);
+        // A path without .png still gets a PNG.
+        let other = d.join("spectrum.img");
+        plot_spectrum(&other, &synthetic(&[0.0])).unwrap();
+        assert_eq!(&std::fs::read(&other).unwrap()[..8], b"\x89PNG\r\n\x1a\n");
+        std::fs::remove_dir_all(&d).unwrap();
+    }
+
+    #[test]
+    fn renders_svg_with_labels() {
+        let d = temp_dir();
+        let path = d.join("spectrum.SVG");
+        plot_spectrum(&path, &synthetic(&[0.0])).unwrap();
+        let text = std::fs::read_to_string(&path).unwrap();
+        assert!(text.starts_with("<svg"), "{}", &text[..50]);
+        for label in [
+            "time (s)",
+            "azimuth (deg)",
+            "power (dB)",
+            "synthetic spectrum",
+            "true direction",
+        ] {
+            assert!(text.contains(label), "missing {label}");
+        }
+        std::fs::remove_dir_all(&d).unwrap();
+    }
+
+    #[test]
+    fn bad_input_is_an_error_and_leaves_nothing() {
+        let d = temp_dir();
+        let path = d.join("x.png");
+        let mut p = synthetic(&[0.0]);
+        p.db.pop();
+        assert!(plot_spectrum(&path, &p).is_err());
+        let mut p = synthetic(&[0.0]);
+        p.peaks.pop();
+        assert!(plot_spectrum(&path, &p).is_err());
+        assert!(plot_spectrum(&path, &SpectrumPlot::default()).is_err());
+        assert_eq!(std::fs::read_dir(&d).unwrap().count(), 0);
+        // A single result, constant spectrum, no annotations: still draws.
+        let p = SpectrumPlot {
+            times_s: vec![0.0],
+            azimuth_deg: vec![0.0, 90.0, 180.0, -90.0],
+            elevation_deg: vec![],
+            db: vec![3.0; 4],
+            ..Default::default()
+        };
+        plot_spectrum(&path, &p).unwrap();
+        assert!(path.exists());
+        std::fs::remove_dir_all(&d).unwrap();
+    }
+}
