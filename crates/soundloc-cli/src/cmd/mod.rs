@@ -1,6 +1,8 @@
 //! Subcommands.
 
 pub mod bench;
+pub mod demo;
+pub mod localize;
 
 use clap::{Parser, Subcommand, ValueEnum};
 use std::process::ExitCode;
@@ -15,6 +17,10 @@ pub struct Cli {
 
 #[derive(Subcommand, Debug)]
 pub enum Command {
+    /// Simulated scenes with known answers, localized by every algorithm (no files needed).
+    Demo(demo::Args),
+    /// Localize sound sources in a recording.
+    Localize(Box<localize::Args>),
     /// Benchmark the seed configuration (GSVD, 60 mics, 73 bins, W 50, 2522 directions).
     Bench(bench::Args),
 }
@@ -78,5 +84,30 @@ impl From<AlgorithmArg> for soundloc::Algorithm {
 pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
     match cli.command {
         Command::Bench(a) => bench::run(a),
+        Command::Demo(a) => demo::run(a),
+        Command::Localize(a) => localize::run(*a),
     }
+}
+
+/// K from a HARK noise correlation file, for the config's used bins.
+pub fn noise_cm_for(
+    path: &std::path::Path,
+    config: &soundloc::LocalizeConfig,
+    num_mics: usize,
+) -> anyhow::Result<soundloc::noise::NoiseMatrices> {
+    use soundloc::formats::noise_cm::{Expected, NoiseCm};
+    let cm = NoiseCm::load(
+        path,
+        Expected {
+            num_mics: Some(num_mics),
+            nfft: Some(config.nfft),
+        },
+    )?;
+    let bins = config.bin_range();
+    let mut k = soundloc::noise::NoiseMatrices::identity(num_mics, bins.clone());
+    let mm = num_mics * num_mics;
+    for (b, bin) in bins.enumerate() {
+        k.data[b * mm..(b + 1) * mm].copy_from_slice(cm.get(bin));
+    }
+    Ok(k)
 }
