@@ -138,7 +138,10 @@ mod tests {
         let part = free_field(&geo, &grid, 512, 16000, 16..89, 343.0).unwrap();
         assert_eq!(part.bins(), 16..89);
         assert_eq!(part.get(3, 2, 40), tf.get(3, 2, 40));
-        assert_eq!(part.restrict_bins(20..30).unwrap(), tf.restrict_bins(20..30).unwrap());
+        assert_eq!(
+            part.restrict_bins(20..30).unwrap(),
+            tf.restrict_bins(20..30).unwrap()
+        );
     }
 
     #[test]
@@ -151,7 +154,9 @@ mod tests {
         assert!(free_field(&geo, &grid, 512, 0, 0..10, 343.0).is_err());
         let mut g2 = grid.clone();
         g2.points[1][0] = f64::NAN;
-        let e = free_field(&geo, &g2, 512, 16000, 0..10, 343.0).unwrap_err().to_string();
+        let e = free_field(&geo, &g2, 512, 16000, 0..10, 343.0)
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("grid point 1"), "{e}");
     }
 }

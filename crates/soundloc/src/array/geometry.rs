@@ -65,10 +65,7 @@ impl Geometry {
                 if dist(self.mics[i], self.mics[j]) < DUPLICATE_TOLERANCE_M {
                     return Err(Error::format(
                         what,
-                        format!(
-                            "mic {i}: same position as mic {j} ({:?})",
-                            self.mics[i]
-                        ),
+                        format!("mic {i}: same position as mic {j} ({:?})", self.mics[i]),
                     ));
                 }
             }
@@ -97,7 +94,10 @@ impl Geometry {
                 })?;
                 for (i, m) in list.iter().enumerate() {
                     let coords = m.as_array().ok_or_else(|| {
-                        fail(format!("mic {i}: expected a list [x, y, z], found {}", m.type_str()))
+                        fail(format!(
+                            "mic {i}: expected a list [x, y, z], found {}",
+                            m.type_str()
+                        ))
                     })?;
                     if coords.len() != 3 {
                         return Err(fail(format!(
@@ -122,11 +122,13 @@ impl Geometry {
                     .as_array()
                     .ok_or_else(|| fail("`mic` must be an array of tables ([[mic]])".into()))?;
                 for (i, t) in tables.iter().enumerate() {
-                    let t = t.as_table().ok_or_else(|| {
-                        fail(format!("mic {i}: expected a table with x, y, z"))
-                    })?;
+                    let t = t
+                        .as_table()
+                        .ok_or_else(|| fail(format!("mic {i}: expected a table with x, y, z")))?;
                     if let Some(k) = t.keys().find(|k| !matches!(k.as_str(), "x" | "y" | "z")) {
-                        return Err(fail(format!("mic {i}: unknown key `{k}` (expected x, y, z)")));
+                        return Err(fail(format!(
+                            "mic {i}: unknown key `{k}` (expected x, y, z)"
+                        )));
                     }
                     let mut p = [0.0; 3];
                     for (k, name) in ["x", "y", "z"].iter().enumerate() {
@@ -146,12 +148,10 @@ impl Geometry {
                     mics.push(p);
                 }
             }
-            (None, None) => {
-                return Err(fail(
-                    "no microphones: expected `mics = [[x, y, z], ...]` or `[[mic]]` tables (metres)"
-                        .into(),
-                ))
-            }
+            (None, None) => return Err(fail(
+                "no microphones: expected `mics = [[x, y, z], ...]` or `[[mic]]` tables (metres)"
+                    .into(),
+            )),
         }
         Geometry::new(mics, path_for_errors)
     }

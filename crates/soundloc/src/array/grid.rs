@@ -237,7 +237,10 @@ impl Grid {
     /// `table: 6–8 neighbours per point (mean 6.4)`.
     pub fn neighbor_relation(&self) -> String {
         if self.kind == GridKind::Ring {
-            return format!("left/right in azimuth, wrapping ({}-point ring)", self.len());
+            return format!(
+                "left/right in azimuth, wrapping ({}-point ring)",
+                self.len()
+            );
         }
         let counts: Vec<usize> = self.neighbors.iter().map(|v| v.len()).collect();
         let min = counts.iter().copied().min().unwrap_or(0);
@@ -548,7 +551,10 @@ mod tests {
         assert!(g.neighbors_symmetric());
         assert!(g.is_ring_order());
         assert!((g.max_neighbor_angle_deg() - 5.0 * 16.7f64.to_radians().cos()).abs() < 0.01);
-        assert_eq!(g.neighbor_relation(), "left/right in azimuth, wrapping (72-point ring)");
+        assert_eq!(
+            g.neighbor_relation(),
+            "left/right in azimuth, wrapping (72-point ring)"
+        );
         // From points alone, the same ring is recognised.
         let g2 = Grid::from_points(g.points.clone()).unwrap();
         assert_eq!(g2, g);
@@ -560,8 +566,14 @@ mod tests {
         assert_eq!(g3.kind, GridKind::Ring);
         assert_eq!(g3.azimuth_deg(0), 180.0);
         // Tiny rings.
-        assert_eq!(Grid::ring(180.0, 0.0, 1.0).neighbors, vec![vec![1], vec![0]]);
-        assert_eq!(Grid::ring(360.0, 0.0, 1.0).neighbors, vec![Vec::<usize>::new()]);
+        assert_eq!(
+            Grid::ring(180.0, 0.0, 1.0).neighbors,
+            vec![vec![1], vec![0]]
+        );
+        assert_eq!(
+            Grid::ring(360.0, 0.0, 1.0).neighbors,
+            vec![Vec::<usize>::new()]
+        );
     }
 
     #[test]
@@ -572,9 +584,16 @@ mod tests {
         assert!(g.neighbors_symmetric());
         let spacing = (4.0 * std::f64::consts::PI / 2522.0).sqrt().to_degrees();
         let max = g.max_neighbor_angle_deg();
-        assert!(max < 2.0 * spacing, "max neighbour angle {max}° vs spacing {spacing}°");
+        assert!(
+            max < 2.0 * spacing,
+            "max neighbour angle {max}° vs spacing {spacing}°"
+        );
         for (i, l) in g.neighbors.iter().enumerate() {
-            assert!(l.len() >= 6 && l.len() <= 12, "point {i}: {} neighbours", l.len());
+            assert!(
+                l.len() >= 6 && l.len() <= 12,
+                "point {i}: {} neighbours",
+                l.len()
+            );
             assert!(!l.contains(&i));
         }
         // Brute-force check of the pruned search on a smaller lattice.
@@ -599,13 +618,24 @@ mod tests {
     #[test]
     fn with_neighbors_validates() {
         let pts = vec![[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0]];
-        let g = Grid::with_neighbors(pts.clone(), GridKind::Irregular, vec![vec![0, 1, 1], vec![0], vec![]])
-            .unwrap();
+        let g = Grid::with_neighbors(
+            pts.clone(),
+            GridKind::Irregular,
+            vec![vec![0, 1, 1], vec![0], vec![]],
+        )
+        .unwrap();
         assert_eq!(g.neighbors[0], vec![1]);
-        let e = Grid::with_neighbors(pts.clone(), GridKind::Irregular, vec![vec![5], vec![], vec![]])
-            .unwrap_err()
-            .to_string();
-        assert_eq!(e, "grid: point 0 lists neighbour 5, but there are only 3 points");
+        let e = Grid::with_neighbors(
+            pts.clone(),
+            GridKind::Irregular,
+            vec![vec![5], vec![], vec![]],
+        )
+        .unwrap_err()
+        .to_string();
+        assert_eq!(
+            e,
+            "grid: point 0 lists neighbour 5, but there are only 3 points"
+        );
         assert!(Grid::with_neighbors(pts.clone(), GridKind::Irregular, vec![]).is_err());
         let mut bad = pts;
         bad[1] = [f64::NAN, 0.0, 0.0];
@@ -620,11 +650,26 @@ mod tests {
         }
         assert_eq!(
             "ring:5:16.7".parse::<GridSpec>().unwrap(),
-            GridSpec::Ring { step_deg: 5.0, elevation_deg: 16.7 }
+            GridSpec::Ring {
+                step_deg: 5.0,
+                elevation_deg: 16.7
+            }
         );
-        assert_eq!("sphere:2522".parse::<GridSpec>().unwrap().build(1.0).len(), 2522);
+        assert_eq!(
+            "sphere:2522".parse::<GridSpec>().unwrap().build(1.0).len(),
+            2522
+        );
         assert_eq!("ring:10".parse::<GridSpec>().unwrap().build(2.0).len(), 36);
-        for bad in ["ring:7", "ring:0", "ring:x", "ring:5:100", "sphere:1", "sphere:x", "cube:3", "ring:5:1:2"] {
+        for bad in [
+            "ring:7",
+            "ring:0",
+            "ring:x",
+            "ring:5:100",
+            "sphere:1",
+            "sphere:x",
+            "cube:3",
+            "ring:5:1:2",
+        ] {
             let e = bad.parse::<GridSpec>().unwrap_err().to_string();
             assert!(e.contains(bad), "{e}");
         }

@@ -337,7 +337,9 @@ impl TransferFunctions {
             .grid
             .angle_ranges_deg()
             .unwrap_or(((0.0, 0.0), (0.0, 0.0)));
-        let radii: Vec<f64> = (0..self.num_dirs()).map(|i| self.grid.radius_m(i)).collect();
+        let radii: Vec<f64> = (0..self.num_dirs())
+            .map(|i| self.grid.radius_m(i))
+            .collect();
         let r0 = radii.iter().copied().fold(f64::INFINITY, f64::min);
         let r1 = radii.iter().copied().fold(f64::NEG_INFINITY, f64::max);
         let end = self.first_bin + self.num_bins;
@@ -401,8 +403,15 @@ mod tests {
         assert_eq!(s.mic_positions, vec![[0.2, 0.0, 0.0], [0.0, 0.0, 0.0]]);
         s.validate().unwrap();
         let e = tf.select_channels(&[0, 3]).unwrap_err().to_string();
-        assert!(e.contains("channel 3 is out of range") && e.contains("3 microphones"), "{e}");
-        assert!(tf.select_channels(&[1, 1]).unwrap_err().to_string().contains("twice"));
+        assert!(
+            e.contains("channel 3 is out of range") && e.contains("3 microphones"),
+            "{e}"
+        );
+        assert!(tf
+            .select_channels(&[1, 1])
+            .unwrap_err()
+            .to_string()
+            .contains("twice"));
         assert!(tf.select_channels(&[]).is_err());
 
         let r = tf.restrict_bins(1..4).unwrap();
@@ -411,7 +420,11 @@ mod tests {
         assert_eq!(r.get(1, 1, 1), tf.get(1, 1, 1));
         let rr = r.restrict_bins(2..3).unwrap();
         assert_eq!(rr.get(2, 0, 2), tf.get(2, 0, 2));
-        assert!(r.restrict_bins(0..2).unwrap_err().to_string().contains("hold bins 1..4"));
+        assert!(r
+            .restrict_bins(0..2)
+            .unwrap_err()
+            .to_string()
+            .contains("hold bins 1..4"));
         assert!(r.restrict_bins(2..2).is_err());
     }
 
@@ -420,23 +433,32 @@ mod tests {
         let mut tf = small();
         tf.data[17] = Complex::new(f32::NAN, 0.0);
         let e = tf.validate().unwrap_err().to_string();
-        assert!(e.contains("non-finite") && e.contains("direction 1, mic 0, bin 2"), "{e}");
+        assert!(
+            e.contains("non-finite") && e.contains("direction 1, mic 0, bin 2"),
+            "{e}"
+        );
         let mut tf = small();
         tf.data.pop();
         assert!(tf.validate().is_err());
         let mut tf = small();
         tf.num_bins = 6;
-        tf.data.extend(std::iter::repeat_n(Complex::new(0.0, 0.0), 12));
+        tf.data
+            .extend(std::iter::repeat_n(Complex::new(0.0, 0.0), 12));
         assert!(tf.validate().unwrap_err().to_string().contains("exceed"));
     }
 
     #[test]
     fn summary_fields() {
         let s = small().summary();
-        assert_eq!((s.num_mics, s.num_dirs, s.nfft, s.first_bin, s.end_bin), (3, 4, 8, 0, 5));
+        assert_eq!(
+            (s.num_mics, s.num_dirs, s.nfft, s.first_bin, s.end_bin),
+            (3, 4, 8, 0, 5)
+        );
         assert_eq!(s.grid_kind, GridKind::Ring);
         assert_eq!(s.last_bin_hz, 8000.0);
-        assert!((s.azimuth_max_deg - 180.0).abs() < 1e-9 && (s.azimuth_min_deg + 90.0).abs() < 1e-9);
+        assert!(
+            (s.azimuth_max_deg - 180.0).abs() < 1e-9 && (s.azimuth_min_deg + 90.0).abs() < 1e-9
+        );
         let text = s.to_string();
         assert!(text.contains("left/right"), "{text}");
         let json = serde_json::to_string(&s).unwrap();
@@ -449,7 +471,10 @@ mod tests {
         std::fs::write(&p, b"RIFF1234WAVEfmt ").unwrap();
         let e = TransferFunctions::load(&p).unwrap_err().to_string();
         let _ = std::fs::remove_file(&p);
-        assert!(e.contains("not a HARK transfer-function zip or HGTF file"), "{e}");
+        assert!(
+            e.contains("not a HARK transfer-function zip or HGTF file"),
+            "{e}"
+        );
         assert!(e.contains("soundloc-notatf"), "{e}");
     }
 }

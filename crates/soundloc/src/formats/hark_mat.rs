@@ -209,11 +209,7 @@ pub fn read_mat(bytes: &[u8], path_for_errors: &Path) -> Result<MatData> {
                 .collect(),
         ),
         "float32" | "float" => MatValues::Float32((0..n).map(|i| f32_at(body, 4 * i)).collect()),
-        _ => MatValues::Int32(
-            (0..n)
-                .map(|i| i32_at(body, 4 * i).unwrap_or(0))
-                .collect(),
-        ),
+        _ => MatValues::Int32((0..n).map(|i| i32_at(body, 4 * i).unwrap_or(0)).collect()),
     };
     Ok(MatData {
         type_name,
@@ -239,8 +235,12 @@ pub fn write_mat(m: &MatData) -> Vec<u8> {
                 out.extend_from_slice(&c.im.to_le_bytes());
             }
         }
-        MatValues::Float32(v) => v.iter().for_each(|x| out.extend_from_slice(&x.to_le_bytes())),
-        MatValues::Int32(v) => v.iter().for_each(|x| out.extend_from_slice(&x.to_le_bytes())),
+        MatValues::Float32(v) => v
+            .iter()
+            .for_each(|x| out.extend_from_slice(&x.to_le_bytes())),
+        MatValues::Int32(v) => v
+            .iter()
+            .for_each(|x| out.extend_from_slice(&x.to_le_bytes())),
     }
     out
 }
@@ -258,7 +258,9 @@ mod tests {
         let c = MatData::complex(
             2,
             3,
-            (0..6).map(|i| Complex::new(i as f32 * 0.5, -(i as f32))).collect(),
+            (0..6)
+                .map(|i| Complex::new(i as f32 * 0.5, -(i as f32)))
+                .collect(),
         );
         let b = write_mat(&c);
         assert_eq!(b.len(), 76 + 6 * 8);
@@ -286,7 +288,11 @@ mod tests {
 
     #[test]
     fn malformed() {
-        let good = write_mat(&MatData::complex(8, 257, vec![Complex::new(1.0, 0.0); 8 * 257]));
+        let good = write_mat(&MatData::complex(
+            8,
+            257,
+            vec![Complex::new(1.0, 0.0); 8 * 257],
+        ));
         let e = read_mat(&good[..1200], p()).unwrap_err().to_string();
         assert_eq!(
             e,
@@ -304,9 +310,15 @@ mod tests {
         assert!(e.contains("too short"), "{e}");
         let mut bad = good.clone();
         bad[64..68].copy_from_slice(&3i32.to_le_bytes());
-        assert!(read_mat(&bad, p()).unwrap_err().to_string().contains("dimensions 3"));
+        assert!(read_mat(&bad, p())
+            .unwrap_err()
+            .to_string()
+            .contains("dimensions 3"));
         let mut long = good;
         long.push(0);
-        assert!(read_mat(&long, p()).unwrap_err().to_string().contains("expected 16524 bytes, found 16525"));
+        assert!(read_mat(&long, p())
+            .unwrap_err()
+            .to_string()
+            .contains("expected 16524 bytes, found 16525"));
     }
 }

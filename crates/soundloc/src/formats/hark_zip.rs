@@ -74,7 +74,10 @@ pub fn read_zip_entries(path: &Path) -> Result<BTreeMap<String, Vec<u8>>> {
     let mut out = BTreeMap::new();
     for i in 0..ar.len() {
         let mut f = ar.by_index(i).map_err(|e| {
-            Error::format(path, format!("zip entry #{i} cannot be read (corrupt?): {e}"))
+            Error::format(
+                path,
+                format!("zip entry #{i} cannot be read (corrupt?): {e}"),
+            )
         })?;
         if f.is_dir() {
             continue;
@@ -83,7 +86,10 @@ pub fn read_zip_entries(path: &Path) -> Result<BTreeMap<String, Vec<u8>>> {
         if f.size() > MAX_ENTRY_BYTES {
             return Err(Error::format(
                 entry_path(path, &name),
-                format!("entry claims {} bytes, more than the {MAX_ENTRY_BYTES} allowed", f.size()),
+                format!(
+                    "entry claims {} bytes, more than the {MAX_ENTRY_BYTES} allowed",
+                    f.size()
+                ),
             ));
         }
         let mut buf = Vec::with_capacity(f.size() as usize);
@@ -118,9 +124,7 @@ pub fn write_zip_entries(path: &Path, entries: &[(String, Vec<u8>)]) -> Result<(
         let mut w = zip::ZipWriter::new(std::io::BufWriter::new(file));
         let opts = zip::write::SimpleFileOptions::default()
             .compression_method(zip::CompressionMethod::Deflated);
-        let zerr = |e: zip::result::ZipError| {
-            Error::io(path, std::io::Error::other(e.to_string()))
-        };
+        let zerr = |e: zip::result::ZipError| Error::io(path, std::io::Error::other(e.to_string()));
         for (name, bytes) in entries {
             if name.ends_with('/') {
                 w.add_directory(name.as_str(), opts).map_err(zerr)?;
@@ -233,7 +237,10 @@ impl HarkConfig {
                 None => Ok(default),
                 Some(t) if t.is_empty() => Ok(default),
                 Some(t) => t.parse::<i64>().map_err(|_| {
-                    Error::format(path, format!("<config><{n}>: expected an integer, found {t:?}"))
+                    Error::format(
+                        path,
+                        format!("<config><{n}>: expected an integer, found {t:?}"),
+                    )
                 }),
             }
         };
@@ -259,7 +266,11 @@ impl HarkConfig {
         c.signal_max = int("signalMax", c.signal_max)?;
         c.tsp_length = int("TSPLength", c.tsp_length)?;
         if let Some(ps) = cfg.child("PeakSearch") {
-            let a = |n: &str| ps.attr(n).and_then(|v| v.trim().parse::<i64>().ok()).unwrap_or(0);
+            let a = |n: &str| {
+                ps.attr(n)
+                    .and_then(|v| v.trim().parse::<i64>().ok())
+                    .unwrap_or(0)
+            };
             c.peak_search = (a("from"), a("to"));
         }
         Ok(c)
@@ -346,14 +357,16 @@ pub fn read_positions(doc: &Element, kind: &str, path: &Path) -> Result<Option<V
         } else {
             let mut p = [0.0; 3];
             for (c, name) in ["x", "y", "z"].iter().enumerate() {
-                p[c] = parse_f64(el, name, id, path)?.ok_or_else(|| {
-                    Error::format(path, format!("position {id}: missing {name}"))
-                })?;
+                p[c] = parse_f64(el, name, id, path)?
+                    .ok_or_else(|| Error::format(path, format!("position {id}: missing {name}")))?;
             }
             p
         };
         if out[id].is_some() {
-            return Err(Error::format(path, format!("position id {id} appears twice")));
+            return Err(Error::format(
+                path,
+                format!("position id {id} appears twice"),
+            ));
         }
         out[id] = Some(p);
     }
@@ -390,7 +403,10 @@ pub fn positions_element(kind: &str, points: &[[f64; 3]], paths: Option<&[String
         .with_attr("type", kind)
         .with_attr("coordinate", "cartesian");
     for (i, p) in points.iter().enumerate() {
-        let path = paths.and_then(|v| v.get(i)).map(String::as_str).unwrap_or("");
+        let path = paths
+            .and_then(|v| v.get(i))
+            .map(String::as_str)
+            .unwrap_or("");
         ps.children.push(
             Element::new("position")
                 .with_attr("x", fmt_num(p[0]))
@@ -437,12 +453,12 @@ pub fn read_neighbors(doc: &Element, n: usize, path: &Path) -> Result<Option<Vec
             }
             let j = match tok.parse::<usize>() {
                 Ok(j) if j < n => j,
-                _ => {
-                    return Err(Error::format(
-                        path,
-                        format!("<neighbor id=\"{id}\">: neighbour {tok:?} is not a direction id in 0..{n}"),
-                    ))
-                }
+                _ => return Err(Error::format(
+                    path,
+                    format!(
+                        "<neighbor id=\"{id}\">: neighbour {tok:?} is not a direction id in 0..{n}"
+                    ),
+                )),
             };
             if j != id && !out[id].contains(&j) {
                 out[id].push(j);
@@ -534,7 +550,10 @@ pub fn read_tf_zip(path: &Path) -> Result<TransferFunctions> {
         let name = tf_entry_name(&root, "localization", id);
         let ep = entry_path(path, &name);
         let bytes = entries.get(&name).ok_or_else(|| {
-            Error::format(path, format!("missing entry {name} (direction {id} of {d})"))
+            Error::format(
+                path,
+                format!("missing entry {name} (direction {id} of {d})"),
+            )
         })?;
         let m = read_mat(bytes, &ep)?;
         if id == 0 {
@@ -554,7 +573,10 @@ pub fn read_tf_zip(path: &Path) -> Result<TransferFunctions> {
             ));
         }
         let v = m.into_complex(&ep)?;
-        if let Some(k) = v.iter().position(|c| !(c.re.is_finite() && c.im.is_finite())) {
+        if let Some(k) = v
+            .iter()
+            .position(|c| !(c.re.is_finite() && c.im.is_finite()))
+        {
             return Err(Error::format(
                 &ep,
                 format!(
@@ -611,7 +633,7 @@ pub fn tf_zip_entries(tf: &TransferFunctions, comment: &str) -> Result<Vec<(Stri
     out.push((root.clone(), Vec::new()));
     out.push((
         format!("{root}whatisthis.txt"),
-        format!("{TF_WHATISTHIS}\n").into_bytes(),
+        TF_WHATISTHIS.as_bytes().to_vec(),
     ));
     out.push((
         format!("{root}microphones.xml"),

@@ -521,9 +521,15 @@ mod tests {
             );
         let s = el.to_xml_string(0);
         assert!(s.contains("    <nfft>512</nfft>\n"), "{s}");
-        assert!(s.contains("<position path=\"&lt;&amp;&quot;&apos;&gt;\"/>"), "{s}");
+        assert!(
+            s.contains("<position path=\"&lt;&amp;&quot;&apos;&gt;\"/>"),
+            "{s}"
+        );
         let back = parse(&s).unwrap();
-        assert_eq!(back.children[0].find("position").unwrap().attr("path"), Some("<&\"'>"));
+        assert_eq!(
+            back.children[0].find("position").unwrap().attr("path"),
+            Some("<&\"'>")
+        );
         assert_eq!(back.children[0].child("nfft").unwrap().text, "512");
     }
 }
