@@ -257,6 +257,18 @@ mod tests {
     }
 
     #[test]
+    fn floats_round_trip_bit_exactly() {
+        let mut r = sample_results()[0].clone();
+        let awkward = [119.99999999999999, 0.1 + 0.2, 1e-300, -2.5e17, f64::MIN_POSITIVE];
+        for (i, v) in awkward.iter().enumerate() {
+            r.time_s = *v;
+            r.sources[0].azimuth_deg = -v;
+            r.sources[1].power_db = v * (i as f64 + 1.0);
+            assert_eq!(from_json_line(&to_json_line(&r)).unwrap(), r);
+        }
+    }
+
+    #[test]
     fn non_finite_becomes_null_and_nan() {
         let mut r = sample_results()[0].clone();
         r.sources[0].power_db = f64::NEG_INFINITY;
