@@ -18,7 +18,7 @@
 //! Delays are applied exactly in the frequency domain: each source signal (with a
 //! pre-roll long enough to cover the largest delay, and tapered edges) is transformed
 //! once with a zero-padded real FFT of length L; microphone m's spectrum is
-//! Y_m[k] = Σ_s S_s[k] Σ_i a_i e^{−j2πk d_i/L}, with d_i = r/c·fs in samples (not rounded),
+//! Y_m(k) = Σ_s S_s(k) Σ_i a_i e^{−j2πk d_i/L}, with d_i = r/c·fs in samples (not rounded),
 //! and one inverse FFT per microphone gives its signal. This is band-limited
 //! interpolation, accurate to far better than 0.01 sample below 0.9·fs/2 (the Nyquist
 //! bin is dropped).
