@@ -39,16 +39,43 @@
 //! `expected.num_mics` when given), every value finite, and each K_k Hermitian:
 //! |K(i,j) − conj K(j,i)| ≤ [`HERMITIAN_RTOL`] · max |K_k| (which also bounds the imaginary
 //! part of the diagonal). Errors name the file and the line (text) or entry (zip).
+//!
+//! ## Output names of a text pair
+//! [`text_pair_paths`] turns one output name into the pair's two names: a name that already
+//! marks the real part (`.real`, `.re`, or a stem ending in `real`/`Real`/`REAL`, `_re`,
+//! `-re`, `_r`, `-r`, `_R`, `-R`) is the real file and the imaginary one is its first
+//! [`imag_path_candidates`] renaming (`noise_r.dat` → `noise_i.dat`, `cm.real` →
+//! `cm.imag`); any other name gets `_r` / `_i` appended to its stem (`K` → `K_r`, `K_i`;
+//! `noise.dat` → `noise_r.dat`, `noise_i.dat`). Either way [`NoiseCm::load`] given the
+//! real file finds the imaginary one.
+//!
+//! ## Estimation and the engine's K
+//! [`NoiseCm::estimate`] averages x xᴴ over the STFT frames of a noise recording (or a time
+//! range of it) for **every** bin 0 … N/2, so the result has HARK's shape;
+//! [`crate::engine::estimate_noise`] does the same for the analysis bins only. The engine
+//! holds K as [`NoiseMatrices`] for a range of bins: [`NoiseCm::to_noise_matrices`] cuts
+//! that range out, [`NoiseCm::from_noise_matrices`] goes back to all N/2 + 1 bins, filling
+//! the bins the engine does not hold with the identity (white noise of unit power: the K
+//! soundloc assumes when none is given).
+//!
+//! ## Summary
+//! [`NoiseCm::summary`] (what `soundloc noisecm inspect` prints) gives, per bin, the trace
+//! and the smallest and largest eigenvalue of the Hermitian part of K_k, and its condition
+//! number λ_max/λ_min (infinite when λ_min ≤ 0: such a K cannot whiten; GEVD and GSVD need
+//! it positive definite).
 
 use std::collections::BTreeMap;
 use std::io::Write as _;
+use std::ops::Range;
 use std::path::{Path, PathBuf};
 
 use num_complex::Complex;
 
+use crate::config::{LocalizeConfig, WindowFunction};
 use crate::error::{Error, Result};
 use crate::formats::hark_mat::{read_mat, write_mat, MatData};
 use crate::formats::{hark_zip, xml};
+use crate::noise::NoiseMatrices;
 use crate::output::atomic::write_atomically;
 
 /// Root folder written in a correlation-matrix zip.
@@ -440,6 +467,115 @@ impl NoiseCm {
         hark_zip::write_zip_entries(path, &self.zip_entries()?)
     }
 
+    /// K for the absolute bins `bins` as the engine's [`NoiseMatrices`] (`num_frames` 0:
+    /// unknown). Errors when `bins` is empty or reaches past bin N/2.
+    pub fn to_noise_matrices(&self, bins: Range<usize>) -> Result<NoiseMatrices> {
+        if bins.is_empty() || bins.end > self.num_bins() {
+            return Err(Error::Mismatch(format!(
+                "noise correlation: bins {}..{} requested, the matrices hold bins 0..{} (nfft {})",
+                bins.start,
+                bins.end,
+                self.num_bins(),
+                self.nfft
+            )));
+        }
+        let mm = self.num_mics * self.num_mics;
+        Ok(NoiseMatrices {
+            num_mics: self.num_mics,
+            first_bin: bins.start,
+            num_bins: bins.len(),
+            num_frames: 0,
+            data: self.data[bins.start * mm..bins.end * mm].to_vec(),
+        })
+    }
+
+    /// All N/2 + 1 bins of an `nfft`-point FFT from the engine's K: the bins `k` holds are
+    /// copied, every other bin is the identity (see the module docs). Errors when `k`
+    /// holds bins beyond N/2 or its data does not match its shape.
+    pub fn from_noise_matrices(k: &NoiseMatrices, nfft: usize) -> Result<Self> {
+        let mm = k.num_mics * k.num_mics;
+        let end = k.first_bin + k.num_bins;
+        if k.num_mics == 0 || k.data.len() != k.num_bins * mm {
+            return Err(Error::Mismatch(format!(
+                "noise correlation: {} values for {} bins of {} × {} matrices",
+                k.data.len(),
+                k.num_bins,
+                k.num_mics,
+                k.num_mics
+            )));
+        }
+        if nfft < 2 || end > nfft / 2 + 1 {
+            return Err(Error::Mismatch(format!(
+                "noise correlation: bins {}..{end} do not fit an nfft of {nfft} (bins 0..{})",
+                k.first_bin,
+                nfft / 2 + 1
+            )));
+        }
+        let mut cm = NoiseCm::identity(k.num_mics, nfft);
+        cm.data[k.first_bin * mm..end * mm].copy_from_slice(&k.data);
+        Ok(cm)
+    }
+
+    /// Estimates K for every bin 0 … N/2 from planar samples: x xᴴ averaged over the
+    /// complete `nfft`-sample frames (every `hop` samples, `window` applied, unscaled FFT)
+    /// inside `range_s` (seconds; `None` = all), as [`crate::engine::estimate_noise`] does
+    /// for the analysis bins. Returns K and the number of frames averaged.
+    pub fn estimate(
+        channels: &[Vec<f32>],
+        sample_rate_hz: u32,
+        nfft: usize,
+        hop: usize,
+        window: WindowFunction,
+        range_s: Option<(f64, f64)>,
+    ) -> Result<(Self, usize)> {
+        if channels.is_empty() {
+            return Err(Error::Mismatch("noise estimate: no channels".into()));
+        }
+        let config = LocalizeConfig {
+            nfft,
+            hop,
+            sample_rate_hz,
+            window_function: window,
+            lower_freq_hz: 0.0,
+            // ⌊fs·N/fs⌋ = N, capped at N/2 + 1 by bin_range: every bin.
+            upper_freq_hz: sample_rate_hz as f64,
+            ..LocalizeConfig::default()
+        };
+        let k = crate::engine::estimate_noise(&config, sample_rate_hz, channels, range_s)?;
+        let frames = k.num_frames;
+        Ok((Self::from_noise_matrices(&k, nfft)?, frames))
+    }
+
+    /// Per-bin trace, eigenvalue range and condition number (see the module docs).
+    pub fn summary(&self) -> NoiseCmSummary {
+        let m = self.num_mics;
+        let bins: Vec<BinStats> = (0..self.num_bins())
+            .map(|k| bin_stats(self.get(k), m))
+            .collect();
+        let finite_cond: Vec<f64> = bins
+            .iter()
+            .map(|b| b.condition)
+            .filter(|c| c.is_finite())
+            .collect();
+        let traces: Vec<f64> = bins.iter().map(|b| b.trace).collect();
+        NoiseCmSummary {
+            num_mics: m,
+            nfft: self.nfft,
+            num_bins: self.num_bins(),
+            not_positive_definite: bins.iter().filter(|b| !b.condition.is_finite()).count(),
+            trace_min: traces.iter().copied().fold(f64::INFINITY, f64::min),
+            trace_median: median(&traces),
+            trace_max: traces.iter().copied().fold(f64::NEG_INFINITY, f64::max),
+            condition_median: median(&finite_cond),
+            worst_bin: bins
+                .iter()
+                .enumerate()
+                .max_by(|a, b| a.1.condition.total_cmp(&b.1.condition))
+                .map_or(0, |(k, _)| k),
+            bins,
+        }
+    }
+
     /// Loads a zip (detected by its `PK` signature) or a text pair given its real-part file
     /// (the imaginary file is found by name, see the module docs).
     pub fn load(path: &Path, expected: Expected) -> Result<Self> {
@@ -453,6 +589,142 @@ impl NoiseCm {
         let imag = find_imag_path(path)?;
         Self::read_text_pair(path, &imag, expected)
     }
+}
+
+/// One bin's numbers in a [`NoiseCmSummary`].
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct BinStats {
+    /// Trace of K_k (real part): the total noise power over the microphones.
+    pub trace: f64,
+    /// Smallest eigenvalue of the Hermitian part of K_k.
+    pub min_eigenvalue: f64,
+    /// Largest eigenvalue of the Hermitian part of K_k.
+    pub max_eigenvalue: f64,
+    /// λ_max / λ_min; infinite when λ_min ≤ 0 (not positive definite).
+    #[serde(serialize_with = "finite_or_null")]
+    pub condition: f64,
+}
+
+/// What `soundloc noisecm inspect` prints: shape and per-bin conditioning of a [`NoiseCm`].
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct NoiseCmSummary {
+    /// Microphones (channels) M.
+    pub num_mics: usize,
+    /// FFT length N.
+    pub nfft: usize,
+    /// Bins, N/2 + 1.
+    pub num_bins: usize,
+    /// Bins whose K is not positive definite.
+    pub not_positive_definite: usize,
+    /// Smallest trace over the bins.
+    pub trace_min: f64,
+    /// Median trace.
+    pub trace_median: f64,
+    /// Largest trace.
+    pub trace_max: f64,
+    /// Median condition number over the positive definite bins (NaN when there are none).
+    #[serde(serialize_with = "finite_or_null")]
+    pub condition_median: f64,
+    /// The bin with the largest condition number.
+    pub worst_bin: usize,
+    /// Per bin, index = bin.
+    pub bins: Vec<BinStats>,
+}
+
+impl std::fmt::Display for NoiseCmSummary {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        writeln!(f, "microphones      {}", self.num_mics)?;
+        writeln!(f, "nfft             {}", self.nfft)?;
+        writeln!(
+            f,
+            "bins             {} (0..={})",
+            self.num_bins,
+            self.num_bins - 1
+        )?;
+        writeln!(
+            f,
+            "trace            {:.4e} … {:.4e} (median {:.4e})",
+            self.trace_min, self.trace_max, self.trace_median
+        )?;
+        writeln!(
+            f,
+            "condition        median {:.4e}, worst {:.4e} at bin {}",
+            self.condition_median,
+            self.bins
+                .get(self.worst_bin)
+                .map_or(f64::NAN, |b| b.condition),
+            self.worst_bin
+        )?;
+        writeln!(f, "not pos. def.    {} bin(s)", self.not_positive_definite)
+    }
+}
+
+fn finite_or_null<S: serde::Serializer>(v: &f64, s: S) -> std::result::Result<S::Ok, S::Error> {
+    if v.is_finite() {
+        s.serialize_f64(*v)
+    } else {
+        s.serialize_none()
+    }
+}
+
+fn median(v: &[f64]) -> f64 {
+    if v.is_empty() {
+        return f64::NAN;
+    }
+    let mut s = v.to_vec();
+    s.sort_by(f64::total_cmp);
+    let n = s.len();
+    if n % 2 == 1 {
+        s[n / 2]
+    } else {
+        0.5 * (s[n / 2 - 1] + s[n / 2])
+    }
+}
+
+/// Trace and eigenvalues of the Hermitian part of one bin's K.
+fn bin_stats(k: &[Complex<f64>], m: usize) -> BinStats {
+    let h =
+        faer::Mat::<faer::c64>::from_fn(m, m, |i, j| (k[i * m + j] + k[j * m + i].conj()) * 0.5);
+    let trace = (0..m).map(|i| k[i * m + i].re).sum();
+    let (lo, hi) = match h.self_adjoint_eigenvalues(faer::Side::Lower) {
+        // Sorted in nondecreasing order.
+        Ok(ev) if !ev.is_empty() => (ev[0], ev[ev.len() - 1]),
+        _ => (f64::NAN, f64::NAN),
+    };
+    let condition = if lo > 0.0 { hi / lo } else { f64::INFINITY };
+    BinStats {
+        trace,
+        min_eigenvalue: lo,
+        max_eigenvalue: hi,
+        condition,
+    }
+}
+
+/// The two files of a text pair written for the output name `output`: (real, imaginary).
+/// See the module docs for the rule.
+pub fn text_pair_paths(output: &Path) -> (PathBuf, PathBuf) {
+    let name = output
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let (stem, ext) = match name.rfind('.') {
+        Some(i) if i > 0 => (&name[..i], &name[i..]),
+        _ => (name.as_str(), ""),
+    };
+    let marks_real = name.ends_with(".real")
+        || name.ends_with(".re")
+        || ["real", "Real", "REAL", "_re", "-re", "_r", "-r", "_R", "-R"]
+            .iter()
+            .any(|m| stem.ends_with(m));
+    if marks_real {
+        if let Some(imag) = imag_path_candidates(output).into_iter().next() {
+            return (output.to_path_buf(), imag);
+        }
+    }
+    (
+        output.with_file_name(format!("{stem}_r{ext}")),
+        output.with_file_name(format!("{stem}_i{ext}")),
+    )
 }
 
 /// Checks one bin: finite values, Hermitian within [`HERMITIAN_RTOL`].
@@ -655,4 +927,137 @@ pub fn find_imag_path(real: &Path) -> Result<PathBuf> {
             )
         },
     ))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn hermitian(m: usize, nfft: usize, seed: u64) -> NoiseCm {
+        // K_k = A Aᴴ + I with a deterministic A: Hermitian, positive definite.
+        let mut s = seed;
+        let mut rnd = || {
+            s = s
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            ((s >> 33) as f64 / (1u64 << 31) as f64) - 0.5
+        };
+        let nb = nfft / 2 + 1;
+        let mut data = Vec::with_capacity(nb * m * m);
+        for _ in 0..nb {
+            let a: Vec<Complex<f64>> = (0..m * m).map(|_| Complex::new(rnd(), rnd())).collect();
+            for i in 0..m {
+                for j in 0..m {
+                    let mut v: Complex<f64> =
+                        (0..m).map(|l| a[i * m + l] * a[j * m + l].conj()).sum();
+                    if i == j {
+                        v.re += 1.0;
+                        v.im = 0.0;
+                    }
+                    data.push(v);
+                }
+            }
+        }
+        NoiseCm::new(m, nfft, data).unwrap()
+    }
+
+    #[test]
+    fn noise_matrices_round_trip_with_identity_outside() {
+        let cm = hermitian(3, 16, 7);
+        let k = cm.to_noise_matrices(2..6).unwrap();
+        assert_eq!((k.num_mics, k.first_bin, k.num_bins), (3, 2, 4));
+        assert_eq!(k.bin(4).unwrap(), cm.get(4));
+        let back = NoiseCm::from_noise_matrices(&k, 16).unwrap();
+        assert_eq!(back.num_bins(), 9);
+        for b in 0..9 {
+            if (2..6).contains(&b) {
+                assert_eq!(back.get(b), cm.get(b));
+            } else {
+                assert_eq!(back.get(b), NoiseCm::identity(3, 16).get(b));
+            }
+        }
+        assert!(cm.to_noise_matrices(5..10).is_err());
+        assert!(cm.to_noise_matrices(3..3).is_err());
+        assert!(NoiseCm::from_noise_matrices(&k, 8).is_err());
+    }
+
+    #[test]
+    fn estimate_covers_every_bin_and_matches_the_engine() {
+        let fs = 16000;
+        let ch: Vec<Vec<f32>> = (0..2)
+            .map(|c| {
+                (0..4000)
+                    .map(|i| ((i * (c + 3)) % 17) as f32 - 8.0)
+                    .collect()
+            })
+            .collect();
+        let (cm, frames) =
+            NoiseCm::estimate(&ch, fs, 64, 32, WindowFunction::Hanning, Some((0.0, 0.2))).unwrap();
+        assert_eq!((cm.num_mics, cm.nfft, cm.num_bins()), (2, 64, 33));
+        assert_eq!(frames, (3200 - 64) / 32 + 1);
+        cm.validate(Path::new("k")).unwrap();
+        let config = LocalizeConfig {
+            nfft: 64,
+            hop: 32,
+            sample_rate_hz: fs,
+            window_function: WindowFunction::Hanning,
+            lower_freq_hz: 1000.0,
+            upper_freq_hz: 4000.0,
+            ..LocalizeConfig::default()
+        };
+        let k = crate::engine::estimate_noise(&config, fs, &ch, Some((0.0, 0.2))).unwrap();
+        let cut = cm.to_noise_matrices(config.bin_range()).unwrap();
+        for (a, b) in k.data.iter().zip(&cut.data) {
+            assert!((a - b).norm() <= 1e-9 * a.norm().max(1.0), "{a} vs {b}");
+        }
+    }
+
+    #[test]
+    fn summary_reports_conditioning() {
+        let mut cm = NoiseCm::identity(2, 8);
+        // Bin 1: diag(4, 1) → condition 4; bin 2: rank one → not positive definite.
+        cm.data[4] = Complex::new(4.0, 0.0);
+        for v in &mut cm.data[8..12] {
+            *v = Complex::new(1.0, 0.0);
+        }
+        let s = cm.summary();
+        assert_eq!((s.num_mics, s.nfft, s.num_bins), (2, 8, 5));
+        assert!((s.bins[1].condition - 4.0).abs() < 1e-12);
+        assert!((s.bins[1].trace - 5.0).abs() < 1e-12);
+        assert!(!s.bins[2].condition.is_finite());
+        assert_eq!((s.not_positive_definite, s.worst_bin), (1, 2));
+        assert!((s.condition_median - 1.0).abs() < 1e-12);
+        let text = s.to_string();
+        assert!(text.contains("not pos. def.    1 bin"), "{text}");
+        let json = serde_json::to_string(&s).unwrap();
+        assert!(json.contains("\"condition\":null"), "{json}");
+    }
+
+    #[test]
+    fn text_pair_names_are_found_again() {
+        let cases = [
+            ("K", "K_r", "K_i"),
+            ("noise.dat", "noise_r.dat", "noise_i.dat"),
+            ("noise_r.dat", "noise_r.dat", "noise_i.dat"),
+            ("cm.real", "cm.real", "cm.imag"),
+            ("cm_real.txt", "cm_real.txt", "cm_imag.txt"),
+            ("cluster", "cluster_r", "cluster_i"),
+        ];
+        let dir = std::env::temp_dir().join(format!("soundloc-cmnames-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let cm = hermitian(2, 8, 3);
+        for (out, re, im) in cases {
+            let (r, i) = text_pair_paths(&dir.join(out));
+            assert_eq!(
+                (r.clone(), i.clone()),
+                (dir.join(re), dir.join(im)),
+                "{out}"
+            );
+            cm.write_text_pair(&r, &i).unwrap();
+            assert_eq!(find_imag_path(&r).unwrap(), i, "{out}");
+            let back = NoiseCm::load(&r, Expected::default()).unwrap();
+            assert_eq!(back, cm);
+        }
+        let _ = std::fs::remove_dir_all(&dir);
+    }
 }
