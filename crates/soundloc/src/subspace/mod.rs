@@ -173,3 +173,124 @@ pub fn decompose<T: Real>(
         Algorithm::Gsvd => gsvd::decompose(r, need_w()?, ws, out),
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::{Rng, SeedableRng};
+
+    fn crandn<T: Real>(rng: &mut impl Rng) -> C<T> {
+        C::new(T::of_f64(rng.gen_range(-1.0..1.0)), T::of_f64(rng.gen_range(-1.0..1.0)))
+    }
+
+    /// A random Hermitian positive semi-definite X Xᴴ / n (row-major), rank `rank`.
+    fn random_r<T: Real>(m: usize, rank: usize, rng: &mut impl Rng) -> Vec<C<T>> {
+        let x: Vec<C<T>> = (0..m * rank).map(|_| crandn(rng)).collect();
+        let mut r = vec![C::new(T::zero(), T::zero()); m * m];
+        for i in 0..m {
+            for j in 0..m {
+                let mut acc = C::new(T::zero(), T::zero());
+                for k in 0..rank {
+                    acc += x[i * rank + k] * x[j * rank + k].conj();
+                }
+                r[i * m + j] = acc / T::of_f64(rank as f64);
+            }
+        }
+        r
+    }
+
+    /// ‖EᴴE − I‖_max and the reconstruction error ‖A E − E Λ‖_max / ‖A‖ for eig, or
+    /// ‖A Aᴴ E − E Σ²‖ / ‖A‖² for the SVD's left vectors; values descending.
+    fn check<T: Real>(alg: Algorithm, m: usize, seed: u64) -> (f64, f64) {
+        let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
+        let r = random_r::<T>(m, m + 10, &mut rng);
+        let w: Vec<C<T>> = (0..m * m)
+            .map(|k| if k % (m + 1) == 0 { C::new(T::of_f64(2.0), T::zero()) } else { crandn::<T>(&mut rng) * T::of_f64(0.05) })
+            .collect();
+        // Hermitian, as every whitening matrix the plan builds for GEVD-HARK is (K^{-1/2}).
+        let w: Vec<C<T>> = (0..m * m)
+            .map(|k| (w[k] + w[(k % m) * m + k / m].conj()) * T::of_f64(0.5))
+            .collect();
+        let mut ws = Workspace::new(m);
+        let mut dec = Decomposition::new(m);
+        decompose(alg, &r, Some(&w), &mut ws, &mut dec).unwrap();
+        for k in 1..m {
+            assert!(dec.values[k - 1] >= dec.values[k], "{alg:?}: values not descending at {k}");
+        }
+        // The matrix actually decomposed, in f64.
+        let to64 = |z: C<T>| num_complex::Complex::new(z.re.to_f64(), z.im.to_f64());
+        let rm = |v: &[C<T>], i: usize, j: usize| to64(v[i * m + j]);
+        let mul = |a: &dyn Fn(usize, usize) -> num_complex::Complex<f64>, b: &dyn Fn(usize, usize) -> num_complex::Complex<f64>| {
+            let mut o = vec![num_complex::Complex::new(0.0, 0.0); m * m];
+            for i in 0..m {
+                for j in 0..m {
+                    for k in 0..m {
+                        o[i * m + j] += a(i, k) * b(k, j);
+                    }
+                }
+            }
+            o
+        };
+        let a: Vec<num_complex::Complex<f64>> = match alg {
+            Algorithm::Sevd => (0..m * m).map(|k| to64(r[k])).collect(),
+            Algorithm::Gevd => {
+                let wr = mul(&|i, j| rm(&w, i, j), &|i, j| rm(&r, i, j));
+                mul(&|i, j| wr[i * m + j], &|i, j| rm(&w, j, i).conj())
+            }
+            Algorithm::GevdHark => {
+                let wr = mul(&|i, j| rm(&w, i, j), &|i, j| rm(&r, i, j));
+                mul(&|i, j| wr[i * m + j], &|i, j| rm(&w, i, j))
+            }
+            Algorithm::Gsvd => {
+                let wr = mul(&|i, j| rm(&w, i, j), &|i, j| rm(&r, i, j));
+                // A Aᴴ, whose eigenvectors are the left singular vectors.
+                mul(&|i, j| wr[i * m + j], &|i, j| wr[j * m + i].conj())
+            }
+        };
+        let norm = a.iter().map(|z| z.norm()).fold(0.0, f64::max);
+        let e = |i: usize, k: usize| to64(dec.vectors[k * m + i]);
+        let mut orth = 0.0f64;
+        let mut recon = 0.0f64;
+        for p in 0..m {
+            for q in 0..m {
+                let mut g = num_complex::Complex::new(0.0, 0.0);
+                for i in 0..m {
+                    g += e(i, p).conj() * e(i, q);
+                }
+                let id = if p == q { 1.0 } else { 0.0 };
+                orth = orth.max((g - id).norm());
+            }
+            let lam = dec.values[p].to_f64();
+            let lam = if alg == Algorithm::Gsvd { lam * lam } else { lam };
+            for i in 0..m {
+                let mut ae = num_complex::Complex::new(0.0, 0.0);
+                for k in 0..m {
+                    ae += a[i * m + k] * e(k, p);
+                }
+                recon = recon.max((ae - e(i, p) * lam).norm() / norm);
+            }
+        }
+        (orth, recon)
+    }
+
+    fn all_algorithms<T: Real>() {
+        for alg in Algorithm::ALL {
+            for (m, seed) in [(8, 1), (60, 2)] {
+                let (orth, recon) = check::<T>(alg, m, seed);
+                let tol = 200.0 * T::EPS * m as f64;
+                assert!(orth < tol, "{alg:?} M={m} {}: orthonormality {orth:e} > {tol:e}", T::NAME);
+                assert!(recon < tol, "{alg:?} M={m} {}: reconstruction {recon:e} > {tol:e}", T::NAME);
+            }
+        }
+    }
+
+    #[test]
+    fn decompositions_are_orthonormal_sorted_and_reconstruct_f32() {
+        all_algorithms::<f32>();
+    }
+
+    #[test]
+    fn decompositions_are_orthonormal_sorted_and_reconstruct_f64() {
+        all_algorithms::<f64>();
+    }
+}
