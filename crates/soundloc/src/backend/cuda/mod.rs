@@ -1,12 +1,1063 @@
-//! The CUDA backend (CUDA libraries loaded at run time; kernels compiled by NVRTC).
+//! The CUDA backend: the whole numeric pipeline on the GPU, CUDA libraries loaded at run
+//! time (cudarc, `dynamic-loading`), kernels compiled by NVRTC for the device's own
+//! architecture on first use.
+//!
+//! ```text
+//!  host frames ─(pinned staging, copy stream)─► X [frame][bin][mic]
+//!  per sub-batch of windows, on the compute stream:
+//!   correlate  (window × bin) blocks   R = (1/W) Σ x xᴴ, HARK scaling          correlate.cu
+//!   decompose  one block per matrix    G = W R Wᴴ | W R W | W R | R, one-sided    decompose.cu
+//!                                      Jacobi in shared memory, top-Ns vectors
+//!   spectrum   direction tiles         P̄ = Σ_k w_k g_k ‖a‖²/den, complement+refine  spectrum.cu
+//!   peaks      one block per window    dB, local maxima, sorted candidates        peaks.cu
+//!  ─► only the peak candidates (and the dB spectrum / bin weights when asked) come back.
+//! ```
+//!
+//! **Why not cuBLAS / cuSOLVER.** The decomposition is the cost. cuSOLVER's batched
+//! Jacobi (`heevjBatched`, `gesvdjBatched`) stops at 32 × 32, its other batched solvers
+//! are for tall matrices or single calls; the seed matrices are 60 × 60. A one-sided
+//! (Hestenes) Jacobi per block handles every algorithm with one kernel: for the Hermitian
+//! PSD cases (SEVD, GEVD, GEVD-HARK) the normalised columns of G·V are the eigenvectors,
+//! for GSVD (G = K⁻¹R, not Hermitian) the left singular vectors — exactly what HARK's
+//! GSVD uses — without forming V. The squared MUSIC denominator needs only the Ns signal
+//! vectors: Σ_noise|aᴴe|² = ‖a‖² − Σ_signal|aᴴe|², and where that complement cancels
+//! (< 1 % of ‖a‖², the CPU's `music::REFINE_RATIO`) the spectrum kernel recomputes
+//! ‖(I − E_sE_sᴴ)a‖² by two Gram–Schmidt passes, which is the full noise-subspace sum to
+//! rounding. The unsquared form needs every noise vector individually: then V is
+//! accumulated (on Aᴴ for GSVD) and all M vectors are kept. The small products that
+//! whiten R are fused into the Jacobi kernel's prologue (no cuBLAS round trip); the
+//! correlation is its own small kernel so that stage times stay separate.
+//! `docs/gpu.md` has the measurements.
+//!
+//! **Batching.** `process` splits its windows into sub-batches sized to fill the GPU a
+//! few times over; STFT frames go up through two pinned staging buffers on a copy stream
+//! while earlier sub-batches compute, and each sub-batch's results come back on the
+//! compute stream. Stage times are CUDA event intervals on the compute stream (the
+//! upload overlaps and is not in them).
+//!
+//! Missing libraries, no GPU or a failed compile are `Error::Device`, never a panic:
+//! library presence is checked before cudarc touches them and first initialisation runs
+//! under `catch_unwind`.
 
-use super::Backend;
+mod device;
+mod emu;
+mod kernels;
+
+use super::{Backend, BatchOutput, Peak, Spectra, StageTimes, WindowSpec};
+use crate::config::{Algorithm, Denominator};
 use crate::plan::Plan;
-use crate::real::Real;
+use crate::real::{Real, C};
 use crate::{Error, Result};
+use device::{CudaGpu, DevPtr, Event, Func, Gpu, Stream};
+use kernels::Variant;
+use rayon::prelude::*;
+use std::ffi::c_void;
+use std::panic::{catch_unwind, AssertUnwindSafe};
+use std::path::Path;
 use std::sync::Arc;
 
+/// Windows per spectrum block (must match `SL_SPEC_WG` in spectrum.cu).
+const SPEC_WG: usize = 8;
+/// Bytes per pinned staging buffer for frame uploads.
+const STAGE_BYTES: usize = 16 << 20;
+/// Jacobi sweep cap (a converged 60 × 60 problem takes well under this).
+const MAX_SWEEPS: i32 = 40;
+/// Default dynamic shared memory limit without opt-in.
+const SMEM_DEFAULT: usize = 48 * 1024;
+
+/// Name of CUDA device 0 and its capability, or why CUDA cannot be used.
+pub fn probe() -> std::result::Result<String, String> {
+    guarded(|| {
+        let (name, cc, sms) = device::device_info(0)?;
+        if !kernels::nvrtc_present() {
+            return Err(Error::Device(format!(
+                "{name} found, but libnvrtc (the CUDA run-time compiler) was not; add the CUDA toolkit's lib64 to LD_LIBRARY_PATH"
+            )));
+        }
+        let (a, b) = kernels::nvrtc_version().map_err(Error::Device)?;
+        Ok(format!("cuda:0 {name} (sm_{cc}, {sms} SMs, NVRTC {a}.{b})"))
+    })
+    .map_err(|e| e.to_string())
+}
+
 /// Build a CUDA backend on device `ordinal`, or say why none can be had.
-pub fn new_backend<T: Real>(_plan: Arc<Plan<T>>, _ordinal: usize) -> Result<Box<dyn Backend<T>>> {
-    Err(Error::Device("the CUDA backend is not part of this build yet".into()))
+pub fn new_backend<T: Real>(plan: Arc<Plan<T>>, ordinal: usize) -> Result<Box<dyn Backend<T>>> {
+    guarded(|| {
+        let v = variant_for(&plan)?;
+        let gpu = CudaGpu::new(ordinal, v)?;
+        Ok(Box::new(CudaBackend::new(plan, Box::new(gpu))?) as Box<dyn Backend<T>>)
+    })
+}
+
+/// The same backend over the CPU emulator of the kernels found in `emu_dir`
+/// (`scripts/build_cuda_emu.sh`). For tests on machines without a GPU; very slow.
+#[doc(hidden)]
+pub fn new_emulated_backend<T: Real>(plan: Arc<Plan<T>>, emu_dir: &Path) -> Result<Box<dyn Backend<T>>> {
+    let v = variant_for(&plan)?;
+    let gpu = emu::EmuGpu::new(emu_dir, v)?;
+    Ok(Box::new(CudaBackend::new(plan, Box::new(gpu))?))
+}
+
+/// Whether libnvrtc can be loaded here.
+#[doc(hidden)]
+pub fn nvrtc_available() -> bool {
+    guarded(|| Ok(kernels::nvrtc_present())).unwrap_or(false)
+}
+
+/// Compile every kernel variant for `arch` (e.g. `sm_90`) with NVRTC; (variant, image
+/// bytes) per variant. For the compile test.
+#[doc(hidden)]
+pub fn nvrtc_compile_all(arch: &str) -> std::result::Result<Vec<(String, usize)>, String> {
+    guarded(|| kernels::compile_all(arch).map_err(Error::Device)).map_err(|e| e.to_string())
+}
+
+fn guarded<R>(f: impl FnOnce() -> Result<R>) -> Result<R> {
+    match catch_unwind(AssertUnwindSafe(f)) {
+        Ok(r) => r,
+        Err(p) => {
+            let msg = p
+                .downcast_ref::<String>()
+                .cloned()
+                .or_else(|| p.downcast_ref::<&str>().map(|s| s.to_string()))
+                .unwrap_or_else(|| "unknown panic".into());
+            Err(Error::Device(format!("CUDA library failure: {msg}")))
+        }
+    }
+}
+
+fn variant_for<T: Real>(plan: &Plan<T>) -> Result<Variant> {
+    Variant::for_mics(plan.num_mics).ok_or_else(|| {
+        Error::Device(format!(
+            "the CUDA backend handles up to 256 microphones, the array has {}",
+            plan.num_mics
+        ))
+    })
+}
+
+/// A device buffer (freed by the backend).
+#[derive(Default)]
+struct Buf {
+    ptr: DevPtr,
+    bytes: usize,
+}
+
+/// A pinned host buffer.
+struct Pinned {
+    ptr: *mut u8,
+    bytes: usize,
+}
+
+impl Default for Pinned {
+    fn default() -> Self {
+        Pinned {
+            ptr: std::ptr::null_mut(),
+            bytes: 0,
+        }
+    }
+}
+
+/// Kernel arguments, each stored in 8 bytes (little-endian: an i32 or f32 in the low
+/// bytes), handed to the launch as `void*` to each slot.
+struct Args {
+    v: Vec<u64>,
+}
+
+impl Args {
+    fn new() -> Self {
+        Args { v: Vec::with_capacity(24) }
+    }
+    fn p(mut self, p: DevPtr) -> Self {
+        self.v.push(p);
+        self
+    }
+    fn i(mut self, x: usize) -> Self {
+        self.v.push(x as i32 as u32 as u64);
+        self
+    }
+    fn r<T: Real>(mut self, x: T) -> Self {
+        if std::mem::size_of::<T>() == 4 {
+            self.v.push((x.to_f64() as f32).to_bits() as u64);
+        } else {
+            self.v.push(x.to_f64().to_bits());
+        }
+        self
+    }
+    fn launch(mut self, gpu: &dyn Gpu, f: Func, grid: [usize; 3], block: usize, smem: usize) -> Result<()> {
+        let mut ps: Vec<*mut c_void> = self.v.iter_mut().map(|x| x as *mut u64 as *mut c_void).collect();
+        let g = [grid[0] as u32, grid[1] as u32, grid[2] as u32];
+        // SAFETY: the argument lists below match the kernels' signatures (kernels/*.cu).
+        unsafe { gpu.launch(f, g, block as u32, smem as u32, Stream::Compute, &mut ps) }
+    }
+}
+
+/// Sizes and launch shapes derived from the plan.
+#[derive(Debug, Clone)]
+struct Layout {
+    m: usize,
+    nb: usize,
+    d: usize,
+    ns: usize,
+    /// Vectors kept per matrix (ns, or M for the unsquared denominator).
+    ne: usize,
+    squared: bool,
+    left: usize,
+    right: usize,
+    want_v: bool,
+    ld: usize,
+    dec_smem_mode: bool,
+    dec_threads: usize,
+    dec_smem: usize,
+    dec_scratch_per_mat: usize,
+    corr_fc: usize,
+    corr_smem: usize,
+    spec_dt: usize,
+    spec_smem: usize,
+    peak_cap: usize,
+    peak_kout: usize,
+    peak_smem: usize,
+}
+
+struct Funcs {
+    correlate: Func,
+    decompose: Func,
+    spectrum: Func,
+    peaks: Func,
+}
+
+/// The CUDA implementation of [`Backend`].
+pub struct CudaBackend<T: Real> {
+    plan: Arc<Plan<T>>,
+    gpu: Box<dyn Gpu>,
+    lay: Layout,
+    f: Funcs,
+    times: StageTimes,
+    max_batch: usize,
+    sub_batch: usize,
+    // Plan data on the device.
+    d_st: Buf,
+    d_n2den: Buf,
+    d_n2num: Buf,
+    d_wcm: Buf,
+    d_wrm: Buf,
+    d_weights: Buf,
+    d_offs: Buf,
+    d_nbrs: Buf,
+    d_azok: Buf,
+    // Batch buffers.
+    d_x: Buf,
+    d_win: Buf,
+    d_r: Buf,
+    d_e: Buf,
+    d_scratch: Buf,
+    d_ppart: Buf,
+    d_gain: Buf,
+    d_bw: Buf,
+    d_info: Buf,
+    d_db: Buf,
+    d_spec: Buf,
+    d_out: Buf,
+    h_stage: [Pinned; 2],
+    h_win: Pinned,
+    h_out: Pinned,
+    h_spec: Pinned,
+    h_bw: Pinned,
+    chunk_ev: [Event; 2],
+    events: Vec<Event>,
+}
+
+// SAFETY: the pinned pointers are owned by this struct and only touched by the thread
+// that calls its methods; the device handle is Send.
+unsafe impl<T: Real> Send for CudaBackend<T> {}
+
+fn csize<T: Real>() -> usize {
+    std::mem::size_of::<C<T>>()
+}
+
+fn as_bytes<V>(v: &[V]) -> &[u8] {
+    // SAFETY: plain-old-data slices (reals, complex pairs, integers).
+    unsafe { std::slice::from_raw_parts(v.as_ptr() as *const u8, std::mem::size_of_val(v)) }
+}
+
+impl<T: Real> CudaBackend<T> {
+    fn new(plan: Arc<Plan<T>>, gpu: Box<dyn Gpu>) -> Result<Self> {
+        gpu.make_current()?;
+        let lay = layout(&plan, &*gpu)?;
+        let mut b = CudaBackend {
+            plan: plan.clone(),
+            gpu,
+            lay: lay.clone(),
+            f: Funcs {
+                correlate: 0,
+                decompose: 0,
+                spectrum: 0,
+                peaks: 0,
+            },
+            times: StageTimes::default(),
+            max_batch: 1,
+            sub_batch: 1,
+            d_st: Buf::default(),
+            d_n2den: Buf::default(),
+            d_n2num: Buf::default(),
+            d_wcm: Buf::default(),
+            d_wrm: Buf::default(),
+            d_weights: Buf::default(),
+            d_offs: Buf::default(),
+            d_nbrs: Buf::default(),
+            d_azok: Buf::default(),
+            d_x: Buf::default(),
+            d_win: Buf::default(),
+            d_r: Buf::default(),
+            d_e: Buf::default(),
+            d_scratch: Buf::default(),
+            d_ppart: Buf::default(),
+            d_gain: Buf::default(),
+            d_bw: Buf::default(),
+            d_info: Buf::default(),
+            d_db: Buf::default(),
+            d_spec: Buf::default(),
+            d_out: Buf::default(),
+            h_stage: [Pinned::default(), Pinned::default()],
+            h_win: Pinned::default(),
+            h_out: Pinned::default(),
+            h_spec: Pinned::default(),
+            h_bw: Pinned::default(),
+            chunk_ev: [0, 0],
+            events: Vec::new(),
+        };
+        b.load_functions()?;
+        b.upload_plan(None)?;
+        b.chunk_ev = [b.gpu.event()?, b.gpu.event()?];
+        b.size_batches()?;
+        Ok(b)
+    }
+
+    fn load_functions(&mut self) -> Result<()> {
+        let t = T::NAME;
+        let l = &self.lay;
+        let dec = format!(
+            "decompose_{}{}_{t}",
+            if l.dec_smem_mode { 's' } else { 'g' },
+            if l.want_v { 'v' } else { 'n' }
+        );
+        self.f = Funcs {
+            correlate: self.gpu.function(&format!("correlate_{t}"))?,
+            decompose: self.gpu.function(&dec)?,
+            spectrum: self.gpu.function(&format!("spectrum_{t}"))?,
+            peaks: self.gpu.function(&format!("peaks_{t}"))?,
+        };
+        for (f, s) in [
+            (self.f.correlate, l.corr_smem),
+            (self.f.decompose, l.dec_smem),
+            (self.f.spectrum, l.spec_smem),
+            (self.f.peaks, l.peak_smem + 64),
+        ] {
+            if s > SMEM_DEFAULT {
+                self.gpu.set_max_smem(f, s)?;
+            }
+        }
+        Ok(())
+    }
+
+    /// Upload what the plan precomputed; `old` (the previous plan) lets unchanged
+    /// steering vectors stay on the device.
+    fn upload_plan(&mut self, old: Option<&Plan<T>>) -> Result<()> {
+        let plan = self.plan.clone();
+        let (m, nb) = (plan.num_mics, plan.num_bins());
+        let (st, n2den) = plan.denominator_steering();
+        let same_steering = old.is_some_and(|o| {
+            let (ost, on2) = o.denominator_steering();
+            ost == st && on2 == n2den && o.steering_norm2 == plan.steering_norm2
+        });
+        if !same_steering {
+            self.upload(BufId::St, as_bytes(st))?;
+            self.upload(BufId::N2Den, as_bytes(n2den))?;
+            self.upload(BufId::N2Num, as_bytes(&plan.steering_norm2))?;
+        }
+        if let Some(w) = &plan.whitening {
+            if w.matrix.len() == nb * m * m {
+                let mut wcm = vec![C::new(T::zero(), T::zero()); nb * m * m];
+                for b in 0..nb {
+                    let src = &w.matrix[b * m * m..(b + 1) * m * m];
+                    let dst = &mut wcm[b * m * m..(b + 1) * m * m];
+                    for i in 0..m {
+                        for k in 0..m {
+                            dst[k * m + i] = src[i * m + k];
+                        }
+                    }
+                }
+                self.upload(BufId::Wcm, as_bytes(&wcm))?;
+                self.upload(BufId::Wrm, as_bytes(&w.matrix))?;
+            }
+        }
+        if (self.lay.left != 0 || self.lay.right != 0) && self.d_wcm.bytes == 0 {
+            return Err(Error::Config(format!(
+                "{} needs a noise correlation matrix",
+                plan.config.algorithm.name()
+            )));
+        }
+        self.upload(BufId::Weights, as_bytes(&plan.weights))?;
+        let t = &plan.peak_table;
+        let offs: Vec<i32> = t.offsets.iter().map(|&x| x as i32).collect();
+        let nbrs: Vec<i32> = t.neighbors.iter().map(|&x| x as i32).collect();
+        let az: Vec<u8> = t.azimuth_ok.iter().map(|&x| x as u8).collect();
+        self.upload(BufId::Offs, as_bytes(&offs))?;
+        self.upload(BufId::Nbrs, as_bytes(&nbrs))?;
+        self.upload(BufId::AzOk, as_bytes(&az))?;
+        self.gpu.sync(Stream::Copy)?;
+        Ok(())
+    }
+
+    fn buf(&mut self, id: BufId) -> &mut Buf {
+        match id {
+            BufId::St => &mut self.d_st,
+            BufId::N2Den => &mut self.d_n2den,
+            BufId::N2Num => &mut self.d_n2num,
+            BufId::Wcm => &mut self.d_wcm,
+            BufId::Wrm => &mut self.d_wrm,
+            BufId::Weights => &mut self.d_weights,
+            BufId::Offs => &mut self.d_offs,
+            BufId::Nbrs => &mut self.d_nbrs,
+            BufId::AzOk => &mut self.d_azok,
+        }
+    }
+
+    /// Synchronous upload of plan data into its buffer (grown as needed).
+    fn upload(&mut self, id: BufId, data: &[u8]) -> Result<()> {
+        let need = data.len().max(16);
+        let (ptr, bytes) = {
+            let b = self.buf(id);
+            (b.ptr, b.bytes)
+        };
+        if bytes < need {
+            if ptr != 0 {
+                self.gpu.free(ptr);
+            }
+            let p = self.gpu.alloc(need)?;
+            *self.buf(id) = Buf { ptr: p, bytes: need };
+        }
+        let dst = self.buf(id).ptr;
+        if !data.is_empty() {
+            // SAFETY: `data` outlives the synchronisation below; dst holds `need` bytes.
+            unsafe { self.gpu.htod(dst, data.as_ptr(), data.len(), Stream::Copy)? };
+            self.gpu.sync(Stream::Copy)?;
+        }
+        Ok(())
+    }
+
+    /// Pick the sub-batch size and the largest batch from free device memory.
+    fn size_batches(&mut self) -> Result<()> {
+        let l = &self.lay;
+        let (cs, ts) = (csize::<T>(), std::mem::size_of::<T>());
+        let sms = self.gpu.sm_count().max(1);
+        // About 32 matrices per multiprocessor per sub-batch: several waves of the Jacobi
+        // kernel, so that the tail of one wave does not dominate.
+        let sub = (32 * sms).div_ceil(l.nb).clamp(1, 256);
+        let per_sub_window = l.nb * l.m * l.m * cs + l.nb * l.ne * l.m * cs + l.nb * l.dec_scratch_per_mat + l.nb * l.d * ts;
+        let (free, _) = self.gpu.mem_info()?;
+        let budget = free / 4;
+        self.sub_batch = sub.min((budget / per_sub_window.max(1)).max(1));
+        let w = self.plan.config.window.max(1);
+        let per_window = w * l.nb * l.m * cs + l.d * (8 + 4 + ts) + l.nb * (ts + 8) + (1 + l.peak_kout) * 16;
+        self.max_batch = ((free / 4).saturating_sub(self.sub_batch * per_sub_window) / per_window.max(1)).clamp(1, 4096);
+        Ok(())
+    }
+
+    fn ensure(&mut self, which: Scratch, bytes: usize) -> Result<DevPtr> {
+        let slot = match which {
+            Scratch::X => &mut self.d_x,
+            Scratch::Win => &mut self.d_win,
+            Scratch::R => &mut self.d_r,
+            Scratch::E => &mut self.d_e,
+            Scratch::Jacobi => &mut self.d_scratch,
+            Scratch::Ppart => &mut self.d_ppart,
+            Scratch::Gain => &mut self.d_gain,
+            Scratch::Bw => &mut self.d_bw,
+            Scratch::Info => &mut self.d_info,
+            Scratch::Db => &mut self.d_db,
+            Scratch::Spec => &mut self.d_spec,
+            Scratch::Out => &mut self.d_out,
+        };
+        if slot.bytes < bytes.max(16) {
+            let grow = (bytes.max(16) + bytes / 4).max(slot.bytes * 3 / 2);
+            let old = slot.ptr;
+            if old != 0 {
+                self.gpu.free(old);
+            }
+            let p = self.gpu.alloc(grow)?;
+            let slot = match which {
+                Scratch::X => &mut self.d_x,
+                Scratch::Win => &mut self.d_win,
+                Scratch::R => &mut self.d_r,
+                Scratch::E => &mut self.d_e,
+                Scratch::Jacobi => &mut self.d_scratch,
+                Scratch::Ppart => &mut self.d_ppart,
+                Scratch::Gain => &mut self.d_gain,
+                Scratch::Bw => &mut self.d_bw,
+                Scratch::Info => &mut self.d_info,
+                Scratch::Db => &mut self.d_db,
+                Scratch::Spec => &mut self.d_spec,
+                Scratch::Out => &mut self.d_out,
+            };
+            *slot = Buf { ptr: p, bytes: grow };
+            return Ok(p);
+        }
+        Ok(slot.ptr)
+    }
+
+    fn ensure_pinned(&mut self, which: HostBuf, bytes: usize) -> Result<*mut u8> {
+        let need = bytes.max(16);
+        let cur = match which {
+            HostBuf::Stage0 => &self.h_stage[0],
+            HostBuf::Stage1 => &self.h_stage[1],
+            HostBuf::Win => &self.h_win,
+            HostBuf::Out => &self.h_out,
+            HostBuf::Spec => &self.h_spec,
+            HostBuf::Bw => &self.h_bw,
+        };
+        if cur.bytes >= need {
+            return Ok(cur.ptr);
+        }
+        let old = cur.ptr;
+        let grow = need.max(cur.bytes * 3 / 2);
+        if !old.is_null() {
+            // Outstanding copies may still read or write it.
+            self.gpu.sync(Stream::Copy)?;
+            self.gpu.sync(Stream::Compute)?;
+            self.gpu.free_pinned(old);
+        }
+        let p = self.gpu.alloc_pinned(grow)?;
+        let slot = match which {
+            HostBuf::Stage0 => &mut self.h_stage[0],
+            HostBuf::Stage1 => &mut self.h_stage[1],
+            HostBuf::Win => &mut self.h_win,
+            HostBuf::Out => &mut self.h_out,
+            HostBuf::Spec => &mut self.h_spec,
+            HostBuf::Bw => &mut self.h_bw,
+        };
+        *slot = Pinned { ptr: p, bytes: grow };
+        Ok(p)
+    }
+
+    /// Spectrum bin groups for a sub-batch of `nwb` windows: enough blocks to fill the GPU.
+    fn bin_groups(&self, nwb: usize) -> usize {
+        let l = &self.lay;
+        let xy = l.d.div_ceil(l.spec_dt) * nwb.div_ceil(SPEC_WG);
+        (2 * self.gpu.sm_count()).div_ceil(xy.max(1)).clamp(1, l.nb)
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn launch_sub_batch(&mut self, k: usize, nw: usize, kout: usize, want_spectrum: bool, ev: &[Event]) -> Result<()> {
+        let l = self.lay.clone();
+        let (cs, ts) = (csize::<T>(), std::mem::size_of::<T>());
+        let sb = self.sub_batch;
+        let w0 = k * sb;
+        let nwb = sb.min(nw - w0);
+        let mat0 = w0 * l.nb;
+        let nmat = nwb * l.nb;
+        let nbg = self.bin_groups(nwb);
+        let g = &*self.gpu;
+        g.record(ev[0], Stream::Compute)?;
+        Args::new()
+            .p(self.d_x.ptr)
+            .i(l.nb)
+            .i(l.m)
+            .p(self.d_win.ptr)
+            .i(l.corr_fc)
+            .i(mat0)
+            .p(self.d_r.ptr)
+            .launch(g, self.f.correlate, [nmat, 1, 1], 256, l.corr_smem)?;
+        g.record(ev[1], Stream::Compute)?;
+        let vec_all = usize::from(!l.squared);
+        Args::new()
+            .p(self.d_r.ptr)
+            .p(self.d_wcm.ptr)
+            .p(self.d_wrm.ptr)
+            .i(l.m)
+            .i(l.nb)
+            .i(l.ld)
+            .i(l.left)
+            .i(l.right)
+            .i(l.ns)
+            .i(vec_all)
+            .i(MAX_SWEEPS as usize)
+            .i(usize::from(self.plan.config.eigenvalue_weight))
+            .p(self.d_weights.ptr)
+            .i(mat0)
+            .p(self.d_e.ptr)
+            .p(self.d_gain.ptr)
+            .p(self.d_bw.ptr)
+            .p(self.d_info.ptr)
+            .p(self.d_scratch.ptr)
+            .launch(g, self.f.decompose, [nmat, 1, 1], l.dec_threads, l.dec_smem)?;
+        g.record(ev[2], Stream::Compute)?;
+        let n2den = if self.d_n2den.bytes > 0 { self.d_n2den.ptr } else { self.d_n2num.ptr };
+        Args::new()
+            .p(self.d_st.ptr)
+            .p(n2den)
+            .p(self.d_n2num.ptr)
+            .p(self.d_e.ptr)
+            .i(l.ne)
+            .p(self.d_gain.ptr + (mat0 * ts) as u64)
+            .i(l.m)
+            .i(l.nb)
+            .i(l.d)
+            .i(l.ns)
+            .i(usize::from(l.squared))
+            .i(nwb)
+            .r(T::of_f64(crate::music::REFINE_RATIO))
+            .p(self.d_ppart.ptr)
+            .launch(
+                g,
+                self.f.spectrum,
+                [l.d.div_ceil(l.spec_dt), nwb.div_ceil(SPEC_WG), nbg],
+                l.spec_dt,
+                l.spec_smem,
+            )?;
+        g.record(ev[3], Stream::Compute)?;
+        let row = (1 + kout) * 16;
+        let spec_ptr = if want_spectrum { self.d_spec.ptr + (w0 * l.d * 4) as u64 } else { 0 };
+        Args::new()
+            .p(self.d_ppart.ptr)
+            .i(nbg)
+            .i(nwb)
+            .i(l.d)
+            .p(self.d_offs.ptr)
+            .p(self.d_nbrs.ptr)
+            .p(self.d_azok.ptr)
+            .i(kout)
+            .i(l.peak_cap)
+            .p(self.d_db.ptr + (w0 * l.d * 8) as u64)
+            .p(spec_ptr)
+            .p(self.d_out.ptr + (w0 * row) as u64)
+            .launch(g, self.f.peaks, [nwb, 1, 1], 256, l.peak_smem)?;
+        // SAFETY: the pinned buffers were sized for the whole batch before the loop and
+        // are not touched by the host until the compute stream is synchronised.
+        unsafe {
+            g.dtoh(self.h_out.ptr.add(w0 * row), self.d_out.ptr + (w0 * row) as u64, nwb * row, Stream::Compute)?;
+            if want_spectrum {
+                g.dtoh(
+                    self.h_spec.ptr.add(w0 * l.d * 4),
+                    self.d_spec.ptr + (w0 * l.d * 4) as u64,
+                    nwb * l.d * 4,
+                    Stream::Compute,
+                )?;
+                g.dtoh(
+                    self.h_bw.ptr.add(mat0 * 4),
+                    self.d_bw.ptr + (mat0 * 4) as u64,
+                    nmat * 4,
+                    Stream::Compute,
+                )?;
+            }
+        }
+        g.record(ev[4], Stream::Compute)?;
+        let _ = cs;
+        Ok(())
+    }
+}
+
+#[derive(Clone, Copy)]
+enum BufId {
+    St,
+    N2Den,
+    N2Num,
+    Wcm,
+    Wrm,
+    Weights,
+    Offs,
+    Nbrs,
+    AzOk,
+}
+
+#[derive(Clone, Copy)]
+enum Scratch {
+    X,
+    Win,
+    R,
+    E,
+    Jacobi,
+    Ppart,
+    Gain,
+    Bw,
+    Info,
+    Db,
+    Spec,
+    Out,
+}
+
+#[derive(Clone, Copy)]
+enum HostBuf {
+    Stage0,
+    Stage1,
+    Win,
+    Out,
+    Spec,
+    Bw,
+}
+
+fn layout<T: Real>(plan: &Plan<T>, gpu: &dyn Gpu) -> Result<Layout> {
+    let (cs, ts) = (csize::<T>(), std::mem::size_of::<T>());
+    let m = plan.num_mics;
+    let nb = plan.num_bins();
+    let d = plan.num_dirs;
+    let ns = plan.config.num_sources;
+    let squared = plan.config.denominator == Denominator::Squared;
+    let (left, right) = match (plan.config.algorithm, squared) {
+        (Algorithm::Sevd, _) => (0, 0),
+        (Algorithm::Gevd, _) => (1, 1),
+        (Algorithm::GevdHark, _) => (1, 2),
+        (Algorithm::Gsvd, true) => (1, 0),
+        (Algorithm::Gsvd, false) => (0, 1),
+    };
+    let want_v = !squared;
+    let ne = if squared { ns } else { m };
+    let v = variant_for(plan)?;
+    let n = m + (m & 1);
+    let mut ld = n;
+    while ld % 16 != 4 {
+        ld += 1;
+    }
+    let optin = gpu.max_smem_optin().max(SMEM_DEFAULT);
+    let mats = if want_v { 2 } else { 1 } * n * ld * cs;
+    let small = (n * ts + 32 * ts + n * 4).div_ceil(16) * 16;
+    let dec_smem_mode = mats + small <= optin;
+    let (dec_smem, dec_scratch_per_mat) = if dec_smem_mode { (mats + small, 0) } else { (small, mats) };
+    let groups = n / 2 * v.lpp as usize;
+    let dec_threads = groups.div_ceil(32).clamp(1, 32) * 32;
+    let corr_fc = ((SMEM_DEFAULT - 32 * ts) / (m * cs)).clamp(1, 32);
+    let corr_smem = corr_fc * m * cs + 32 * ts;
+    let lds = m | 1;
+    let mut spec_dt = 128;
+    while spec_dt > 32 && spec_dt * lds * cs > 64 * 1024 {
+        spec_dt /= 2;
+    }
+    let spec_smem = spec_dt * lds * cs;
+    if spec_smem > optin {
+        return Err(Error::Device(format!("{m} microphones: the spectrum tile does not fit in shared memory")));
+    }
+    let peak_cap = d.next_power_of_two().clamp(1, 4096);
+    let peak_kout = plan.peak_table.max_out.min(peak_cap);
+    let peak_smem = peak_cap * 12;
+    Ok(Layout {
+        m,
+        nb,
+        d,
+        ns,
+        ne,
+        squared,
+        left,
+        right,
+        want_v,
+        ld,
+        dec_smem_mode,
+        dec_threads,
+        dec_smem,
+        dec_scratch_per_mat,
+        corr_fc,
+        corr_smem,
+        spec_dt,
+        spec_smem,
+        peak_cap,
+        peak_kout,
+        peak_smem,
+    })
+}
+
+impl<T: Real> Backend<T> for CudaBackend<T> {
+    fn device_name(&self) -> String {
+        format!("{} ({})", self.gpu.describe(), T::NAME)
+    }
+
+    fn max_windows_per_batch(&self) -> usize {
+        self.max_batch
+    }
+
+    fn process(
+        &mut self,
+        spectra: &Spectra<T>,
+        windows: &[WindowSpec],
+        want_spectrum: bool,
+        out: &mut BatchOutput,
+    ) -> Result<()> {
+        let (m, nb, d) = (self.lay.m, self.lay.nb, self.lay.d);
+        if spectra.num_mics != m || spectra.num_bins != nb {
+            return Err(Error::Mismatch(format!(
+                "cuda backend: spectra have {} mics × {} bins, plan expects {} × {}",
+                spectra.num_mics, spectra.num_bins, m, nb
+            )));
+        }
+        if let Some(w) = windows.iter().find(|w| w.start + w.len > spectra.num_frames || w.len == 0) {
+            return Err(Error::Mismatch(format!(
+                "cuda backend: window {}..{} outside the {} frames given",
+                w.start,
+                w.start + w.len,
+                spectra.num_frames
+            )));
+        }
+        if spectra.data.len() < spectra.num_frames * nb * m {
+            return Err(Error::Mismatch("cuda backend: spectra data shorter than its shape".into()));
+        }
+        out.peaks.clear();
+        out.spectrum_db.clear();
+        out.bin_weight.clear();
+        let nw = windows.len();
+        if nw == 0 {
+            return Ok(());
+        }
+        self.gpu.make_current()?;
+        let (cs, ts) = (csize::<T>(), std::mem::size_of::<T>());
+        let l = self.lay.clone();
+        let kout = l.peak_kout;
+        let row = (1 + kout) * 16;
+        let f0 = windows.iter().map(|w| w.start).min().unwrap_or(0);
+        let f1 = windows.iter().map(|w| w.start + w.len).max().unwrap_or(0);
+        let nframes = f1 - f0;
+        let fbytes = nb * m * cs;
+        let sb = self.sub_batch;
+        let nsb = nw.div_ceil(sb);
+        let nwb_max = sb.min(nw);
+
+        // Device buffers.
+        self.ensure(Scratch::X, nframes * fbytes)?;
+        self.ensure(Scratch::Win, nw * 8)?;
+        self.ensure(Scratch::R, nwb_max * nb * m * m * cs)?;
+        self.ensure(Scratch::E, nwb_max * nb * l.ne * m * cs)?;
+        if !l.dec_smem_mode {
+            self.ensure(Scratch::Jacobi, nwb_max * nb * l.dec_scratch_per_mat)?;
+        }
+        let nbg_max = (0..nsb).map(|k| self.bin_groups(sb.min(nw - k * sb))).max().unwrap_or(1);
+        self.ensure(Scratch::Ppart, nbg_max * nwb_max * d * ts)?;
+        self.ensure(Scratch::Gain, nw * nb * ts)?;
+        self.ensure(Scratch::Bw, nw * nb * 4)?;
+        self.ensure(Scratch::Info, nw * nb * 4)?;
+        self.ensure(Scratch::Db, nw * d * 8)?;
+        if want_spectrum {
+            self.ensure(Scratch::Spec, nw * d * 4)?;
+        }
+        self.ensure(Scratch::Out, nw * row)?;
+        // Pinned host buffers.
+        let chunk_frames = (STAGE_BYTES / fbytes).max(1);
+        let stage_bytes = chunk_frames.min(nframes) * fbytes;
+        self.ensure_pinned(HostBuf::Stage0, stage_bytes)?;
+        if nframes > chunk_frames {
+            self.ensure_pinned(HostBuf::Stage1, stage_bytes)?;
+        }
+        let h_win = self.ensure_pinned(HostBuf::Win, nw * 8)?;
+        self.ensure_pinned(HostBuf::Out, nw * row)?;
+        if want_spectrum {
+            self.ensure_pinned(HostBuf::Spec, nw * d * 4)?;
+            self.ensure_pinned(HostBuf::Bw, nw * nb * 4)?;
+        }
+        while self.events.len() < 5 * nsb {
+            let e = self.gpu.event()?;
+            self.events.push(e);
+        }
+
+        // Window table (first frame relative to the upload, length).
+        // SAFETY: h_win holds nw * 8 bytes.
+        let tab = unsafe { std::slice::from_raw_parts_mut(h_win as *mut i32, 2 * nw) };
+        for (i, w) in windows.iter().enumerate() {
+            tab[2 * i] = (w.start - f0) as i32;
+            tab[2 * i + 1] = w.len as i32;
+        }
+        // SAFETY: pinned source, device buffer sized above; ordered before the frame chunks.
+        unsafe { self.gpu.htod(self.d_win.ptr, h_win, nw * 8, Stream::Copy)? };
+
+        // Frames needed by sub-batches 0..=k (prefix maximum of window ends).
+        let mut need = Vec::with_capacity(nsb);
+        let mut mx = 0usize;
+        for k in 0..nsb {
+            for w in &windows[k * sb..(k * sb + sb).min(nw)] {
+                mx = mx.max(w.start + w.len - f0);
+            }
+            need.push(mx);
+        }
+
+        // Upload in chunks through the two staging buffers; launch each sub-batch as soon
+        // as its frames are on their way.
+        let src = as_bytes(&spectra.data[f0 * nb * m..f1 * nb * m]);
+        let events = self.events.clone();
+        let mut next = 0usize;
+        let mut c0 = 0usize;
+        let mut ci = 0usize;
+        while c0 < nframes {
+            let c1 = nframes.min(c0 + chunk_frames);
+            let st = ci % 2;
+            let ev = self.chunk_ev[st];
+            if ci >= 2 {
+                self.gpu.sync_event(ev)?;
+            }
+            let bytes = (c1 - c0) * fbytes;
+            let stage = self.h_stage[st].ptr;
+            let part = &src[c0 * fbytes..c1 * fbytes];
+            copy_to_pinned(part, stage);
+            // SAFETY: the staging buffer holds `bytes`; it is not rewritten before `ev`
+            // (recorded next) completes.
+            unsafe { self.gpu.htod(self.d_x.ptr + (c0 * fbytes) as u64, stage, bytes, Stream::Copy)? };
+            self.gpu.record(ev, Stream::Copy)?;
+            while next < nsb && need[next] <= c1 {
+                self.gpu.wait(Stream::Compute, ev)?;
+                self.launch_sub_batch(next, nw, kout, want_spectrum, &events[5 * next..5 * next + 5])?;
+                next += 1;
+            }
+            c0 = c1;
+            ci += 1;
+        }
+        debug_assert_eq!(next, nsb);
+        self.gpu.sync(Stream::Compute)?;
+        self.gpu.sync(Stream::Copy)?;
+
+        for k in 0..nsb {
+            let e = &events[5 * k..5 * k + 5];
+            self.times.correlation_ms += self.gpu.elapsed_ms(e[0], e[1])? as f64;
+            self.times.decomposition_ms += self.gpu.elapsed_ms(e[1], e[2])? as f64;
+            self.times.spectrum_ms += self.gpu.elapsed_ms(e[2], e[3])? as f64;
+            self.times.peaks_ms += self.gpu.elapsed_ms(e[3], e[4])? as f64;
+        }
+
+        // Results.
+        // SAFETY: the compute stream is idle; h_out holds nw rows.
+        let outb = unsafe { std::slice::from_raw_parts(self.h_out.ptr, nw * row) };
+        out.peaks.reserve(nw);
+        for w in 0..nw {
+            let r = &outb[w * row..(w + 1) * row];
+            let count = i32::from_le_bytes(r[8..12].try_into().unwrap_or([0; 4])).max(0) as usize;
+            let overflow = i32::from_le_bytes(r[12..16].try_into().unwrap_or([0; 4])) != 0;
+            if overflow {
+                // More local maxima than the kernel's sort holds: redo this window here.
+                let mut db = vec![0f64; d];
+                // SAFETY: synchronous copy into a host Vec after the stream is idle.
+                unsafe {
+                    self.gpu.dtoh(db.as_mut_ptr() as *mut u8, self.d_db.ptr + (w * d * 8) as u64, d * 8, Stream::Compute)?;
+                }
+                self.gpu.sync(Stream::Compute)?;
+                out.peaks.push(crate::peaks::find_peaks(&db, &self.plan.peak_table));
+                continue;
+            }
+            let k = count.min(kout);
+            let mut v = Vec::with_capacity(k);
+            for i in 0..k {
+                let e = &r[(1 + i) * 16..(2 + i) * 16];
+                let db = f64::from_le_bytes(e[0..8].try_into().unwrap_or([0; 8]));
+                let dir = i32::from_le_bytes(e[8..12].try_into().unwrap_or([0; 4])) as usize;
+                v.push(Peak { dir, power_db: db });
+            }
+            out.peaks.push(v);
+        }
+        if want_spectrum {
+            // SAFETY: filled by the downloads above.
+            unsafe {
+                out.spectrum_db
+                    .extend_from_slice(std::slice::from_raw_parts(self.h_spec.ptr as *const f32, nw * d));
+                out.bin_weight
+                    .extend_from_slice(std::slice::from_raw_parts(self.h_bw.ptr as *const f32, nw * nb));
+            }
+        }
+        Ok(())
+    }
+
+    fn set_plan(&mut self, plan: Arc<Plan<T>>) -> Result<()> {
+        if plan.num_mics != self.plan.num_mics
+            || plan.num_bins() != self.plan.num_bins()
+            || plan.num_dirs != self.plan.num_dirs
+        {
+            return Err(Error::Mismatch("cuda backend: a new plan must keep mics, bins and directions".into()));
+        }
+        self.gpu.make_current()?;
+        self.gpu.sync(Stream::Compute)?;
+        let old = std::mem::replace(&mut self.plan, plan);
+        let lay = layout(&self.plan, &*self.gpu)?;
+        let relayout = lay.left != self.lay.left
+            || lay.right != self.lay.right
+            || lay.want_v != self.lay.want_v
+            || lay.ne != self.lay.ne
+            || lay.peak_kout != self.lay.peak_kout;
+        self.lay = lay;
+        if relayout {
+            self.load_functions()?;
+            self.size_batches()?;
+        }
+        self.upload_plan(Some(&old))
+    }
+
+    fn stage_times(&self) -> StageTimes {
+        self.times
+    }
+
+    fn reset_stage_times(&mut self) {
+        self.times = StageTimes::default();
+    }
+}
+
+/// Copy host bytes into pinned memory, in parallel for large copies.
+fn copy_to_pinned(src: &[u8], dst: *mut u8) {
+    const PIECE: usize = 1 << 20;
+    struct P(*mut u8);
+    // SAFETY: disjoint pieces of one buffer are written by different threads.
+    unsafe impl Sync for P {}
+    unsafe impl Send for P {}
+    let d = P(dst);
+    if src.len() <= 2 * PIECE {
+        // SAFETY: the caller sized `dst` for `src`.
+        unsafe { std::ptr::copy_nonoverlapping(src.as_ptr(), dst, src.len()) };
+        return;
+    }
+    src.par_chunks(PIECE).enumerate().for_each(|(i, c)| {
+        let d = &d;
+        // SAFETY: piece i lands at offset i·PIECE, inside the buffer, disjoint from others.
+        unsafe { std::ptr::copy_nonoverlapping(c.as_ptr(), d.0.add(i * PIECE), c.len()) };
+    });
+}
+
+impl<T: Real> Drop for CudaBackend<T> {
+    fn drop(&mut self) {
+        let _ = self.gpu.make_current();
+        let _ = self.gpu.sync(Stream::Copy);
+        let _ = self.gpu.sync(Stream::Compute);
+        let bufs = [
+            self.d_st.ptr,
+            self.d_n2den.ptr,
+            self.d_n2num.ptr,
+            self.d_wcm.ptr,
+            self.d_wrm.ptr,
+            self.d_weights.ptr,
+            self.d_offs.ptr,
+            self.d_nbrs.ptr,
+            self.d_azok.ptr,
+            self.d_x.ptr,
+            self.d_win.ptr,
+            self.d_r.ptr,
+            self.d_e.ptr,
+            self.d_scratch.ptr,
+            self.d_ppart.ptr,
+            self.d_gain.ptr,
+            self.d_bw.ptr,
+            self.d_info.ptr,
+            self.d_db.ptr,
+            self.d_spec.ptr,
+            self.d_out.ptr,
+        ];
+        for p in bufs {
+            if p != 0 {
+                self.gpu.free(p);
+            }
+        }
+        let pinned = [
+            self.h_stage[0].ptr,
+            self.h_stage[1].ptr,
+            self.h_win.ptr,
+            self.h_out.ptr,
+            self.h_spec.ptr,
+            self.h_bw.ptr,
+        ];
+        for p in pinned {
+            if !p.is_null() {
+                self.gpu.free_pinned(p);
+            }
+        }
+        for e in self.events.drain(..).chain(self.chunk_ev) {
+            if e != 0 {
+                self.gpu.destroy_event(e);
+            }
+        }
+    }
 }

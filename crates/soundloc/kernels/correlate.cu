@@ -1,0 +1,87 @@
+// Stage 2 — correlation windows: R = (1/W) Σ_f x_f x_fᴴ for one (window, bin) per block,
+// then HARK's scaling R ← R / (max_ij |Re R_ij| + 1), exactly Hermitian, real diagonal.
+//
+// X       [frame][bin][mic]   the uploaded frames (frame 0 = first uploaded frame)
+// win     [window][2]         (first frame relative to X, number of frames)
+// R       [window][bin][M×M]  column-major output (R[j*M+i] = R_ij)
+// Grid: (windows × bins) blocks, matrix index = window * nb + bin. Dynamic shared
+// memory: fc × M complex (a chunk of fc frames) + 32 reals.
+#include "common.cuh"
+
+#define SL_CORR_EPT 8
+
+template <typename T>
+__device__ void correlate_impl(const cplx<T>* __restrict__ X, int nb, int M, const int* __restrict__ win, int fc,
+                               int mat0, cplx<T>* __restrict__ R) {
+    SL_DYN_SMEM(sl_smem);
+    cplx<T>* xs = reinterpret_cast<cplx<T>*>(sl_smem);
+    T* red = reinterpret_cast<T*>(xs + (size_t)fc * M);
+    const int mat = mat0 + blockIdx.x;
+    const int w = mat / nb, b = mat - w * nb;
+    const int start = win[2 * w], len = win[2 * w + 1];
+    const int tid = threadIdx.x, nt = blockDim.x;
+    const int ntri = M * (M + 1) / 2;
+    cplx<T>* Rm = R + (size_t)blockIdx.x * M * M;
+    const T inv_len = (T)1 / (T)len;
+    T maxre = (T)0;
+    for (int base = 0; base < ntri; base += SL_CORR_EPT * nt) {
+        cplx<T> acc[SL_CORR_EPT];
+        int ii[SL_CORR_EPT], jj[SL_CORR_EPT];
+#pragma unroll
+        for (int e = 0; e < SL_CORR_EPT; ++e) {
+            acc[e] = czero<T>();
+            int idx = base + tid + e * nt;
+            int j = 0, i = 0;
+            if (idx < ntri) {
+                j = (int)((sl_sqrt(8.0 * (double)idx + 1.0) - 1.0) * 0.5);
+                while (j * (j + 1) / 2 > idx) --j;
+                while ((j + 1) * (j + 2) / 2 <= idx) ++j;
+                i = idx - j * (j + 1) / 2;
+            } else {
+                j = -1;
+            }
+            ii[e] = i;
+            jj[e] = j;
+        }
+        for (int f0 = 0; f0 < len; f0 += fc) {
+            const int nf = min(fc, len - f0);
+            __syncthreads();
+            for (int k = tid; k < nf * M; k += nt) {
+                const int f = k / M, m = k - f * M;
+                xs[k] = X[((size_t)(start + f0 + f) * nb + b) * M + m];
+            }
+            __syncthreads();
+            for (int f = 0; f < nf; ++f) {
+                const cplx<T>* xf = xs + f * M;
+#pragma unroll
+                for (int e = 0; e < SL_CORR_EPT; ++e) {
+                    if (jj[e] >= 0) cmac_cb(acc[e], xf[ii[e]], xf[jj[e]]);
+                }
+            }
+        }
+#pragma unroll
+        for (int e = 0; e < SL_CORR_EPT; ++e) {
+            if (jj[e] >= 0) {
+                cplx<T> v = cscale(acc[e], inv_len);
+                const int i = ii[e], j = jj[e];
+                if (i == j) v.im = (T)0;
+                Rm[(size_t)j * M + i] = v;
+                Rm[(size_t)i * M + j] = cconj(v);
+                maxre = sl_max(maxre, sl_abs(v.re));
+            }
+        }
+    }
+    const T mx = block_max(maxre, red);  // includes a __syncthreads: R writes are visible
+    const T inv_s = (T)1 / (mx + (T)1);
+    __syncthreads();
+    for (int k = tid; k < M * M; k += nt) Rm[k] = cscale(Rm[k], inv_s);
+}
+
+extern "C" __global__ void correlate_f32(const cplx<float>* X, int nb, int M, const int* win, int fc, int mat0,
+                                         cplx<float>* R) {
+    correlate_impl<float>(X, nb, M, win, fc, mat0, R);
+}
+extern "C" __global__ void correlate_f64(const cplx<double>* X, int nb, int M, const int* win, int fc, int mat0,
+                                         cplx<double>* R) {
+    correlate_impl<double>(X, nb, M, win, fc, mat0, R);
+}

@@ -1,0 +1,237 @@
+//! The kernel sources (embedded with `include_str!`) and their run-time compilation with
+//! NVRTC.
+//!
+//! One module holds every stage (`correlate`, `decompose`, `spectrum`, `peaks`), each a
+//! template over the real type with `extern "C"` wrappers `name_f32` / `name_f64`. The
+//! Jacobi kernel keeps each lane's rows of a column pair in registers, so its layout is a
+//! compile-time [`Variant`] chosen from the number of microphones and passed as `-D`
+//! macros; a backend compiles one variant, once per process (the image is cached).
+//! Compilation targets the device's own architecture (`sm_XY`, a CUBIN: no JIT at load);
+//! when the NVRTC at hand does not know it, PTX for the newest virtual architecture it
+//! does know is used instead and the driver JIT-compiles it.
+
+use std::collections::HashMap;
+use std::ffi::{c_char, c_int, CString};
+use std::sync::Mutex;
+
+/// The kernel files, in the order they are concatenated.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum KernelId {
+    Correlate,
+    Decompose,
+    Spectrum,
+    Peaks,
+}
+
+impl KernelId {
+    pub(crate) const ALL: [KernelId; 4] = [KernelId::Correlate, KernelId::Decompose, KernelId::Spectrum, KernelId::Peaks];
+
+    fn source(self) -> &'static str {
+        match self {
+            KernelId::Correlate => include_str!("../../../kernels/correlate.cu"),
+            KernelId::Decompose => include_str!("../../../kernels/decompose.cu"),
+            KernelId::Spectrum => include_str!("../../../kernels/spectrum.cu"),
+            KernelId::Peaks => include_str!("../../../kernels/peaks.cu"),
+        }
+    }
+}
+
+const COMMON: &str = include_str!("../../../kernels/common.cuh");
+
+/// Register layout of the Jacobi kernel: `lpp` lanes share a column pair, each holding
+/// `rpl` rows; it handles matrices with up to `lpp · rpl` (even) columns.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub(crate) struct Variant {
+    pub lpp: u32,
+    pub rpl: u32,
+}
+
+impl Variant {
+    /// Every layout, smallest first.
+    pub(crate) const ALL: [Variant; 5] = [
+        Variant { lpp: 4, rpl: 4 },
+        Variant { lpp: 4, rpl: 8 },
+        Variant { lpp: 4, rpl: 16 },
+        Variant { lpp: 8, rpl: 16 },
+        Variant { lpp: 16, rpl: 16 },
+    ];
+
+    /// The smallest layout for M microphones (None above 256).
+    pub(crate) fn for_mics(m: usize) -> Option<Variant> {
+        let n = m + (m & 1);
+        Variant::ALL.into_iter().find(|v| v.max_cols() >= n)
+    }
+
+    /// Largest even column count.
+    pub(crate) fn max_cols(self) -> usize {
+        (self.lpp * self.rpl) as usize
+    }
+
+    /// File-name tag, e.g. `l4_r16`.
+    pub(crate) fn tag(self) -> String {
+        format!("l{}_r{}", self.lpp, self.rpl)
+    }
+}
+
+/// The whole translation unit for one variant.
+pub(crate) fn full_source(v: Variant) -> String {
+    let mut s = format!("#define SL_LPP {}\n#define SL_RPL {}\n", v.lpp, v.rpl);
+    s.push_str(COMMON);
+    s.push('\n');
+    for k in KernelId::ALL {
+        for line in k.source().lines() {
+            if line.trim_start().starts_with("#include \"common.cuh\"") {
+                continue;
+            }
+            s.push_str(line);
+            s.push('\n');
+        }
+    }
+    s
+}
+
+/// A compiled module image.
+#[derive(Debug, Clone)]
+pub(crate) struct Image {
+    /// CUBIN, or NUL-terminated PTX.
+    pub bytes: Vec<u8>,
+    /// The architecture option it was compiled with.
+    pub arch: String,
+}
+
+fn cache() -> &'static Mutex<HashMap<(Variant, u32), Image>> {
+    static C: std::sync::OnceLock<Mutex<HashMap<(Variant, u32), Image>>> = std::sync::OnceLock::new();
+    C.get_or_init(|| Mutex::new(HashMap::new()))
+}
+
+/// Whether libnvrtc can be loaded.
+pub(crate) fn nvrtc_present() -> bool {
+    // SAFETY: only tries to dlopen the library names cudarc would use.
+    unsafe { cudarc::nvrtc::sys::is_culib_present() }
+}
+
+/// NVRTC's version, (major, minor).
+pub(crate) fn nvrtc_version() -> Result<(i32, i32), String> {
+    let (mut a, mut b) = (0 as c_int, 0 as c_int);
+    // SAFETY: plain out-parameters.
+    unsafe { cudarc::nvrtc::sys::nvrtcVersion(&mut a, &mut b) }
+        .result()
+        .map_err(|e| format!("nvrtcVersion: {e}"))?;
+    Ok((a, b))
+}
+
+/// The real architectures NVRTC can build for (e.g. 75, 80, 90, ...).
+fn supported_archs() -> Vec<i32> {
+    let mut n: c_int = 0;
+    // SAFETY: out-parameters sized by the first call.
+    unsafe {
+        if cudarc::nvrtc::sys::nvrtcGetNumSupportedArchs(&mut n).result().is_err() || n <= 0 {
+            return Vec::new();
+        }
+        let mut v = vec![0 as c_int; n as usize];
+        if cudarc::nvrtc::sys::nvrtcGetSupportedArchs(v.as_mut_ptr()).result().is_err() {
+            return Vec::new();
+        }
+        v
+    }
+}
+
+/// Compile `source` with `opts`; returns CUBIN (when `cubin`) or NUL-terminated PTX.
+pub(crate) fn nvrtc_compile(source: &str, opts: &[String], cubin: bool) -> Result<Vec<u8>, String> {
+    use cudarc::nvrtc::{result, sys};
+    let src = CString::new(source).map_err(|e| e.to_string())?;
+    let prog = result::create_program(&src, Some(c"soundloc.cu")).map_err(|e| format!("nvrtcCreateProgram: {e}"))?;
+    // SAFETY: `prog` is valid until destroyed below; buffers are sized by the size calls.
+    unsafe {
+        let compiled = result::compile_program(prog, opts);
+        if let Err(e) = compiled {
+            let log = result::get_program_log(prog)
+                .map(|l| {
+                    let b: Vec<u8> = l.iter().map(|&c| c as u8).take_while(|&c| c != 0).collect();
+                    String::from_utf8_lossy(&b).into_owned()
+                })
+                .unwrap_or_default();
+            let _ = result::destroy_program(prog);
+            return Err(format!("NVRTC compile failed ({e}) with {opts:?}:\n{log}"));
+        }
+        let out = if cubin {
+            let mut size = 0usize;
+            let r = sys::nvrtcGetCUBINSize(prog, &mut size).result();
+            match r {
+                Ok(()) if size > 0 => {
+                    let mut v = vec![0u8; size];
+                    sys::nvrtcGetCUBIN(prog, v.as_mut_ptr() as *mut c_char)
+                        .result()
+                        .map(|_| v)
+                        .map_err(|e| format!("nvrtcGetCUBIN: {e}"))
+                }
+                Ok(()) => Err("nvrtcGetCUBIN: empty image".to_string()),
+                Err(e) => Err(format!("nvrtcGetCUBINSize: {e}")),
+            }
+        } else {
+            result::get_ptx(prog)
+                .map(|p| {
+                    let mut v: Vec<u8> = p.iter().map(|&c| c as u8).take_while(|&c| c != 0).collect();
+                    v.push(0);
+                    v
+                })
+                .map_err(|e| format!("nvrtcGetPTX: {e}"))
+        };
+        let _ = result::destroy_program(prog);
+        out
+    }
+}
+
+fn options(v: Variant, arch: &str) -> Vec<String> {
+    vec![
+        format!("--gpu-architecture={arch}"),
+        "--std=c++17".to_string(),
+        format!("-DSL_LPP={}", v.lpp),
+        format!("-DSL_RPL={}", v.rpl),
+    ]
+}
+
+/// Compile (or fetch from the process-wide cache) the module for a device of compute
+/// capability `cc` = major·10 + minor.
+pub(crate) fn image_for(v: Variant, cc: u32) -> Result<Image, String> {
+    if let Some(img) = cache().lock().map_err(|e| e.to_string())?.get(&(v, cc)) {
+        return Ok(img.clone());
+    }
+    if !nvrtc_present() {
+        return Err("libnvrtc (the CUDA run-time compiler) was not found; install the CUDA toolkit \
+                    or add its lib64 folder to LD_LIBRARY_PATH"
+            .into());
+    }
+    let src = full_source(v);
+    let archs = supported_archs();
+    let img = if archs.is_empty() || archs.contains(&(cc as i32)) {
+        let arch = format!("sm_{cc}");
+        match nvrtc_compile(&src, &options(v, &arch), true) {
+            Ok(bytes) => Image { bytes, arch },
+            Err(e) if archs.contains(&(cc as i32)) => return Err(e),
+            Err(_) => ptx_fallback(v, &src, cc, &archs)?,
+        }
+    } else {
+        ptx_fallback(v, &src, cc, &archs)?
+    };
+    cache().lock().map_err(|e| e.to_string())?.insert((v, cc), img.clone());
+    Ok(img)
+}
+
+fn ptx_fallback(v: Variant, src: &str, cc: u32, archs: &[i32]) -> Result<Image, String> {
+    // The newest virtual architecture NVRTC knows that the device can run.
+    let best = archs.iter().copied().filter(|&a| a as u32 <= cc).max().unwrap_or(75);
+    let arch = format!("compute_{best}");
+    let bytes = nvrtc_compile(src, &options(v, &arch), false)?;
+    Ok(Image { bytes, arch })
+}
+
+/// Compile every variant for `arch` (e.g. `sm_90`); returns (variant tag, image bytes).
+pub(crate) fn compile_all(arch: &str) -> Result<Vec<(String, usize)>, String> {
+    let mut out = Vec::new();
+    for v in Variant::ALL {
+        let bytes = nvrtc_compile(&full_source(v), &options(v, arch), arch.starts_with("sm_"))?;
+        out.push((v.tag(), bytes.len()));
+    }
+    Ok(out)
+}
