@@ -1,0 +1,273 @@
+//! The `soundloc` binary end to end: the real recording, the demo, and bad input (clear
+//! error naming the problem, non-zero exit, no panic, nothing half-written).
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn bin() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_soundloc"))
+}
+
+fn data() -> Option<PathBuf> {
+    let p = PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/data"));
+    p.join("jinsei.wav").exists().then_some(p)
+}
+
+fn skipped(test: &str) {
+    let _ = writeln!(std::io::stderr(), "SKIPPED {test}: ../shared/data not found");
+}
+
+fn tmp(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("soundloc-cli-{}", std::process::id()));
+    std::fs::create_dir_all(&d).unwrap();
+    d.join(name)
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+/// Fails with a clear message, exit code 2, no panic.
+fn assert_clean_failure(o: &Output, must_contain: &[&str]) {
+    let e = stderr(o);
+    assert!(!o.status.success(), "expected failure, got success; stderr: {e}");
+    assert_eq!(o.status.code(), Some(2), "stderr: {e}");
+    assert!(!e.contains("panicked"), "panic: {e}");
+    for s in must_contain {
+        assert!(e.contains(s), "stderr should mention {s:?}: {e}");
+    }
+}
+
+/// Write a WAV (int16) with `channels` channels of `secs` seconds of a deterministic signal.
+fn write_wav(path: &Path, channels: u16, rate: u32, secs: f64, nan: bool) {
+    let n = (secs * rate as f64) as usize;
+    if nan {
+        let spec = hound::WavSpec { channels, sample_rate: rate, bits_per_sample: 32, sample_format: hound::SampleFormat::Float };
+        let mut w = hound::WavWriter::create(path, spec).unwrap();
+        for i in 0..n {
+            for c in 0..channels {
+                let v = if i == 5000 && c == 1 { f32::NAN } else { ((i * (c as usize + 1)) as f32 * 0.01).sin() };
+                w.write_sample(v).unwrap();
+            }
+        }
+        w.finalize().unwrap();
+    } else {
+        let spec = hound::WavSpec { channels, sample_rate: rate, bits_per_sample: 16, sample_format: hound::SampleFormat::Int };
+        let mut w = hound::WavWriter::create(path, spec).unwrap();
+        let mut s: u32 = 12345;
+        for _ in 0..n {
+            for _ in 0..channels {
+                s = s.wrapping_mul(1103515245).wrapping_add(12345);
+                w.write_sample(((s >> 16) as i16) / 8).unwrap();
+            }
+        }
+        w.finalize().unwrap();
+    }
+}
+
+#[test]
+fn jinsei_with_measured_tf_finds_one_dominant_talker() {
+    let Some(d) = data() else { return skipped("jinsei_with_measured_tf_finds_one_dominant_talker") };
+    let o = bin()
+        .args(["localize", "--num-sources", "1", "--period", "10", "-q", "--device", "cpu"])
+        .arg(d.join("jinsei.wav"))
+        .arg("--tf")
+        .arg(d.join("tamago_rectf.zip"))
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", stderr(&o));
+    let text = String::from_utf8(o.stdout).unwrap();
+    let az: Vec<f64> = text
+        .lines()
+        .map(|l| {
+            let v: serde_json::Value = serde_json::from_str(l).unwrap();
+            v["sources"][0]["azimuth_deg"].as_f64().unwrap()
+        })
+        .collect();
+    // 1.28 s → 112 frames → windows at c = 0, 10, …, 60 (FUTURE, W = 50): 7 or more results.
+    assert!(az.len() >= 7, "{} results", az.len());
+    let (s, c) = az.iter().fold((0.0, 0.0), |(s, c), a| (s + a.to_radians().sin(), c + a.to_radians().cos()));
+    let mean = s.atan2(c).to_degrees();
+    for a in &az {
+        let d = ((a - mean + 540.0) % 360.0 - 180.0).abs();
+        assert!(d <= 15.0, "azimuth {a} is {d}° from the mean {mean} of {az:?}");
+    }
+    // The talker is in front of the array (between -10° and 30°), with the geometric TF too.
+    assert!((-10.0..=30.0).contains(&mean), "mean azimuth {mean}");
+    let o = bin()
+        .args(["localize", "--num-sources", "1", "--period", "10", "-q", "--device", "cpu", "--format", "csv"])
+        .arg(d.join("jinsei.wav"))
+        .arg("--tf")
+        .arg(d.join("tamago_geotf.zip"))
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", stderr(&o));
+    let text = String::from_utf8(o.stdout).unwrap();
+    let mut lines = text.lines();
+    assert!(lines.next().unwrap().starts_with("frame,time_s,rank"));
+    for l in lines {
+        let az: f64 = l.split(',').nth(4).unwrap().parse().unwrap();
+        let d = ((az - mean + 540.0) % 360.0 - 180.0).abs();
+        assert!(d <= 20.0, "geometric TF: azimuth {az} vs measured-TF mean {mean}");
+    }
+}
+
+#[test]
+fn spectrum_and_plot_files_are_written() {
+    let Some(d) = data() else { return skipped("spectrum_and_plot_files_are_written") };
+    let (npy, png, out) = (tmp("spec.npy"), tmp("plot.png"), tmp("res.jsonl"));
+    let o = bin()
+        .args(["localize", "-q", "--device", "cpu"])
+        .arg(d.join("jinsei.wav"))
+        .arg("--tf")
+        .arg(d.join("tamago_rectf.zip"))
+        .arg("--spectrum")
+        .arg(&npy)
+        .arg("--plot")
+        .arg(&png)
+        .arg("--output")
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(o.stdout.is_empty(), "results went to --output, not stdout");
+    let spec = soundloc::output::npy::read_npy_f32_file(&npy).unwrap();
+    let results = soundloc::output::jsonl::read_jsonl_file(&out).unwrap();
+    assert_eq!(spec.rows, results.len());
+    assert_eq!(spec.cols, 72);
+    // The reported power is the spectrum's value at the reported direction.
+    for (i, r) in results.iter().enumerate() {
+        let s = &r.sources[0];
+        assert!((spec.data[i * 72 + s.grid_index] as f64 - s.power_db).abs() < 1e-3);
+    }
+    assert!(std::fs::metadata(&png).unwrap().len() > 1000);
+    let meta: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(format!("{}.json", npy.display())).unwrap()).unwrap();
+    assert_eq!(meta["azimuth_deg"].as_array().unwrap().len(), 72);
+}
+
+#[test]
+fn demo_runs_without_files() {
+    let dir = tmp("demo");
+    let o = bin().args(["demo", "--scene", "ring8", "--device", "cpu", "--out-dir"]).arg(&dir).output().unwrap();
+    assert!(o.status.success(), "{}", stderr(&o));
+    let text = String::from_utf8(o.stdout).unwrap();
+    assert!(text.contains("gevd       found 100%"), "{text}");
+    assert!(text.contains("true talkers: 30/0  -120/0"), "{text}");
+    let plot = text.lines().find_map(|l| l.trim().strip_prefix("plot: ")).expect("a plot path on stdout");
+    assert!(Path::new(plot).exists());
+}
+
+#[test]
+fn wrong_channel_count_for_the_tf() {
+    let Some(d) = data() else { return skipped("wrong_channel_count_for_the_tf") };
+    let w = tmp("four.wav");
+    write_wav(&w, 4, 16000, 1.0, false);
+    let o = bin().arg("localize").arg(&w).arg("--tf").arg(d.join("tamago_rectf.zip")).output().unwrap();
+    assert_clean_failure(&o, &["4 channels", "8 microphones"]);
+}
+
+#[test]
+fn sample_rate_mismatch() {
+    let Some(d) = data() else { return skipped("sample_rate_mismatch") };
+    let w = tmp("rate.wav");
+    write_wav(&w, 8, 48000, 1.0, false);
+    let o = bin().arg("localize").arg(&w).arg("--tf").arg(d.join("tamago_rectf.zip")).output().unwrap();
+    assert_clean_failure(&o, &["48000 Hz", "16000 Hz"]);
+}
+
+#[test]
+fn empty_and_too_short_files() {
+    let Some(d) = data() else { return skipped("empty_and_too_short_files") };
+    let empty = tmp("empty.wav");
+    std::fs::write(&empty, b"").unwrap();
+    let o = bin().arg("localize").arg(&empty).arg("--tf").arg(d.join("tamago_rectf.zip")).output().unwrap();
+    assert_clean_failure(&o, &["empty.wav"]);
+    let short = tmp("short.wav");
+    write_wav(&short, 8, 16000, 0.2, false);
+    let o = bin().arg("localize").arg(&short).arg("--tf").arg(d.join("tamago_rectf.zip")).output().unwrap();
+    assert_clean_failure(&o, &["needs at least"]);
+}
+
+#[test]
+fn nan_samples() {
+    let Some(d) = data() else { return skipped("nan_samples") };
+    let w = tmp("nan.wav");
+    write_wav(&w, 8, 16000, 1.0, true);
+    let o = bin().arg("localize").arg(&w).arg("--tf").arg(d.join("tamago_rectf.zip")).output().unwrap();
+    assert_clean_failure(&o, &["nan.wav", "NaN"]);
+}
+
+#[test]
+fn num_sources_must_be_below_the_mic_count() {
+    let Some(d) = data() else { return skipped("num_sources_must_be_below_the_mic_count") };
+    let o = bin()
+        .args(["localize", "--num-sources", "8"])
+        .arg(d.join("jinsei.wav"))
+        .arg("--tf")
+        .arg(d.join("tamago_rectf.zip"))
+        .output()
+        .unwrap();
+    assert_clean_failure(&o, &["num-sources", "8 microphones"]);
+}
+
+#[test]
+fn truncated_or_corrupt_zip() {
+    let Some(d) = data() else { return skipped("truncated_or_corrupt_zip") };
+    let bytes = std::fs::read(d.join("tamago_rectf.zip")).unwrap();
+    let trunc = tmp("trunc.zip");
+    std::fs::write(&trunc, &bytes[..bytes.len() / 3]).unwrap();
+    let o = bin().arg("localize").arg(d.join("jinsei.wav")).arg("--tf").arg(&trunc).output().unwrap();
+    assert_clean_failure(&o, &["trunc.zip"]);
+    let junk = tmp("junk.zip");
+    std::fs::write(&junk, b"this is not a zip file at all, sorry").unwrap();
+    let o = bin().arg("localize").arg(d.join("jinsei.wav")).arg("--tf").arg(&junk).output().unwrap();
+    assert_clean_failure(&o, &["junk.zip"]);
+}
+
+#[test]
+fn unreadable_paths() {
+    let o = bin().args(["localize", "/nonexistent/rec.wav", "--tf", "/nonexistent/tf.zip"]).output().unwrap();
+    assert_clean_failure(&o, &["/nonexistent/rec.wav"]);
+    let Some(d) = data() else { return skipped("unreadable_paths") };
+    let o = bin().arg("localize").arg(d.join("jinsei.wav")).args(["--tf", "/nonexistent/tf.zip"]).output().unwrap();
+    assert_clean_failure(&o, &["/nonexistent/tf.zip"]);
+}
+
+#[test]
+fn failed_run_leaves_no_output_file() {
+    let Some(d) = data() else { return skipped("failed_run_leaves_no_output_file") };
+    let out = tmp("never.jsonl");
+    let _ = std::fs::remove_file(&out);
+    let o = bin()
+        .args(["localize", "--num-sources", "9"])
+        .arg(d.join("jinsei.wav"))
+        .arg("--tf")
+        .arg(d.join("tamago_rectf.zip"))
+        .arg("--output")
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert_clean_failure(&o, &[]);
+    assert!(!out.exists());
+    let leftovers: Vec<_> = std::fs::read_dir(out.parent().unwrap())
+        .unwrap()
+        .filter_map(|e| e.ok())
+        .filter(|e| e.file_name().to_string_lossy().contains("never"))
+        .collect();
+    assert!(leftovers.is_empty(), "temp files left: {leftovers:?}");
+}
+
+#[test]
+fn cuda_without_a_gpu_is_a_clear_error() {
+    let o = bin()
+        .args(["bench", "--device", "cuda", "--mics", "8", "--directions", "72", "--repeats", "1", "--batch", "1"])
+        .output()
+        .unwrap();
+    if o.status.success() {
+        let _ = writeln!(std::io::stderr(), "SKIPPED cuda_without_a_gpu_is_a_clear_error: a usable GPU is present");
+        return;
+    }
+    assert_clean_failure(&o, &["device"]);
+}
