@@ -1,0 +1,207 @@
+//! `soundloc noisecm`: make and inspect HARK noise correlation matrices (CMSave / CMLoad).
+
+use anyhow::Context;
+use clap::{Subcommand, ValueEnum};
+use soundloc::audio::read_audio;
+use soundloc::formats::noise_cm::{text_pair_paths, Expected, NoiseCm};
+use soundloc::WindowFunction;
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    #[command(subcommand)]
+    pub command: NoiseCmCommand,
+}
+
+#[derive(Subcommand, Debug)]
+pub enum NoiseCmCommand {
+    /// Estimate K (x xᴴ averaged over the noise frames, every bin 0..=N/2) from a
+    /// noise-only recording and write it as HARK reads it.
+    Make(MakeArgs),
+    /// Describe a noise correlation file: channels, bins, per-bin trace and conditioning.
+    Inspect(InspectArgs),
+}
+
+/// Output format of `noisecm make`.
+#[derive(ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum CmFormat {
+    /// HARK <= 2.0 text pair (real and imaginary part files).
+    Text,
+    /// HARK >= 2.1 zip.
+    Zip,
+}
+
+/// STFT analysis window (HARK MultiFFT WINDOW).
+#[derive(ValueEnum, Clone, Copy, Debug)]
+pub enum WindowArg {
+    /// HARK's CONJ window.
+    Conj,
+    /// Hamming.
+    Hamming,
+    /// Hann.
+    Hanning,
+    /// Rectangular.
+    Rectangle,
+}
+
+impl From<WindowArg> for WindowFunction {
+    fn from(w: WindowArg) -> Self {
+        match w {
+            WindowArg::Conj => Self::Conj,
+            WindowArg::Hamming => Self::Hamming,
+            WindowArg::Hanning => Self::Hanning,
+            WindowArg::Rectangle => Self::Rectangle,
+        }
+    }
+}
+
+#[derive(clap::Args, Debug)]
+pub struct MakeArgs {
+    /// Noise-only recording (WAV or FLAC).
+    pub input: PathBuf,
+    /// Output. Text: the pair's name (`K` → K_r, K_i; `noise_r.dat` → noise_r.dat,
+    /// noise_i.dat); zip: the zip file.
+    #[arg(short, long)]
+    pub output: PathBuf,
+    /// Time range of the input to average, START:END in seconds (default: all).
+    #[arg(long, value_parser = parse_range)]
+    pub range: Option<(f64, f64)>,
+    /// Output format (default: zip when the output ends in .zip, else text).
+    #[arg(long, value_enum)]
+    pub format: Option<CmFormat>,
+    /// FFT length N (LENGTH).
+    #[arg(long, default_value_t = 512)]
+    pub fft_length: usize,
+    /// Frame advance in samples (ADVANCE).
+    #[arg(long, default_value_t = 160)]
+    pub hop: usize,
+    /// Analysis window.
+    #[arg(long, value_enum, default_value = "conj")]
+    pub window: WindowArg,
+    /// Channels to use, comma-separated (0-based; default: all).
+    #[arg(long, value_delimiter = ',')]
+    pub channels: Vec<usize>,
+}
+
+#[derive(clap::Args, Debug)]
+pub struct InspectArgs {
+    /// A zip, or the real-part file of a text pair (the imaginary one is found by name).
+    pub file: PathBuf,
+    /// Print JSON (one object, with every bin) instead of text.
+    #[arg(long)]
+    pub json: bool,
+    /// Also print one line per bin.
+    #[arg(long)]
+    pub bins: bool,
+}
+
+pub fn run(a: Args) -> anyhow::Result<ExitCode> {
+    match a.command {
+        NoiseCmCommand::Make(a) => make(a),
+        NoiseCmCommand::Inspect(a) => inspect(a),
+    }
+}
+
+/// START:END in seconds, 0 <= START < END.
+fn parse_range(s: &str) -> Result<(f64, f64), String> {
+    let bad = || format!("{s:?}: expected START:END in seconds with 0 <= START < END, e.g. 0:1.5");
+    let (a, b) = s.split_once(':').ok_or_else(bad)?;
+    let a: f64 = a.trim().parse().map_err(|_| bad())?;
+    let b: f64 = b.trim().parse().map_err(|_| bad())?;
+    if !(a.is_finite() && b.is_finite() && a >= 0.0 && b > a) {
+        return Err(bad());
+    }
+    Ok((a, b))
+}
+
+fn make(a: MakeArgs) -> anyhow::Result<ExitCode> {
+    let audio = read_audio(&a.input)?;
+    let audio = if a.channels.is_empty() {
+        audio
+    } else {
+        audio
+            .select_channels(&a.channels)
+            .with_context(|| format!("{}: --channels", a.input.display()))?
+    };
+    let (cm, frames) = NoiseCm::estimate(
+        &audio.channels,
+        audio.sample_rate_hz,
+        a.fft_length,
+        a.hop,
+        a.window.into(),
+        a.range,
+    )
+    .with_context(|| format!("{}", a.input.display()))?;
+    let format = a.format.unwrap_or_else(|| {
+        let zip = a
+            .output
+            .extension()
+            .is_some_and(|e| e.eq_ignore_ascii_case("zip"));
+        if zip {
+            CmFormat::Zip
+        } else {
+            CmFormat::Text
+        }
+    });
+    let shape = format!(
+        "{} channels, {} bins (nfft {}), {} frames of {}",
+        cm.num_mics,
+        cm.num_bins(),
+        cm.nfft,
+        frames,
+        a.input.display()
+    );
+    match format {
+        CmFormat::Text => {
+            let (re, im) = text_pair_paths(&a.output);
+            cm.write_text_pair(&re, &im)?;
+            println!(
+                "wrote {} (real part) and {} (imaginary part): {shape}",
+                re.display(),
+                im.display()
+            );
+        }
+        CmFormat::Zip => {
+            cm.write_zip(&a.output)?;
+            println!("wrote {}: {shape}", a.output.display());
+        }
+    }
+    let s = cm.summary();
+    if s.not_positive_definite > 0 {
+        eprintln!(
+            "warning: K is not positive definite in {} of {} bins ({} frames for {} channels): \
+             GEVD/GSVD will reject it; use more noise frames or diagonal loading",
+            s.not_positive_definite, s.num_bins, frames, cm.num_mics
+        );
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+fn inspect(a: InspectArgs) -> anyhow::Result<ExitCode> {
+    let cm = NoiseCm::load(&a.file, Expected::default())?;
+    let s = cm.summary();
+    if a.json {
+        let mut v = serde_json::to_value(&s)?;
+        if let Some(o) = v.as_object_mut() {
+            o.insert("file".into(), a.file.display().to_string().into());
+        }
+        println!("{v}");
+        return Ok(ExitCode::SUCCESS);
+    }
+    println!("file             {}", a.file.display());
+    print!("{s}");
+    if a.bins {
+        println!(
+            "{:>5} {:>12} {:>12} {:>12} {:>12}",
+            "bin", "trace", "min eig", "max eig", "condition"
+        );
+        for (k, b) in s.bins.iter().enumerate() {
+            println!(
+                "{k:>5} {:>12.4e} {:>12.4e} {:>12.4e} {:>12.4e}",
+                b.trace, b.min_eigenvalue, b.max_eigenvalue, b.condition
+            );
+        }
+    }
+    Ok(ExitCode::SUCCESS)
+}

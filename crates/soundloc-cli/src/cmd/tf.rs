@@ -1,0 +1,138 @@
+//! `soundloc tf`: inspect HARK transfer-function files, make geometric ones.
+
+use anyhow::bail;
+use clap::{Subcommand, ValueEnum};
+use soundloc::array::freefield::{free_field, DEFAULT_SPEED_OF_SOUND_M_S};
+use soundloc::array::grid::GridSpec;
+use soundloc::array::{Geometry, TransferFunctions};
+use soundloc::formats::hark_zip::write_tf_zip;
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    #[command(subcommand)]
+    pub command: TfCommand,
+}
+
+#[derive(Subcommand, Debug)]
+pub enum TfCommand {
+    /// Describe a transfer-function file: HARK TF zip (HARK >= 2.1) or HGTF `*_loc.dat`.
+    Inspect(InspectArgs),
+    /// Write a geometric (free-field) HARK TF zip for an array and a direction grid, like
+    /// harktool's geometric TFs (all N/2+1 bins).
+    Make(MakeArgs),
+}
+
+#[derive(clap::Args, Debug)]
+pub struct InspectArgs {
+    /// The TF file (zip or HGTF).
+    pub file: PathBuf,
+    /// Print JSON (one object) instead of text.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// Built-in arrays.
+#[derive(ValueEnum, Clone, Copy, Debug)]
+pub enum BuiltinArray {
+    /// 8 mics on a circle of radius 3.65 cm in the x-y plane (TAMAGO-03-like).
+    Circle8,
+    /// 60 mics spread over a sphere of radius 10 cm (Fibonacci lattice).
+    Sphere60,
+}
+
+impl BuiltinArray {
+    fn geometry(self) -> Geometry {
+        match self {
+            BuiltinArray::Circle8 => Geometry::circle(8, 0.0365, 0.0),
+            BuiltinArray::Sphere60 => Geometry::sphere(60, 0.1),
+        }
+    }
+}
+
+#[derive(clap::Args, Debug)]
+#[command(group(clap::ArgGroup::new("array").required(true).args(["geometry", "builtin"])))]
+pub struct MakeArgs {
+    /// Array geometry TOML (`mics = [[x, y, z], ...]`, metres, channel order).
+    #[arg(long)]
+    pub geometry: Option<PathBuf>,
+    /// A built-in array instead of a geometry file.
+    #[arg(long, value_enum)]
+    pub builtin: Option<BuiltinArray>,
+    /// Directions: ring:STEP_DEG[:ELEV_DEG] or sphere:N (e.g. ring:5, ring:5:16.7, sphere:2522).
+    #[arg(long)]
+    pub grid: GridSpec,
+    /// Distance of the grid points (the modelled sources) from the array centre, metres.
+    #[arg(long, default_value_t = 1.0)]
+    pub radius: f64,
+    /// FFT length N (the zip holds N/2+1 bins).
+    #[arg(long, default_value_t = 512)]
+    pub fft_length: usize,
+    /// Sampling rate, Hz.
+    #[arg(long, default_value_t = 16000)]
+    pub sample_rate: u32,
+    /// Speed of sound, m/s.
+    #[arg(long, default_value_t = DEFAULT_SPEED_OF_SOUND_M_S)]
+    pub speed_of_sound: f64,
+    /// Output zip.
+    #[arg(short, long)]
+    pub output: PathBuf,
+}
+
+pub fn run(a: Args) -> anyhow::Result<ExitCode> {
+    match a.command {
+        TfCommand::Inspect(a) => inspect(a),
+        TfCommand::Make(a) => make(a),
+    }
+}
+
+fn inspect(a: InspectArgs) -> anyhow::Result<ExitCode> {
+    let tf = TransferFunctions::load(&a.file)?;
+    let summary = tf.summary();
+    if a.json {
+        let mut v = serde_json::to_value(&summary)?;
+        if let Some(o) = v.as_object_mut() {
+            o.insert("file".into(), a.file.display().to_string().into());
+        }
+        println!("{v}");
+    } else {
+        println!("file             {}", a.file.display());
+        print!("{summary}");
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+fn make(a: MakeArgs) -> anyhow::Result<ExitCode> {
+    let geometry = match (&a.geometry, a.builtin) {
+        (Some(p), _) => Geometry::load(p)?,
+        (None, Some(b)) => b.geometry(),
+        (None, None) => bail!("give --geometry FILE or --builtin"),
+    };
+    if !(a.radius.is_finite() && a.radius > 0.0) {
+        bail!("--radius {}: must be a positive number of metres", a.radius);
+    }
+    let grid = a.grid.build(a.radius);
+    let bins = 0..a.fft_length / 2 + 1;
+    let tf = free_field(
+        &geometry,
+        &grid,
+        a.fft_length,
+        a.sample_rate,
+        bins,
+        a.speed_of_sound,
+    )?;
+    write_tf_zip(&tf, &a.output)?;
+    println!(
+        "wrote {}: {} mics, {} directions ({}, {} m), {} bins (nfft {}, {} Hz)",
+        a.output.display(),
+        tf.num_mics,
+        tf.num_dirs(),
+        a.grid,
+        a.radius,
+        tf.num_bins,
+        tf.nfft,
+        tf.sample_rate_hz
+    );
+    Ok(ExitCode::SUCCESS)
+}
