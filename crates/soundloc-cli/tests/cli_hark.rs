@@ -23,10 +23,7 @@ fn run(args: &[&str]) -> (i32, String, String) {
         String::from_utf8_lossy(&stdout).into_owned(),
         String::from_utf8_lossy(&stderr).into_owned(),
     );
-    assert!(
-        !err.contains("panicked"),
-        "soundloc {args:?} panicked:\n{err}"
-    );
+    assert!(!err.contains("panicked"), "soundloc {args:?} panicked:\n{err}");
     (status.code().unwrap_or(-1), out, err)
 }
 
@@ -62,10 +59,7 @@ fn data(test: &str) -> Option<PathBuf> {
     if d.is_dir() {
         Some(d)
     } else {
-        let _ = writeln!(
-            std::io::stderr(),
-            "SKIPPED {test}: ../shared/data not found"
-        );
+        let _ = writeln!(std::io::stderr(), "SKIPPED {test}: ../shared/data not found");
         None
     }
 }
@@ -212,12 +206,7 @@ fn tf_inspect_hark_files() {
             .map(|e| e - j["first_bin"].as_u64().unwrap()),
         Some(257)
     );
-    let j = json(&ok(&[
-        "tf",
-        "inspect",
-        "--json",
-        s(&data.join("kinect_loc.dat")),
-    ]));
+    let j = json(&ok(&["tf", "inspect", "--json", s(&data.join("kinect_loc.dat"))]));
     assert_eq!(
         (j["num_mics"].as_u64(), j["num_dirs"].as_u64()),
         (Some(4), Some(72))
@@ -303,10 +292,7 @@ fn localize_reads_made_tf_and_noise_cm() {
     let d = tmp("e2e");
     let scene = soundloc::demo::ring8_drone(-5.0, 2).unwrap();
     let wav = d.join("drone.wav");
-    scene
-        .render()
-        .write_wav(&wav, SampleFormat::Float32)
-        .unwrap();
+    scene.render().write_wav(&wav, SampleFormat::Float32).unwrap();
     let zip = d.join("c8.zip");
     ok(&[
         "tf",
@@ -452,13 +438,7 @@ fn bad_inputs_fail_with_a_message_naming_the_file() {
     assert!(!out.exists());
 
     // noisecm make: missing input, range past the end, bad range, bad channel.
-    let e = fails(&[
-        "noisecm",
-        "make",
-        s(&d.join("none.wav")),
-        "-o",
-        s(&d.join("K")),
-    ]);
+    let e = fails(&["noisecm", "make", s(&d.join("none.wav")), "-o", s(&d.join("K"))]);
     assert!(e.contains("none.wav"), "{e}");
     let e = fails(&[
         "noisecm",
@@ -469,10 +449,7 @@ fn bad_inputs_fail_with_a_message_naming_the_file() {
         "-o",
         s(&d.join("K")),
     ]);
-    assert!(
-        e.contains("noise.wav") && e.contains("after the end"),
-        "{e}"
-    );
+    assert!(e.contains("noise.wav") && e.contains("after the end"), "{e}");
     let e = fails(&[
         "noisecm",
         "make",

@@ -92,9 +92,7 @@ pub fn localize_online<T: Real>(
         )));
     }
     let segments = match update {
-        NoiseUpdate::Segments(s) => {
-            segment_frames(s, spectra.num_frames, c.nfft, c.hop, c.sample_rate_hz)?
-        }
+        NoiseUpdate::Segments(s) => segment_frames(s, spectra.num_frames, c.nfft, c.hop, c.sample_rate_hz)?,
         _ => Vec::new(),
     };
     if let NoiseUpdate::Preceding { frames: 0, .. } = update {
@@ -136,11 +134,7 @@ pub fn localize_online<T: Real>(
                     );
                     (f.clone(), what)
                 }
-                _ => {
-                    return Err(Error::Config(
-                        "online noise update: no K for a window".into(),
-                    ))
-                }
+                _ => return Err(Error::Config("online noise update: no K for a window".into())),
             };
             NoiseMatrices::from_spectra(spectra, first_bin, frames)
                 .and_then(|k| engine.set_noise(&k))
@@ -148,10 +142,9 @@ pub fn localize_online<T: Real>(
             current = src;
         }
         let base = done;
-        let part =
-            engine.localize_windows(spectra, &windows[i..j], want_spectrum, &mut |d, _| {
-                progress(base + d, total)
-            })?;
+        let part = engine.localize_windows(spectra, &windows[i..j], want_spectrum, &mut |d, _| {
+            progress(base + d, total)
+        })?;
         done += j - i;
         out = Some(match out {
             None => part,
@@ -175,11 +168,7 @@ pub fn localize_online<T: Real>(
 }
 
 /// The K source of each window (see the module docs).
-fn window_sources(
-    update: &NoiseUpdate,
-    windows: &[WindowSpec],
-    segments: &[Range<usize>],
-) -> Vec<Source> {
+fn window_sources(update: &NoiseUpdate, windows: &[WindowSpec], segments: &[Range<usize>]) -> Vec<Source> {
     let mut prev = Source::Initial;
     windows
         .iter()
@@ -196,12 +185,10 @@ fn window_sources(
                         .max_by_key(|(_, f)| f.end)
                         .map_or(Source::Initial, |(i, _)| Source::Segment(i))
                 }
-                &NoiseUpdate::Preceding { frames, gap } => {
-                    match w.start.checked_sub(gap + frames) {
-                        Some(s0) => Source::Frames(s0..s0 + frames),
-                        None => prev.clone(),
-                    }
-                }
+                &NoiseUpdate::Preceding { frames, gap } => match w.start.checked_sub(gap + frames) {
+                    Some(s0) => Source::Frames(s0..s0 + frames),
+                    None => prev.clone(),
+                },
             };
             prev = s.clone();
             s
@@ -290,14 +277,7 @@ mod tests {
                 Source::Segment(1)
             ]
         );
-        let p = window_sources(
-            &NoiseUpdate::Preceding {
-                frames: 40,
-                gap: 20,
-            },
-            &windows,
-            &[],
-        );
+        let p = window_sources(&NoiseUpdate::Preceding { frames: 40, gap: 20 }, &windows, &[]);
         assert_eq!(p[0], Source::Initial);
         assert_eq!(p[1], Source::Initial); // 50 < 60: keeps the previous K
         assert_eq!(p[2], Source::Frames(40..80));
@@ -323,8 +303,7 @@ mod tests {
         for &(a, b) in &BURSTS {
             for &(az, el) in &talkers {
                 scene = scene.with_source(
-                    SceneSource::new(position_from_az_el(az, el, 2.0), Signal::Speech)
-                        .active_between(a, b),
+                    SceneSource::new(position_from_az_el(az, el, 2.0), Signal::Speech).active_between(a, b),
                 );
             }
         }
@@ -388,16 +367,12 @@ mod tests {
         let k0 = estimate_noise(&config, FS, &audio.channels, Some(scene.noise_range_s)).unwrap();
         let rules = [
             ("fixed", NoiseUpdate::Fixed),
-            (
-                "segments",
-                NoiseUpdate::Segments(vec![(0.0, 1.0), (2.1, 2.95)]),
-            ),
+            ("segments", NoiseUpdate::Segments(vec![(0.0, 1.0), (2.1, 2.95)])),
             ("preceding", NoiseUpdate::Preceding { frames: 40, gap: 2 }),
         ];
         let mut rates = Vec::new();
         for (name, rule) in &rules {
-            let mut engine =
-                Engine::<f32>::new(&config, &tf, Some(&k0), DeviceChoice::Cpu).unwrap();
+            let mut engine = Engine::<f32>::new(&config, &tf, Some(&k0), DeviceChoice::Cpu).unwrap();
             let spectra = engine.spectra(FS, &audio.channels).unwrap();
             let mut calls = 0;
             let run = localize_online(&mut engine, &spectra, rule, true, &mut |d, t| {

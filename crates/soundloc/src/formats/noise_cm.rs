@@ -114,11 +114,7 @@ impl NoiseCm {
                 data.len()
             )));
         }
-        Ok(NoiseCm {
-            num_mics,
-            nfft,
-            data,
-        })
+        Ok(NoiseCm { num_mics, nfft, data })
     }
 
     /// Identity matrices (white, uncorrelated noise of unit power).
@@ -131,11 +127,7 @@ impl NoiseCm {
                 *z = Complex::new(1.0, 0.0);
             }
         }
-        NoiseCm {
-            num_mics,
-            nfft,
-            data,
-        }
+        NoiseCm { num_mics, nfft, data }
     }
 
     /// Number of bins, N/2 + 1.
@@ -174,8 +166,7 @@ impl NoiseCm {
             ));
         }
         for k in 0..self.num_bins() {
-            check_bin(self.get(k), self.num_mics)
-                .map_err(|m| Error::format(p, format!("bin {k}: {m}")))?;
+            check_bin(self.get(k), self.num_mics).map_err(|m| Error::format(p, format!("bin {k}: {m}")))?;
         }
         Ok(())
     }
@@ -356,10 +347,7 @@ impl NoiseCm {
             Some(n) if n / 2 + 1 != num_bins => {
                 return Err(Error::format(
                     path,
-                    format!(
-                        "{num_bins} matrices, but nfft {n} needs nfft/2+1 = {}",
-                        n / 2 + 1
-                    ),
+                    format!("{num_bins} matrices, but nfft {n} needs nfft/2+1 = {}", n / 2 + 1),
                 ))
             }
             Some(n) => n,
@@ -411,8 +399,7 @@ impl NoiseCm {
                 vals.iter()
                     .map(|z| Complex::new(f64::from(z.re), f64::from(z.im))),
             );
-            check_bin(&data[start..], m)
-                .map_err(|msg| Error::format(&ep, format!("bin {bin}: {msg}")))?;
+            check_bin(&data[start..], m).map_err(|msg| Error::format(&ep, format!("bin {bin}: {msg}")))?;
         }
         let cm = NoiseCm {
             num_mics: m,
@@ -549,9 +536,7 @@ impl NoiseCm {
     /// Per-bin trace, eigenvalue range and condition number (see the module docs).
     pub fn summary(&self) -> NoiseCmSummary {
         let m = self.num_mics;
-        let bins: Vec<BinStats> = (0..self.num_bins())
-            .map(|k| bin_stats(self.get(k), m))
-            .collect();
+        let bins: Vec<BinStats> = (0..self.num_bins()).map(|k| bin_stats(self.get(k), m)).collect();
         let finite_cond: Vec<f64> = bins
             .iter()
             .map(|b| b.condition)
@@ -650,9 +635,7 @@ impl std::fmt::Display for NoiseCmSummary {
             f,
             "condition        median {:.4e}, worst {:.4e} at bin {}",
             self.condition_median,
-            self.bins
-                .get(self.worst_bin)
-                .map_or(f64::NAN, |b| b.condition),
+            self.bins.get(self.worst_bin).map_or(f64::NAN, |b| b.condition),
             self.worst_bin
         )?;
         writeln!(f, "not pos. def.    {} bin(s)", self.not_positive_definite)
@@ -683,8 +666,7 @@ fn median(v: &[f64]) -> f64 {
 
 /// Trace and eigenvalues of the Hermitian part of one bin's K.
 fn bin_stats(k: &[Complex<f64>], m: usize) -> BinStats {
-    let h =
-        faer::Mat::<faer::c64>::from_fn(m, m, |i, j| (k[i * m + j] + k[j * m + i].conj()) * 0.5);
+    let h = faer::Mat::<faer::c64>::from_fn(m, m, |i, j| (k[i * m + j] + k[j * m + i].conj()) * 0.5);
     let trace = (0..m).map(|i| k[i * m + i].re).sum();
     let (lo, hi) = match h.self_adjoint_eigenvalues(faer::Side::Lower) {
         // Sorted in nondecreasing order.
@@ -780,10 +762,7 @@ fn read_text_matrix(path: &Path, expected: Expected) -> Result<TextMatrix> {
         let mut row = Vec::new();
         for (c, tok) in line.split_whitespace().enumerate() {
             let v: f64 = tok.parse().map_err(|_| {
-                Error::format(
-                    path,
-                    format!("line {n}, column {}: not a number: {tok:?}", c + 1),
-                )
+                Error::format(path, format!("line {n}, column {}: not a number: {tok:?}", c + 1))
             })?;
             if !v.is_finite() {
                 return Err(Error::format(
@@ -846,10 +825,7 @@ fn read_text_matrix(path: &Path, expected: Expected) -> Result<TextMatrix> {
         None if rows.len() < 2 => {
             return Err(Error::format(
                 path,
-                format!(
-                    "{} line(s): need nfft/2+1 ≥ 2 lines, one per bin",
-                    rows.len()
-                ),
+                format!("{} line(s): need nfft/2+1 ≥ 2 lines, one per bin", rows.len()),
             ))
         }
         _ => {}
@@ -948,8 +924,7 @@ mod tests {
             let a: Vec<Complex<f64>> = (0..m * m).map(|_| Complex::new(rnd(), rnd())).collect();
             for i in 0..m {
                 for j in 0..m {
-                    let mut v: Complex<f64> =
-                        (0..m).map(|l| a[i * m + l] * a[j * m + l].conj()).sum();
+                    let mut v: Complex<f64> = (0..m).map(|l| a[i * m + l] * a[j * m + l].conj()).sum();
                     if i == j {
                         v.re += 1.0;
                         v.im = 0.0;
@@ -985,11 +960,7 @@ mod tests {
     fn estimate_covers_every_bin_and_matches_the_engine() {
         let fs = 16000;
         let ch: Vec<Vec<f32>> = (0..2)
-            .map(|c| {
-                (0..4000)
-                    .map(|i| ((i * (c + 3)) % 17) as f32 - 8.0)
-                    .collect()
-            })
+            .map(|c| (0..4000).map(|i| ((i * (c + 3)) % 17) as f32 - 8.0).collect())
             .collect();
         let (cm, frames) =
             NoiseCm::estimate(&ch, fs, 64, 32, WindowFunction::Hanning, Some((0.0, 0.2))).unwrap();
@@ -1048,11 +1019,7 @@ mod tests {
         let cm = hermitian(2, 8, 3);
         for (out, re, im) in cases {
             let (r, i) = text_pair_paths(&dir.join(out));
-            assert_eq!(
-                (r.clone(), i.clone()),
-                (dir.join(re), dir.join(im)),
-                "{out}"
-            );
+            assert_eq!((r.clone(), i.clone()), (dir.join(re), dir.join(im)), "{out}");
             cm.write_text_pair(&r, &i).unwrap();
             assert_eq!(find_imag_path(&r).unwrap(), i, "{out}");
             let back = NoiseCm::load(&r, Expected::default()).unwrap();
