@@ -43,17 +43,31 @@ fn assert_clean_failure(o: &Output, must_contain: &[&str]) {
 fn write_wav(path: &Path, channels: u16, rate: u32, secs: f64, nan: bool) {
     let n = (secs * rate as f64) as usize;
     if nan {
-        let spec = hound::WavSpec { channels, sample_rate: rate, bits_per_sample: 32, sample_format: hound::SampleFormat::Float };
+        let spec = hound::WavSpec {
+            channels,
+            sample_rate: rate,
+            bits_per_sample: 32,
+            sample_format: hound::SampleFormat::Float,
+        };
         let mut w = hound::WavWriter::create(path, spec).unwrap();
         for i in 0..n {
             for c in 0..channels {
-                let v = if i == 5000 && c == 1 { f32::NAN } else { ((i * (c as usize + 1)) as f32 * 0.01).sin() };
+                let v = if i == 5000 && c == 1 {
+                    f32::NAN
+                } else {
+                    ((i * (c as usize + 1)) as f32 * 0.01).sin()
+                };
                 w.write_sample(v).unwrap();
             }
         }
         w.finalize().unwrap();
     } else {
-        let spec = hound::WavSpec { channels, sample_rate: rate, bits_per_sample: 16, sample_format: hound::SampleFormat::Int };
+        let spec = hound::WavSpec {
+            channels,
+            sample_rate: rate,
+            bits_per_sample: 16,
+            sample_format: hound::SampleFormat::Int,
+        };
         let mut w = hound::WavWriter::create(path, spec).unwrap();
         let mut s: u32 = 12345;
         for _ in 0..n {
@@ -68,9 +82,20 @@ fn write_wav(path: &Path, channels: u16, rate: u32, secs: f64, nan: bool) {
 
 #[test]
 fn jinsei_with_measured_tf_finds_one_dominant_talker() {
-    let Some(d) = data() else { return skipped("jinsei_with_measured_tf_finds_one_dominant_talker") };
+    let Some(d) = data() else {
+        return skipped("jinsei_with_measured_tf_finds_one_dominant_talker");
+    };
     let o = bin()
-        .args(["localize", "--num-sources", "1", "--period", "10", "-q", "--device", "cpu"])
+        .args([
+            "localize",
+            "--num-sources",
+            "1",
+            "--period",
+            "10",
+            "-q",
+            "--device",
+            "cpu",
+        ])
         .arg(d.join("jinsei.wav"))
         .arg("--tf")
         .arg(d.join("tamago_rectf.zip"))
@@ -87,7 +112,9 @@ fn jinsei_with_measured_tf_finds_one_dominant_talker() {
         .collect();
     // 1.28 s → 112 frames → windows at c = 0, 10, …, 60 (FUTURE, W = 50): 7 or more results.
     assert!(az.len() >= 7, "{} results", az.len());
-    let (s, c) = az.iter().fold((0.0, 0.0), |(s, c), a| (s + a.to_radians().sin(), c + a.to_radians().cos()));
+    let (s, c) = az.iter().fold((0.0, 0.0), |(s, c), a| {
+        (s + a.to_radians().sin(), c + a.to_radians().cos())
+    });
     let mean = s.atan2(c).to_degrees();
     for a in &az {
         let d = ((a - mean + 540.0) % 360.0 - 180.0).abs();
@@ -96,7 +123,18 @@ fn jinsei_with_measured_tf_finds_one_dominant_talker() {
     // The talker is in front of the array (between -10° and 30°), with the geometric TF too.
     assert!((-10.0..=30.0).contains(&mean), "mean azimuth {mean}");
     let o = bin()
-        .args(["localize", "--num-sources", "1", "--period", "10", "-q", "--device", "cpu", "--format", "csv"])
+        .args([
+            "localize",
+            "--num-sources",
+            "1",
+            "--period",
+            "10",
+            "-q",
+            "--device",
+            "cpu",
+            "--format",
+            "csv",
+        ])
         .arg(d.join("jinsei.wav"))
         .arg("--tf")
         .arg(d.join("tamago_geotf.zip"))
@@ -115,7 +153,9 @@ fn jinsei_with_measured_tf_finds_one_dominant_talker() {
 
 #[test]
 fn spectrum_and_plot_files_are_written() {
-    let Some(d) = data() else { return skipped("spectrum_and_plot_files_are_written") };
+    let Some(d) = data() else {
+        return skipped("spectrum_and_plot_files_are_written");
+    };
     let (npy, png, out) = (tmp("spec.npy"), tmp("plot.png"), tmp("res.jsonl"));
     let o = bin()
         .args(["localize", "-q", "--device", "cpu"])
@@ -150,58 +190,105 @@ fn spectrum_and_plot_files_are_written() {
 #[test]
 fn demo_runs_without_files() {
     let dir = tmp("demo");
-    let o = bin().args(["demo", "--scene", "ring8", "--device", "cpu", "--out-dir"]).arg(&dir).output().unwrap();
+    let o = bin()
+        .args(["demo", "--scene", "ring8", "--device", "cpu", "--out-dir"])
+        .arg(&dir)
+        .output()
+        .unwrap();
     assert!(o.status.success(), "{}", stderr(&o));
     let text = String::from_utf8(o.stdout).unwrap();
     assert!(text.contains("gevd       found 100%"), "{text}");
     assert!(text.contains("true talkers: 30/0  -120/0"), "{text}");
-    let plot = text.lines().find_map(|l| l.trim().strip_prefix("plot: ")).expect("a plot path on stdout");
+    let plot = text
+        .lines()
+        .find_map(|l| l.trim().strip_prefix("plot: "))
+        .expect("a plot path on stdout");
     assert!(Path::new(plot).exists());
 }
 
 #[test]
 fn wrong_channel_count_for_the_tf() {
-    let Some(d) = data() else { return skipped("wrong_channel_count_for_the_tf") };
+    let Some(d) = data() else {
+        return skipped("wrong_channel_count_for_the_tf");
+    };
     let w = tmp("four.wav");
     write_wav(&w, 4, 16000, 1.0, false);
-    let o = bin().arg("localize").arg(&w).arg("--tf").arg(d.join("tamago_rectf.zip")).output().unwrap();
+    let o = bin()
+        .arg("localize")
+        .arg(&w)
+        .arg("--tf")
+        .arg(d.join("tamago_rectf.zip"))
+        .output()
+        .unwrap();
     assert_clean_failure(&o, &["4 channels", "8 microphones"]);
 }
 
 #[test]
 fn sample_rate_mismatch() {
-    let Some(d) = data() else { return skipped("sample_rate_mismatch") };
+    let Some(d) = data() else {
+        return skipped("sample_rate_mismatch");
+    };
     let w = tmp("rate.wav");
     write_wav(&w, 8, 48000, 1.0, false);
-    let o = bin().arg("localize").arg(&w).arg("--tf").arg(d.join("tamago_rectf.zip")).output().unwrap();
+    let o = bin()
+        .arg("localize")
+        .arg(&w)
+        .arg("--tf")
+        .arg(d.join("tamago_rectf.zip"))
+        .output()
+        .unwrap();
     assert_clean_failure(&o, &["48000 Hz", "16000 Hz"]);
 }
 
 #[test]
 fn empty_and_too_short_files() {
-    let Some(d) = data() else { return skipped("empty_and_too_short_files") };
+    let Some(d) = data() else {
+        return skipped("empty_and_too_short_files");
+    };
     let empty = tmp("empty.wav");
     std::fs::write(&empty, b"").unwrap();
-    let o = bin().arg("localize").arg(&empty).arg("--tf").arg(d.join("tamago_rectf.zip")).output().unwrap();
+    let o = bin()
+        .arg("localize")
+        .arg(&empty)
+        .arg("--tf")
+        .arg(d.join("tamago_rectf.zip"))
+        .output()
+        .unwrap();
     assert_clean_failure(&o, &["empty.wav"]);
     let short = tmp("short.wav");
     write_wav(&short, 8, 16000, 0.2, false);
-    let o = bin().arg("localize").arg(&short).arg("--tf").arg(d.join("tamago_rectf.zip")).output().unwrap();
+    let o = bin()
+        .arg("localize")
+        .arg(&short)
+        .arg("--tf")
+        .arg(d.join("tamago_rectf.zip"))
+        .output()
+        .unwrap();
     assert_clean_failure(&o, &["needs at least"]);
 }
 
 #[test]
 fn nan_samples() {
-    let Some(d) = data() else { return skipped("nan_samples") };
+    let Some(d) = data() else {
+        return skipped("nan_samples");
+    };
     let w = tmp("nan.wav");
     write_wav(&w, 8, 16000, 1.0, true);
-    let o = bin().arg("localize").arg(&w).arg("--tf").arg(d.join("tamago_rectf.zip")).output().unwrap();
+    let o = bin()
+        .arg("localize")
+        .arg(&w)
+        .arg("--tf")
+        .arg(d.join("tamago_rectf.zip"))
+        .output()
+        .unwrap();
     assert_clean_failure(&o, &["nan.wav", "NaN"]);
 }
 
 #[test]
 fn num_sources_must_be_below_the_mic_count() {
-    let Some(d) = data() else { return skipped("num_sources_must_be_below_the_mic_count") };
+    let Some(d) = data() else {
+        return skipped("num_sources_must_be_below_the_mic_count");
+    };
     let o = bin()
         .args(["localize", "--num-sources", "8"])
         .arg(d.join("jinsei.wav"))
@@ -214,30 +301,56 @@ fn num_sources_must_be_below_the_mic_count() {
 
 #[test]
 fn truncated_or_corrupt_zip() {
-    let Some(d) = data() else { return skipped("truncated_or_corrupt_zip") };
+    let Some(d) = data() else {
+        return skipped("truncated_or_corrupt_zip");
+    };
     let bytes = std::fs::read(d.join("tamago_rectf.zip")).unwrap();
     let trunc = tmp("trunc.zip");
     std::fs::write(&trunc, &bytes[..bytes.len() / 3]).unwrap();
-    let o = bin().arg("localize").arg(d.join("jinsei.wav")).arg("--tf").arg(&trunc).output().unwrap();
+    let o = bin()
+        .arg("localize")
+        .arg(d.join("jinsei.wav"))
+        .arg("--tf")
+        .arg(&trunc)
+        .output()
+        .unwrap();
     assert_clean_failure(&o, &["trunc.zip"]);
     let junk = tmp("junk.zip");
     std::fs::write(&junk, b"this is not a zip file at all, sorry").unwrap();
-    let o = bin().arg("localize").arg(d.join("jinsei.wav")).arg("--tf").arg(&junk).output().unwrap();
+    let o = bin()
+        .arg("localize")
+        .arg(d.join("jinsei.wav"))
+        .arg("--tf")
+        .arg(&junk)
+        .output()
+        .unwrap();
     assert_clean_failure(&o, &["junk.zip"]);
 }
 
 #[test]
 fn unreadable_paths() {
-    let o = bin().args(["localize", "/nonexistent/rec.wav", "--tf", "/nonexistent/tf.zip"]).output().unwrap();
+    let o = bin()
+        .args(["localize", "/nonexistent/rec.wav", "--tf", "/nonexistent/tf.zip"])
+        .output()
+        .unwrap();
     assert_clean_failure(&o, &["/nonexistent/rec.wav"]);
-    let Some(d) = data() else { return skipped("unreadable_paths") };
-    let o = bin().arg("localize").arg(d.join("jinsei.wav")).args(["--tf", "/nonexistent/tf.zip"]).output().unwrap();
+    let Some(d) = data() else {
+        return skipped("unreadable_paths");
+    };
+    let o = bin()
+        .arg("localize")
+        .arg(d.join("jinsei.wav"))
+        .args(["--tf", "/nonexistent/tf.zip"])
+        .output()
+        .unwrap();
     assert_clean_failure(&o, &["/nonexistent/tf.zip"]);
 }
 
 #[test]
 fn failed_run_leaves_no_output_file() {
-    let Some(d) = data() else { return skipped("failed_run_leaves_no_output_file") };
+    let Some(d) = data() else {
+        return skipped("failed_run_leaves_no_output_file");
+    };
     let out = tmp("never.jsonl");
     let _ = std::fs::remove_file(&out);
     let o = bin()
@@ -262,11 +375,26 @@ fn failed_run_leaves_no_output_file() {
 #[test]
 fn cuda_without_a_gpu_is_a_clear_error() {
     let o = bin()
-        .args(["bench", "--device", "cuda", "--mics", "8", "--directions", "72", "--repeats", "1", "--batch", "1"])
+        .args([
+            "bench",
+            "--device",
+            "cuda",
+            "--mics",
+            "8",
+            "--directions",
+            "72",
+            "--repeats",
+            "1",
+            "--batch",
+            "1",
+        ])
         .output()
         .unwrap();
     if o.status.success() {
-        let _ = writeln!(std::io::stderr(), "SKIPPED cuda_without_a_gpu_is_a_clear_error: a usable GPU is present");
+        let _ = writeln!(
+            std::io::stderr(),
+            "SKIPPED cuda_without_a_gpu_is_a_clear_error: a usable GPU is present"
+        );
         return;
     }
     assert_clean_failure(&o, &["device"]);

@@ -11,12 +11,19 @@ fn seed(c: &mut Criterion) {
     let mut g = c.benchmark_group("seed_config_one_localization");
     g.sample_size(20);
     for alg in [Algorithm::Gsvd, Algorithm::Gevd, Algorithm::Sevd] {
-        let cfg = BenchConfig { algorithm: alg, batch: 1, ..Default::default() };
+        let cfg = BenchConfig {
+            algorithm: alg,
+            batch: 1,
+            ..Default::default()
+        };
         let inp = inputs::<f32>(&cfg).expect("inputs");
         let mut be = CpuBackend::new(inp.plan.clone());
         let mut out = BatchOutput::default();
         g.bench_function(alg.name(), |b| {
-            b.iter(|| be.process(&inp.spectra, &inp.windows[..1], false, &mut out).expect("process"))
+            b.iter(|| {
+                be.process(&inp.spectra, &inp.windows[..1], false, &mut out)
+                    .expect("process")
+            })
         });
     }
     g.finish();

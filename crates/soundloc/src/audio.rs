@@ -44,11 +44,7 @@ impl Audio {
             return Err(Error::Config("audio: sample rate must be positive".into()));
         }
         if let Some(first) = channels.first() {
-            if let Some((c, ch)) = channels
-                .iter()
-                .enumerate()
-                .find(|(_, c)| c.len() != first.len())
-            {
+            if let Some((c, ch)) = channels.iter().enumerate().find(|(_, c)| c.len() != first.len()) {
                 return Err(Error::Mismatch(format!(
                     "audio: channel {c} has {} samples, channel 0 has {}",
                     ch.len(),
@@ -158,11 +154,7 @@ impl Audio {
         let spec = hound::WavSpec {
             channels: nch as u16,
             sample_rate: self.sample_rate_hz,
-            bits_per_sample: if format == SampleFormat::Int16 {
-                16
-            } else {
-                32
-            },
+            bits_per_sample: if format == SampleFormat::Int16 { 16 } else { 32 },
             sample_format: match format {
                 SampleFormat::Int16 => hound::SampleFormat::Int,
                 SampleFormat::Float32 => hound::SampleFormat::Float,
@@ -270,10 +262,7 @@ fn read_wav<R: Read + Seek>(r: R, path: &Path) -> Result<Audio> {
         return Err(Error::format(path, "WAV header declares 0 channels"));
     }
     if spec.sample_rate == 0 {
-        return Err(Error::format(
-            path,
-            "WAV header declares a sample rate of 0 Hz",
-        ));
+        return Err(Error::format(path, "WAV header declares a sample rate of 0 Hz"));
     }
     let frames = reader.len() as usize / nch;
     let mut channels: Vec<Vec<f32>> = (0..nch).map(|_| Vec::with_capacity(frames)).collect();
@@ -291,9 +280,7 @@ fn read_wav<R: Read + Seek>(r: R, path: &Path) -> Result<Audio> {
         (hound::SampleFormat::Int, b) => {
             return Err(unsupported_depth(path, &format!("{b}-bit integer PCM")))
         }
-        (hound::SampleFormat::Float, b) => {
-            return Err(unsupported_depth(path, &format!("{b}-bit float")))
-        }
+        (hound::SampleFormat::Float, b) => return Err(unsupported_depth(path, &format!("{b}-bit float"))),
     }
     // Drop an incomplete trailing frame, if any.
     let n = channels.iter().map(Vec::len).min().unwrap_or(0);
@@ -323,10 +310,7 @@ fn read_flac<R: Read>(r: R, path: &Path) -> Result<Audio> {
         ));
     }
     if info.sample_rate == 0 {
-        return Err(Error::format(
-            path,
-            "FLAC stream declares a sample rate of 0 Hz",
-        ));
+        return Err(Error::format(path, "FLAC stream declares a sample rate of 0 Hz"));
     }
     let cap = info.samples.unwrap_or(0).min(1 << 28) as usize;
     let mut channels: Vec<Vec<f32>> = (0..nch).map(|_| Vec::with_capacity(cap)).collect();
@@ -436,11 +420,7 @@ pub(crate) mod tests {
             for &b in d {
                 c ^= b;
                 for _ in 0..8 {
-                    c = if c & 0x80 != 0 {
-                        (c << 1) ^ 0x07
-                    } else {
-                        c << 1
-                    };
+                    c = if c & 0x80 != 0 { (c << 1) ^ 0x07 } else { c << 1 };
                 }
             }
             c
@@ -589,10 +569,7 @@ pub(crate) mod tests {
         std::fs::write(&p, encode_flac(44100, 24, &ch24)).unwrap();
         let a = read_audio(&p).unwrap();
         assert_eq!(a.sample_rate_hz, 44100);
-        assert_eq!(
-            a.channels,
-            vec![vec![8_388_607.0, -8_388_608.0, 1000.0, -1.0]]
-        );
+        assert_eq!(a.channels, vec![vec![8_388_607.0, -8_388_608.0, 1000.0, -1.0]]);
         std::fs::remove_dir_all(&d).unwrap();
     }
 
@@ -623,15 +600,9 @@ pub(crate) mod tests {
             bits_per_sample: 16,
             sample_format: hound::SampleFormat::Int,
         };
-        hound::WavWriter::create(&p, spec)
-            .unwrap()
-            .finalize()
-            .unwrap();
+        hound::WavWriter::create(&p, spec).unwrap().finalize().unwrap();
         let e = read_audio(&p).unwrap_err().to_string();
-        assert!(
-            e.contains("zero.wav") && e.contains("no audio frames"),
-            "{e}"
-        );
+        assert!(e.contains("zero.wav") && e.contains("no audio frames"), "{e}");
         // NaN / infinite samples.
         let p = d.join("nan.wav");
         let mut frames = vec![vec![0.0f32; 3]; 2000];
@@ -680,11 +651,7 @@ pub(crate) mod tests {
     fn select_and_slice() {
         let a = Audio::new(
             10,
-            vec![
-                (0..20).map(|i| i as f32).collect(),
-                vec![-1.0; 20],
-                vec![2.0; 20],
-            ],
+            vec![(0..20).map(|i| i as f32).collect(), vec![-1.0; 20], vec![2.0; 20]],
         )
         .unwrap();
         let s = a.select_channels(&[2, 0]).unwrap();

@@ -140,7 +140,11 @@ pub fn inputs<T: Real>(cfg: &BenchConfig) -> Result<BenchInputs<T>> {
             len: cfg.window,
         })
         .collect();
-    Ok(BenchInputs { plan, spectra, windows })
+    Ok(BenchInputs {
+        plan,
+        spectra,
+        windows,
+    })
 }
 
 fn gauss(rng: &mut impl Rng) -> f64 {
@@ -154,7 +158,9 @@ fn gauss(rng: &mut impl Rng) -> f64 {
 fn random_noise(rng: &mut impl Rng, m: usize, bins: std::ops::Range<usize>) -> NoiseMatrices {
     let mut k = NoiseMatrices::identity(m, bins.clone());
     for b in 0..bins.len() {
-        let n: Vec<Complex<f64>> = (0..4 * m * m).map(|_| Complex::new(gauss(rng), gauss(rng))).collect();
+        let n: Vec<Complex<f64>> = (0..4 * m * m)
+            .map(|_| Complex::new(gauss(rng), gauss(rng)))
+            .collect();
         let kb = &mut k.data[b * m * m..(b + 1) * m * m];
         for i in 0..m {
             for j in 0..m {

@@ -124,13 +124,25 @@ mod tests {
     #[test]
     fn correlation_is_scaled_hermitian_average() {
         let mut s = Spectra::<f64>::zeros(4, 1, 2);
-        let xs = [[C::new(1.0, 2.0), C::new(-3.0, 0.5)], [C::new(0.0, 1.0), C::new(2.0, -1.0)]];
-        for f in 0..2 {
-            s.data[f * 2] = xs[f][0];
-            s.data[f * 2 + 1] = xs[f][1];
+        let xs = [
+            [C::new(1.0, 2.0), C::new(-3.0, 0.5)],
+            [C::new(0.0, 1.0), C::new(2.0, -1.0)],
+        ];
+        for (f, x) in xs.iter().enumerate() {
+            s.data[f * 2] = x[0];
+            s.data[f * 2 + 1] = x[1];
         }
         let mut r = vec![C::new(0.0, 0.0); 4];
-        let scale = correlate(&s, &WindowSpec { frame: 0, start: 0, len: 2 }, 0, &mut r);
+        let scale = correlate(
+            &s,
+            &WindowSpec {
+                frame: 0,
+                start: 0,
+                len: 2,
+            },
+            0,
+            &mut r,
+        );
         // Unscaled R00 = (|1+2j|² + |j|²)/2 = 3, R11 = (9.25 + 5)/2 = 7.125 → divisor 8.125.
         assert!((scale - 8.125).abs() < 1e-12);
         let r01 = (xs[0][0] * xs[0][1].conj() + xs[1][0] * xs[1][1].conj()) / 2.0 / 8.125;

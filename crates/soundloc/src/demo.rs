@@ -54,6 +54,7 @@ pub struct DemoScene {
 
 const TALK_START_S: f64 = 1.0;
 
+#[allow(clippy::too_many_arguments)] // a private builder with one caller per scene
 fn build(
     name: &'static str,
     description: String,
@@ -70,7 +71,8 @@ fn build(
     let mut scene = Scene::new();
     for &(az, el) in &talkers {
         scene = scene.with_source(
-            SceneSource::new(position_from_az_el(az, el, 2.0), Signal::Speech).active_between(TALK_START_S, duration_s),
+            SceneSource::new(position_from_az_el(az, el, 2.0), Signal::Speech)
+                .active_between(TALK_START_S, duration_s),
         );
     }
     if rotors {
@@ -126,7 +128,10 @@ pub fn ring8_drone(snr_db: f64, seed: u64) -> Result<DemoScene> {
 pub fn ring8_incoherent(talker_az_deg: &[f64], snr_db: f64, seed: u64) -> Result<DemoScene> {
     build(
         "ring8-incoherent",
-        format!("8-mic circle, {} talker(s) at 2 m, white sensor noise, SNR {snr_db} dB", talker_az_deg.len()),
+        format!(
+            "8-mic circle, {} talker(s) at 2 m, white sensor noise, SNR {snr_db} dB",
+            talker_az_deg.len()
+        ),
         Geometry::circle(8, 0.0365, 0.0),
         Grid::ring(5.0, 0.0, 1.0),
         5.0,
@@ -142,10 +147,14 @@ pub fn ring8_incoherent(talker_az_deg: &[f64], snr_db: f64, seed: u64) -> Result
 /// (az 40°/el 20°, az −100°/el −10°), four rotors at 0.25 m, talkers at `snr_db`.
 pub fn sphere60_drone(snr_db: f64, grid_points: usize, seed: u64) -> Result<DemoScene> {
     // Mean spacing of a Fibonacci sphere of n points: √(4π/n) rad.
-    let step = (4.0 * std::f64::consts::PI / grid_points as f64).sqrt().to_degrees();
+    let step = (4.0 * std::f64::consts::PI / grid_points as f64)
+        .sqrt()
+        .to_degrees();
     build(
         "sphere60-drone",
-        format!("60-mic sphere, 2 talkers at 2 m, 4 rotors at 0.25 m, SNR {snr_db} dB, {grid_points}-point grid"),
+        format!(
+            "60-mic sphere, 2 talkers at 2 m, 4 rotors at 0.25 m, SNR {snr_db} dB, {grid_points}-point grid"
+        ),
         Geometry::sphere(60, 0.1),
         Grid::sphere(grid_points, 1.0),
         step,
@@ -160,7 +169,13 @@ pub fn sphere60_drone(snr_db: f64, grid_points: usize, seed: u64) -> Result<Demo
 impl DemoScene {
     /// Render the recording.
     pub fn render(&self) -> Audio {
-        render(&self.scene, &self.geometry, self.sample_rate_hz, self.duration_s, self.seed)
+        render(
+            &self.scene,
+            &self.geometry,
+            self.sample_rate_hz,
+            self.duration_s,
+            self.seed,
+        )
     }
 
     /// Free-field transfer functions for the bins `config` uses.
@@ -203,7 +218,11 @@ impl DemoScene {
         }
         Score {
             windows,
-            hit_rate: if pairs > 0 { hits as f64 / pairs as f64 } else { 0.0 },
+            hit_rate: if pairs > 0 {
+                hits as f64 / pairs as f64
+            } else {
+                0.0
+            },
             per_talker_hits: per_talker,
             mean_error_deg: if hits > 0 { err_sum / hits as f64 } else { f64::NAN },
         }

@@ -229,7 +229,10 @@ impl<T: Real> Engine<T> {
         LocalizationResult {
             frame: w.frame,
             time_s: self.frame_time(w.frame),
-            sources: peaks.iter().map(|p| source(&self.plan.grid, p.dir, p.power_db)).collect(),
+            sources: peaks
+                .iter()
+                .map(|p| source(&self.plan.grid, p.dir, p.power_db))
+                .collect(),
         }
     }
 }
@@ -270,7 +273,9 @@ pub fn estimate_noise(
         None => (0usize, len),
         Some((a, b)) => {
             if !(a.is_finite() && b.is_finite()) || a < 0.0 || b <= a {
-                return Err(Error::Config(format!("noise range {a}:{b} s: need 0 <= start < end")));
+                return Err(Error::Config(format!(
+                    "noise range {a}:{b} s: need 0 <= start < end"
+                )));
             }
             let fs = sample_rate_hz as f64;
             let s0 = (a * fs).round() as usize;

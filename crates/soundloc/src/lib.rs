@@ -45,6 +45,7 @@ pub mod error;
 pub mod formats;
 pub mod music;
 pub mod noise;
+pub mod online;
 pub mod output;
 pub mod peaks;
 pub mod plan;

@@ -177,7 +177,12 @@ mod tests {
         let mut be = CpuBackend::new(inp.plan.clone());
         let mut out = BatchOutput::default();
         be.process(&inp.spectra, &inp.windows, true, &mut out).unwrap();
-        let (m, d, nb, ns) = (plan.num_mics, plan.num_dirs, plan.num_bins(), plan.config.num_sources);
+        let (m, d, nb, ns) = (
+            plan.num_mics,
+            plan.num_dirs,
+            plan.num_bins(),
+            plan.config.num_sources,
+        );
         let (st, _) = plan.denominator_steering();
         let mut worst = 0.0f64;
         for (wi, w) in inp.windows.iter().enumerate() {
@@ -200,8 +205,8 @@ mod tests {
                     pbar[dir] += plan.weights[b] * g * plan.steering_norm2[b * d + dir] / den;
                 }
             }
-            for dir in 0..d {
-                let want = to_db(pbar[dir]);
+            for (dir, p) in pbar.iter().enumerate() {
+                let want = to_db(*p);
                 let got = out.spectrum_db[wi * d + dir] as f64;
                 worst = worst.max((want - got).abs());
             }

@@ -91,7 +91,13 @@ pub fn is_local_max<V: Copy + Into<f64>>(db: &[V], table: &PeakTable, d: usize) 
 /// Peaks of one spectrum (any values monotone in power, e.g. dB), strongest first.
 pub fn find_peaks<V: Copy + Into<f64>>(db: &[V], table: &PeakTable) -> Vec<Peak> {
     let candidates = (0..db.len()).filter(|&d| table.azimuth_ok[d] && is_local_max(db, table, d));
-    select(candidates.map(|d| Peak { dir: d, power_db: db[d].into() }), table.max_out)
+    select(
+        candidates.map(|d| Peak {
+            dir: d,
+            power_db: db[d].into(),
+        }),
+        table.max_out,
+    )
 }
 
 /// Sort candidates by power (ties by index) and keep the top `max_out`.
@@ -123,14 +129,20 @@ mod tests {
     #[test]
     fn ring_peaks_wrap_and_sort() {
         let g = ring(8);
-        let cfg = LocalizeConfig { max_peaks: 0, ..Default::default() };
+        let cfg = LocalizeConfig {
+            max_peaks: 0,
+            ..Default::default()
+        };
         let t = PeakTable::new(&g, &cfg).unwrap();
         //            0    1    2    3    4    5    6    7
         let db = [5.0, 1.0, 2.0, 3.0, 1.0, 1.0, 1.0, 4.0f64];
         let p = find_peaks(&db, &t);
         // 0 beats its wrapped neighbour 7; 3 is a local max; plateau 4-6 gives nothing.
         assert_eq!(p.iter().map(|p| p.dir).collect::<Vec<_>>(), vec![0, 3]);
-        let cfg2 = LocalizeConfig { max_peaks: 1, ..Default::default() };
+        let cfg2 = LocalizeConfig {
+            max_peaks: 1,
+            ..Default::default()
+        };
         assert_eq!(find_peaks(&db, &PeakTable::new(&g, &cfg2).unwrap()).len(), 1);
     }
 
@@ -143,10 +155,18 @@ mod tests {
         assert!(azimuth_in_range(270.0, 0.0, 300.0));
         assert!(!azimuth_in_range(-45.0, 0.0, 300.0)); // = 315
         let g = ring(8);
-        let cfg = LocalizeConfig { min_deg: 0.0, max_deg: 100.0, max_peaks: 0, ..Default::default() };
+        let cfg = LocalizeConfig {
+            min_deg: 0.0,
+            max_deg: 100.0,
+            max_peaks: 0,
+            ..Default::default()
+        };
         let t = PeakTable::new(&g, &cfg).unwrap();
         let db = [5.0, 1.0, 2.0, 3.0, 1.0, 1.0, 1.0, 4.0f64];
         // Direction 0 (az 0) is excluded: (0, 360] wraps 0 to 360 > 100.
-        assert_eq!(find_peaks(&db, &t).iter().map(|p| p.dir).collect::<Vec<_>>(), Vec::<usize>::new());
+        assert_eq!(
+            find_peaks(&db, &t).iter().map(|p| p.dir).collect::<Vec<_>>(),
+            Vec::<usize>::new()
+        );
     }
 }

@@ -323,20 +323,27 @@ fn whitening<T: Real>(
     }
     let alg = config.algorithm;
     let nb = bins.len();
-    let per_bin: Vec<Result<(Vec<C<T>>, Vec<C<T>>, Vec<T>)>> = (0..nb)
+    let per_bin: Vec<Result<BinWhitening<T>>> = (0..nb)
         .into_par_iter()
         .map(|b| {
             let bin = bins.start + b;
             let hz = bin as f64 * config.sample_rate_hz as f64 / config.nfft as f64;
             // Every bin in range is held (checked above).
             let kraw = noise.bin(bin).unwrap_or(&[]);
-            bin_whitening::<T>(alg, kraw, m, d, config.diagonal_loading, &steering[b * d * m..(b + 1) * d * m])
-                .map_err(|msg| {
-                    Error::numerical(
-                        "noise",
-                        format!("noise correlation matrix K at bin {bin} ({hz:.0} Hz): {msg}"),
-                    )
-                })
+            bin_whitening::<T>(
+                alg,
+                kraw,
+                m,
+                d,
+                config.diagonal_loading,
+                &steering[b * d * m..(b + 1) * d * m],
+            )
+            .map_err(|msg| {
+                Error::numerical(
+                    "noise",
+                    format!("noise correlation matrix K at bin {bin} ({hz:.0} Hz): {msg}"),
+                )
+            })
         })
         .collect();
     let mut w = Whitening {

@@ -68,4 +68,3 @@ impl Real for f64 {
         self
     }
 }
-

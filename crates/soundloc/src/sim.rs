@@ -206,10 +206,7 @@ impl Scene {
                 return bad(format!("source {i}: position is not finite"));
             }
             if !(s.gain.is_finite() && s.gain >= 0.0) {
-                return bad(format!(
-                    "source {i}: gain {} must be finite and ≥ 0",
-                    s.gain
-                ));
+                return bad(format!("source {i}: gain {} must be finite and ≥ 0", s.gain));
             }
             if let Some((a, b)) = s.active {
                 if !(a.is_finite() && b.is_finite() && a < b) {
@@ -227,10 +224,7 @@ impl Scene {
             if room.size_m.iter().any(|v| !(v.is_finite() && *v > 0.0))
                 || room.origin_m.iter().any(|v| !v.is_finite())
             {
-                return bad(format!(
-                    "room size {:?} m at {:?}",
-                    room.size_m, room.origin_m
-                ));
+                return bad(format!("room size {:?} m at {:?}", room.size_m, room.origin_m));
             }
             if !(0.0..=1.0).contains(&room.reflection) {
                 return bad(format!(
@@ -242,15 +236,11 @@ impl Scene {
                 return bad(format!("reflection order {} > 6", room.max_order));
             }
             let inside = |p: &[f64; 3]| {
-                (0..3)
-                    .all(|a| p[a] >= room.origin_m[a] && p[a] <= room.origin_m[a] + room.size_m[a])
+                (0..3).all(|a| p[a] >= room.origin_m[a] && p[a] <= room.origin_m[a] + room.size_m[a])
             };
             for (i, s) in self.sources.iter().enumerate() {
                 if !inside(&s.position_m) {
-                    return bad(format!(
-                        "source {i} at {:?} m is outside the room",
-                        s.position_m
-                    ));
+                    return bad(format!("source {i} at {:?} m is outside the room", s.position_m));
                 }
             }
             for (m, p) in geometry.mics.iter().enumerate() {
@@ -315,8 +305,7 @@ pub fn image_sources(position_m: [f64; 3], room: Option<&Room>) -> Vec<([f64; 3]
 
 fn mix_seed(seed: u64, tag: u64, index: u64) -> u64 {
     // SplitMix64 finaliser over the combined words.
-    let mut z =
-        seed ^ tag.wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ index.wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    let mut z = seed ^ tag.wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ index.wrapping_mul(0xBF58_476D_1CE4_E5B9);
     z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
     z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
     z ^ (z >> 31)
@@ -361,23 +350,9 @@ fn gate(t: f64, window: Option<(f64, f64)>) -> f64 {
 /// Render the whole scene: every source plus sensor noise. `duration_s` is rounded to
 /// whole samples. Invalid values do not panic (distances are clamped to 1 cm, non-finite
 /// gains count as 0); call [`Scene::validate`] first for clear errors.
-pub fn render(
-    scene: &Scene,
-    geometry: &Geometry,
-    sample_rate_hz: u32,
-    duration_s: f64,
-    seed: u64,
-) -> Audio {
+pub fn render(scene: &Scene, geometry: &Geometry, sample_rate_hz: u32, duration_s: f64, seed: u64) -> Audio {
     let all: Vec<usize> = (0..scene.sources.len()).collect();
-    render_parts(
-        scene,
-        geometry,
-        sample_rate_hz,
-        duration_s,
-        seed,
-        &all,
-        true,
-    )
+    render_parts(scene, geometry, sample_rate_hz, duration_s, seed, &all, true)
 }
 
 /// Render only the sources listed in `sources` (indices into `scene.sources`), with or
@@ -464,8 +439,7 @@ pub fn render_parts(
         .par_iter()
         .map(|&si| {
             let s = &scene.sources[si];
-            let mut x =
-                signals::generate(&s.signal, fs, total, pre, n, mix_seed(seed, 1, si as u64));
+            let mut x = signals::generate(&s.signal, fs, total, pre, n, mix_seed(seed, 1, si as u64));
             let half = PAD / 2;
             for (j, v) in x.iter_mut().enumerate() {
                 let t = (j as f64 - pre as f64) / fs;
@@ -596,27 +570,9 @@ pub fn measure_snr_db(
     seed: u64,
 ) -> Result<f64> {
     check_group(scene, group)?;
-    let rest: Vec<usize> = (0..scene.sources.len())
-        .filter(|i| !group.contains(i))
-        .collect();
-    let sig = render_parts(
-        scene,
-        geometry,
-        sample_rate_hz,
-        duration_s,
-        seed,
-        group,
-        false,
-    );
-    let noise = render_parts(
-        scene,
-        geometry,
-        sample_rate_hz,
-        duration_s,
-        seed,
-        &rest,
-        true,
-    );
+    let rest: Vec<usize> = (0..scene.sources.len()).filter(|i| !group.contains(i)).collect();
+    let sig = render_parts(scene, geometry, sample_rate_hz, duration_s, seed, group, false);
+    let noise = render_parts(scene, geometry, sample_rate_hz, duration_s, seed, &rest, true);
     let mask = group_mask(scene, group, sample_rate_hz as f64, sig.num_samples());
     let (ps, pn) = (mean_power(&sig, &mask), mean_power(&noise, &mask));
     if ps.is_nan() || ps <= 0.0 {

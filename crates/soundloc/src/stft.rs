@@ -46,7 +46,9 @@ pub fn window_function<T: Real>(kind: WindowFunction, n: usize) -> Vec<T> {
                     }
                     w.sqrt()
                 }
-                WindowFunction::Hamming => 0.54 - 0.46 * (2.0 * std::f64::consts::PI * i as f64 / denom).cos(),
+                WindowFunction::Hamming => {
+                    0.54 - 0.46 * (2.0 * std::f64::consts::PI * i as f64 / denom).cos()
+                }
                 WindowFunction::Hanning => 0.5 - 0.5 * (2.0 * std::f64::consts::PI * i as f64 / denom).cos(),
                 WindowFunction::Rectangle => 1.0,
             };
@@ -97,7 +99,9 @@ impl<T: Real> Stft<T> {
         let m = channels.len();
         let len = channels.first().map_or(0, |c| c.len());
         if m == 0 || channels.iter().any(|c| c.len() != len) {
-            return Err(Error::Mismatch("STFT: channels must be non-empty and of equal length".into()));
+            return Err(Error::Mismatch(
+                "STFT: channels must be non-empty and of equal length".into(),
+            ));
         }
         let nf = self.num_frames(len);
         let nb = self.bins.len();

@@ -301,10 +301,7 @@ impl SourceTracker {
 
         // Steps 1-2: update claimed sources, carry or end the others.
         let mut alive = Vec::with_capacity(self.tracks.len());
-        for (t, claim) in std::mem::take(&mut self.tracks)
-            .into_iter()
-            .zip(track_claim)
-        {
+        for (t, claim) in std::mem::take(&mut self.tracks).into_iter().zip(track_claim) {
             let mut t = t;
             match claim {
                 Some(pi) => {
@@ -462,10 +459,7 @@ impl IntervalExtender {
 
 /// SourceIntervalExtender on a whole run (results in increasing frame order): each source
 /// first seen at frame f also appears in the results with frame in [f − PREROLL_LENGTH, f).
-pub fn extend(
-    results: &[LocalizationResult],
-    cfg: IntervalExtenderConfig,
-) -> Vec<LocalizationResult> {
+pub fn extend(results: &[LocalizationResult], cfg: IntervalExtenderConfig) -> Vec<LocalizationResult> {
     let mut ex = IntervalExtender::new(cfg);
     let mut out = Vec::with_capacity(results.len());
     for r in results {

@@ -3,6 +3,8 @@
 //!
 //! Reference numbers below were read independently with Python's `zipfile` + `struct`
 //! (printed with `%.9g`, which round-trips f32 exactly).
+// Reference values are printed from the files with more digits than f32 holds.
+#![allow(clippy::excessive_precision)]
 
 use num_complex::Complex;
 use soundloc::array::freefield::{free_field, DEFAULT_SPEED_OF_SOUND_M_S};

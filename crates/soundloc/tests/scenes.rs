@@ -16,7 +16,12 @@ use soundloc::engine::Localization;
 use soundloc::{Algorithm, LocalizeConfig, Real};
 use std::io::Write;
 
-fn run<T: Real>(scene: &DemoScene, audio: &soundloc::audio::Audio, alg: Algorithm, ns: usize) -> Localization {
+fn run<T: Real>(
+    scene: &DemoScene,
+    audio: &soundloc::audio::Audio,
+    alg: Algorithm,
+    ns: usize,
+) -> Localization {
     let config = LocalizeConfig {
         algorithm: alg,
         num_sources: ns,
@@ -42,7 +47,12 @@ fn incoherent_noise_every_algorithm_finds_one_to_three_talkers_on_a_ring() {
         for alg in Algorithm::ALL {
             let r = run::<f32>(&s, &audio, alg, talkers.len());
             let score = s.score(&r.results, tol(&s));
-            report(&format!("ring8 incoherent {} talker(s), {}: {:?}", talkers.len(), alg.name(), score));
+            report(&format!(
+                "ring8 incoherent {} talker(s), {}: {:?}",
+                talkers.len(),
+                alg.name(),
+                score
+            ));
             assert!(score.windows >= 3);
             assert_eq!(
                 score.hit_rate,
@@ -61,7 +71,16 @@ fn incoherent_noise_every_algorithm_finds_talkers_on_a_sphere_grid() {
     let mut s = sphere60_drone(10.0, 2522, 3).unwrap();
     s.scene.sources.truncate(2); // keep the talkers, drop the rotors
     s.scene.sensor_noise_std = 30.0;
-    soundloc::sim::scale_to_snr(&mut s.scene, &[0, 1], 10.0, &s.geometry, 16000, s.duration_s, s.seed).unwrap();
+    soundloc::sim::scale_to_snr(
+        &mut s.scene,
+        &[0, 1],
+        10.0,
+        &s.geometry,
+        16000,
+        s.duration_s,
+        s.seed,
+    )
+    .unwrap();
     let audio = s.render();
     for alg in Algorithm::ALL {
         let r = run::<f32>(&s, &audio, alg, 2);
@@ -109,14 +128,26 @@ fn drone_scene_check(s: &DemoScene) {
             // SEVD's peaks sit on the rotors (within 30°: they are 0.25 m away, near field)
             // and it misses talkers.
             let lock = rotor_lock(s, &r, 30.0);
-            report(&format!("{}: SEVD peaks on rotors in noise-only windows: {:.0}%", s.name, 100.0 * lock));
+            report(&format!(
+                "{}: SEVD peaks on rotors in noise-only windows: {:.0}%",
+                s.name,
+                100.0 * lock
+            ));
             assert!(lock >= 0.75, "SEVD should lock onto the rotors: {lock}");
         }
         rates.push((alg, score.hit_rate));
     }
     let rate = |a: Algorithm| rates.iter().find(|x| x.0 == a).map(|x| x.1).unwrap();
-    assert_eq!(rate(Algorithm::Gevd), 1.0, "textbook GEVD must find both talkers in every window");
-    assert!(rate(Algorithm::Sevd) <= 0.5, "SEVD should lose talkers to the rotors: {}", rate(Algorithm::Sevd));
+    assert_eq!(
+        rate(Algorithm::Gevd),
+        1.0,
+        "textbook GEVD must find both talkers in every window"
+    );
+    assert!(
+        rate(Algorithm::Sevd) <= 0.5,
+        "SEVD should lose talkers to the rotors: {}",
+        rate(Algorithm::Sevd)
+    );
     // The finding the README documents: HARK's GSVD and GEVD do worse than the textbook GEVD.
     assert!(rate(Algorithm::Gsvd) < rate(Algorithm::Gevd));
     assert!(rate(Algorithm::GevdHark) < rate(Algorithm::Gevd));
@@ -177,9 +208,17 @@ fn precision_check(s: &DemoScene, max_rms_db: f64, strict: &[Algorithm]) {
         if !strict.contains(&alg) {
             continue; // measured and printed only (see the caller)
         }
-        let (bound_rms, bound_max) = if alg == Algorithm::Sevd { (1e-4, 1e-3) } else { (max_rms_db, 20.0 * max_rms_db) };
+        let (bound_rms, bound_max) = if alg == Algorithm::Sevd {
+            (1e-4, 1e-3)
+        } else {
+            (max_rms_db, 20.0 * max_rms_db)
+        };
         if same != a.results.len() || rms >= bound_rms || mx >= bound_max {
-            failures.push(format!("{}: identical peaks {same}/{}, RMS {rms:.2e}, max {mx:.2e}", alg.name(), a.results.len()));
+            failures.push(format!(
+                "{}: identical peaks {same}/{}, RMS {rms:.2e}, max {mx:.2e}",
+                alg.name(),
+                a.results.len()
+            ));
         }
     }
     assert!(failures.is_empty(), "{failures:?}");
@@ -189,17 +228,29 @@ fn precision_check(s: &DemoScene, max_rms_db: f64, strict: &[Algorithm]) {
 fn f32_matches_f64_on_the_ring8_drone_scene() {
     // GSVD and HARK's GEVD lose the talkers here: their spectra have no source peak and
     // their maxima move with rounding (figures printed, not asserted).
-    precision_check(&ring8_drone(-10.0, 1).unwrap(), 0.05, &[Algorithm::Sevd, Algorithm::Gevd]);
+    precision_check(
+        &ring8_drone(-10.0, 1).unwrap(),
+        0.05,
+        &[Algorithm::Sevd, Algorithm::Gevd],
+    );
 }
 
 #[test]
 fn f32_matches_f64_on_the_ring8_incoherent_scene() {
-    precision_check(&ring8_incoherent(&[30.0, -120.0], 0.0, 5).unwrap(), 1e-4, &Algorithm::ALL);
+    precision_check(
+        &ring8_incoherent(&[30.0, -120.0], 0.0, 5).unwrap(),
+        1e-4,
+        &Algorithm::ALL,
+    );
 }
 
 #[test]
 fn f32_matches_f64_on_the_sphere60_drone_scene() {
-    precision_check(&sphere60_drone(-10.0, 2522, 1).unwrap(), 0.05, &[Algorithm::Sevd, Algorithm::Gevd]);
+    precision_check(
+        &sphere60_drone(-10.0, 2522, 1).unwrap(),
+        0.05,
+        &[Algorithm::Sevd, Algorithm::Gevd],
+    );
 }
 
 #[test]

@@ -82,7 +82,10 @@ fn print_report(r: &BenchReport) {
         c.window,
         c.num_sources
     );
-    println!("  ms per localization (one window, median)  {:>10.3}", r.ms_per_localization);
+    println!(
+        "  ms per localization (one window, median)  {:>10.3}",
+        r.ms_per_localization
+    );
     println!(
         "  localizations per second (batch of {:>3})  {:>10.1}",
         c.batch, r.localizations_per_s

@@ -72,7 +72,11 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
                 .iter()
                 .filter(|r| r.time_s >= s.talk_start_s)
                 .map(|r| {
-                    let d: Vec<String> = r.sources.iter().map(|x| fmt_dir(x.azimuth_deg, x.elevation_deg)).collect();
+                    let d: Vec<String> = r
+                        .sources
+                        .iter()
+                        .map(|x| fmt_dir(x.azimuth_deg, x.elevation_deg))
+                        .collect();
                     format!("[{}]", d.join(" "))
                 })
                 .collect();

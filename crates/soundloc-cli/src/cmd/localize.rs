@@ -13,7 +13,7 @@ use soundloc::noise::NoiseMatrices;
 use soundloc::output::plot::{plot_spectrum, SpectrumPlot};
 use soundloc::output::{atomic::write_atomically, csv::CsvWriter, jsonl::JsonlWriter, npy::write_npy_f32};
 use soundloc::tracking::{IntervalExtenderConfig, SourceTracker, TrackerConfig};
-use soundloc::{Algorithm, LocalizeConfig, LocalizationResult, WindowFunction, WindowType};
+use soundloc::{Algorithm, LocalizationResult, LocalizeConfig, WindowFunction, WindowType};
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -260,8 +260,14 @@ pub fn parse_range(s: &str) -> anyhow::Result<(f64, f64)> {
     let (a, b) = s
         .split_once(':')
         .ok_or_else(|| anyhow!("--noise-range {s:?}: expected START:END in seconds, e.g. 0:1.5"))?;
-    let a: f64 = a.trim().parse().with_context(|| format!("--noise-range {s:?}: bad start"))?;
-    let b: f64 = b.trim().parse().with_context(|| format!("--noise-range {s:?}: bad end"))?;
+    let a: f64 = a
+        .trim()
+        .parse()
+        .with_context(|| format!("--noise-range {s:?}: bad start"))?;
+    let b: f64 = b
+        .trim()
+        .parse()
+        .with_context(|| format!("--noise-range {s:?}: bad end"))?;
     if !(a >= 0.0 && b > a) {
         bail!("--noise-range {s:?}: need 0 <= START < END");
     }
@@ -295,7 +301,11 @@ fn transfer_functions(a: &Args, config: &LocalizeConfig) -> anyhow::Result<Trans
             "no transfer functions: give --tf FILE (HARK TF zip or *_loc.dat) or --geometry array.toml --grid ring:5"
         ),
     };
-    Ok(if a.channels.is_empty() { tf } else { tf.select_channels(&a.channels)? })
+    Ok(if a.channels.is_empty() {
+        tf
+    } else {
+        tf.select_channels(&a.channels)?
+    })
 }
 
 /// Apply --channels to audio that has the TF's full channel count.
@@ -321,7 +331,10 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     let algorithm: Algorithm = match a.analysis.algorithm {
         Some(x) => x.into(),
         None if noise_given => {
-            note(a.quiet, "a noise source was given: using the textbook GEVD (choose with --algorithm)");
+            note(
+                a.quiet,
+                "a noise source was given: using the textbook GEVD (choose with --algorithm)",
+            );
             Algorithm::Gevd
         }
         None => Algorithm::Sevd,
@@ -345,7 +358,9 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         a.channels.iter().max().map_or(0, |m| m + 1).max(tf.num_mics)
     };
     let full_mics = if let Some(p) = &a.tf {
-        TransferFunctions::load(p).map(|t| t.num_mics).unwrap_or(full_mics)
+        TransferFunctions::load(p)
+            .map(|t| t.num_mics)
+            .unwrap_or(full_mics)
     } else if let Some(g) = &a.geometry {
         Geometry::load(g).map(|g| g.num_mics()).unwrap_or(full_mics)
     } else {
@@ -380,7 +395,10 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
                 tf.num_mics
             );
         }
-        Some(estimate_noise(&config, n.sample_rate_hz, &n.channels, None).with_context(|| format!("{}", p.display()))?)
+        Some(
+            estimate_noise(&config, n.sample_rate_hz, &n.channels, None)
+                .with_context(|| format!("{}", p.display()))?,
+        )
     } else if let Some(r) = &a.noise_range {
         let range = parse_range(r)?;
         Some(
@@ -396,8 +414,24 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     let show_progress = !a.quiet && audio.duration_s() > 3.0;
     let want_spectrum = a.spectrum.is_some() || a.plot.is_some();
     let run = match a.precision {
-        PrecisionArg::F32 => localize::<f32>(&config, &tf, noise.as_ref(), a.device, &audio, want_spectrum, show_progress)?,
-        PrecisionArg::F64 => localize::<f64>(&config, &tf, noise.as_ref(), a.device, &audio, want_spectrum, show_progress)?,
+        PrecisionArg::F32 => localize::<f32>(
+            &config,
+            &tf,
+            noise.as_ref(),
+            a.device,
+            &audio,
+            want_spectrum,
+            show_progress,
+        )?,
+        PrecisionArg::F64 => localize::<f64>(
+            &config,
+            &tf,
+            noise.as_ref(),
+            a.device,
+            &audio,
+            want_spectrum,
+            show_progress,
+        )?,
     };
     note(
         a.quiet,
@@ -422,7 +456,12 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         let mut tracker = SourceTracker::new(cfg);
         results = results.iter().map(|r| tracker.update(r)).collect();
         if a.preroll > 0 {
-            results = soundloc::tracking::extend(&results, IntervalExtenderConfig { preroll_length: a.preroll });
+            results = soundloc::tracking::extend(
+                &results,
+                IntervalExtenderConfig {
+                    preroll_length: a.preroll,
+                },
+            );
         }
         if let Some(p) = &a.summary {
             let s = soundloc::tracking::summarize(&results);
@@ -436,10 +475,18 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     }
     write_results(&a, &results)?;
     if let Some(p) = &a.log_text {
-        soundloc::formats::source_log::write(p, &results, soundloc::formats::source_log::SourceLogFormat::Text)?;
+        soundloc::formats::source_log::write(
+            p,
+            &results,
+            soundloc::formats::source_log::SourceLogFormat::Text,
+        )?;
     }
     if let Some(p) = &a.log_xml {
-        soundloc::formats::source_log::write(p, &results, soundloc::formats::source_log::SourceLogFormat::Xml)?;
+        soundloc::formats::source_log::write(
+            p,
+            &results,
+            soundloc::formats::source_log::SourceLogFormat::Xml,
+        )?;
     }
     if let Some(addr) = &a.hark_stream {
         let mut s = soundloc::output::hark_stream::HarkStreamSender::connect(addr, config.hop as i32)?;
@@ -465,7 +512,10 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
                 truth_azimuths_deg: Vec::new(),
                 title: format!(
                     "{} — {} MUSIC, {}",
-                    a.input.file_name().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default(),
+                    a.input
+                        .file_name()
+                        .map(|s| s.to_string_lossy().into_owned())
+                        .unwrap_or_default(),
                     algorithm.name(),
                     run.device
                 ),
@@ -490,8 +540,10 @@ fn localize<T: soundloc::Real>(
     let bar = progress.then(|| {
         let b = indicatif::ProgressBar::new(0);
         b.set_style(
-            indicatif::ProgressStyle::with_template("{spinner} localizing [{bar:40}] {pos}/{len} windows {eta}")
-                .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+            indicatif::ProgressStyle::with_template(
+                "{spinner} localizing [{bar:40}] {pos}/{len} windows {eta}",
+            )
+            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
         );
         b
     });
@@ -534,7 +586,11 @@ fn write_results(a: &Args, results: &[LocalizationResult]) -> anyhow::Result<()>
     Ok(())
 }
 
-fn write_spectrum(path: &Path, table: &soundloc::engine::SpectrumTable, tf: &TransferFunctions) -> anyhow::Result<()> {
+fn write_spectrum(
+    path: &Path,
+    table: &soundloc::engine::SpectrumTable,
+    tf: &TransferFunctions,
+) -> anyhow::Result<()> {
     let rows = table.frames.len();
     write_atomically(path, |w| write_npy_f32(w, rows, table.num_dirs, &table.db))?;
     let meta = serde_json::json!({

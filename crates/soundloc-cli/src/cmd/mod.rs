@@ -3,6 +3,8 @@
 pub mod bench;
 pub mod demo;
 pub mod localize;
+pub mod noisecm;
+pub mod tf;
 
 use clap::{Parser, Subcommand, ValueEnum};
 use std::process::ExitCode;
@@ -23,6 +25,10 @@ pub enum Command {
     Localize(Box<localize::Args>),
     /// Benchmark the seed configuration (GSVD, 60 mics, 73 bins, W 50, 2522 directions).
     Bench(bench::Args),
+    /// Transfer functions: inspect HARK TF files, make geometric ones.
+    Tf(tf::Args),
+    /// Noise correlation matrices (HARK CMSave/CMLoad files): make from a recording, inspect.
+    Noisecm(noisecm::Args),
 }
 
 /// Compute device.
@@ -86,6 +92,8 @@ pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
         Command::Bench(a) => bench::run(a),
         Command::Demo(a) => demo::run(a),
         Command::Localize(a) => localize::run(*a),
+        Command::Tf(a) => tf::run(a),
+        Command::Noisecm(a) => noisecm::run(a),
     }
 }
 
@@ -96,18 +104,6 @@ pub fn noise_cm_for(
     num_mics: usize,
 ) -> anyhow::Result<soundloc::noise::NoiseMatrices> {
     use soundloc::formats::noise_cm::{Expected, NoiseCm};
-    let cm = NoiseCm::load(
-        path,
-        Expected {
-            num_mics: Some(num_mics),
-            nfft: Some(config.nfft),
-        },
-    )?;
-    let bins = config.bin_range();
-    let mut k = soundloc::noise::NoiseMatrices::identity(num_mics, bins.clone());
-    let mm = num_mics * num_mics;
-    for (b, bin) in bins.enumerate() {
-        k.data[b * mm..(b + 1) * mm].copy_from_slice(cm.get(bin));
-    }
-    Ok(k)
+    let expected = Expected { num_mics: Some(num_mics), nfft: Some(config.nfft) };
+    Ok(NoiseCm::load(path, expected)?.to_noise_matrices(config.bin_range())?)
 }

@@ -76,11 +76,7 @@ pub fn free_field(
             "free-field TFs: microphone {i} position is not finite"
         )));
     }
-    if let Some(i) = grid
-        .points
-        .iter()
-        .position(|p| p.iter().any(|v| !v.is_finite()))
-    {
+    if let Some(i) = grid.points.iter().position(|p| p.iter().any(|v| !v.is_finite())) {
         return Err(Error::Config(format!(
             "free-field TFs: grid point {i} is not finite"
         )));

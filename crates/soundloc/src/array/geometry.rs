@@ -89,9 +89,9 @@ impl Geometry {
                 ))
             }
             (Some(list), None) => {
-                let list = list.as_array().ok_or_else(|| {
-                    fail("`mics` must be a list of [x, y, z] lists (metres)".into())
-                })?;
+                let list = list
+                    .as_array()
+                    .ok_or_else(|| fail("`mics` must be a list of [x, y, z] lists (metres)".into()))?;
                 for (i, m) in list.iter().enumerate() {
                     let coords = m.as_array().ok_or_else(|| {
                         fail(format!(
@@ -126,9 +126,7 @@ impl Geometry {
                         .as_table()
                         .ok_or_else(|| fail(format!("mic {i}: expected a table with x, y, z")))?;
                     if let Some(k) = t.keys().find(|k| !matches!(k.as_str(), "x" | "y" | "z")) {
-                        return Err(fail(format!(
-                            "mic {i}: unknown key `{k}` (expected x, y, z)"
-                        )));
+                        return Err(fail(format!("mic {i}: unknown key `{k}` (expected x, y, z)")));
                     }
                     let mut p = [0.0; 3];
                     for (k, name) in ["x", "y", "z"].iter().enumerate() {
@@ -148,10 +146,11 @@ impl Geometry {
                     mics.push(p);
                 }
             }
-            (None, None) => return Err(fail(
-                "no microphones: expected `mics = [[x, y, z], ...]` or `[[mic]]` tables (metres)"
-                    .into(),
-            )),
+            (None, None) => {
+                return Err(fail(
+                    "no microphones: expected `mics = [[x, y, z], ...]` or `[[mic]]` tables (metres)".into(),
+                ))
+            }
         }
         Geometry::new(mics, path_for_errors)
     }

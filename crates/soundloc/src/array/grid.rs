@@ -147,11 +147,7 @@ impl Grid {
     /// that every index is in range and that every point is finite and not at the origin;
     /// a point listed as its own neighbour and repeated entries are dropped (HARK's tables
     /// list each point first).
-    pub fn with_neighbors(
-        points: Vec<[f64; 3]>,
-        kind: GridKind,
-        neighbors: Vec<Vec<usize>>,
-    ) -> Result<Grid> {
+    pub fn with_neighbors(points: Vec<[f64; 3]>, kind: GridKind, neighbors: Vec<Vec<usize>>) -> Result<Grid> {
         let n = points.len();
         if neighbors.len() != n {
             return Err(Error::Mismatch(format!(
@@ -237,10 +233,7 @@ impl Grid {
     /// `table: 6–8 neighbours per point (mean 6.4)`.
     pub fn neighbor_relation(&self) -> String {
         if self.kind == GridKind::Ring {
-            return format!(
-                "left/right in azimuth, wrapping ({}-point ring)",
-                self.len()
-            );
+            return format!("left/right in azimuth, wrapping ({}-point ring)", self.len());
         }
         let counts: Vec<usize> = self.neighbors.iter().map(|v| v.len()).collect();
         let min = counts.iter().copied().min().unwrap_or(0);
@@ -500,9 +493,7 @@ impl FromStr for GridSpec {
                 })
             }
             ["sphere", n] => {
-                let n: usize = n
-                    .parse()
-                    .map_err(|_| bad("N must be a whole number of points"))?;
+                let n: usize = n.parse().map_err(|_| bad("N must be a whole number of points"))?;
                 if n < 2 {
                     return Err(bad("N must be at least 2"));
                 }
@@ -566,14 +557,8 @@ mod tests {
         assert_eq!(g3.kind, GridKind::Ring);
         assert_eq!(g3.azimuth_deg(0), 180.0);
         // Tiny rings.
-        assert_eq!(
-            Grid::ring(180.0, 0.0, 1.0).neighbors,
-            vec![vec![1], vec![0]]
-        );
-        assert_eq!(
-            Grid::ring(360.0, 0.0, 1.0).neighbors,
-            vec![Vec::<usize>::new()]
-        );
+        assert_eq!(Grid::ring(180.0, 0.0, 1.0).neighbors, vec![vec![1], vec![0]]);
+        assert_eq!(Grid::ring(360.0, 0.0, 1.0).neighbors, vec![Vec::<usize>::new()]);
     }
 
     #[test]
@@ -589,11 +574,7 @@ mod tests {
             "max neighbour angle {max}° vs spacing {spacing}°"
         );
         for (i, l) in g.neighbors.iter().enumerate() {
-            assert!(
-                l.len() >= 6 && l.len() <= 12,
-                "point {i}: {} neighbours",
-                l.len()
-            );
+            assert!(l.len() >= 6 && l.len() <= 12, "point {i}: {} neighbours", l.len());
             assert!(!l.contains(&i));
         }
         // Brute-force check of the pruned search on a smaller lattice.
@@ -625,17 +606,10 @@ mod tests {
         )
         .unwrap();
         assert_eq!(g.neighbors[0], vec![1]);
-        let e = Grid::with_neighbors(
-            pts.clone(),
-            GridKind::Irregular,
-            vec![vec![5], vec![], vec![]],
-        )
-        .unwrap_err()
-        .to_string();
-        assert_eq!(
-            e,
-            "grid: point 0 lists neighbour 5, but there are only 3 points"
-        );
+        let e = Grid::with_neighbors(pts.clone(), GridKind::Irregular, vec![vec![5], vec![], vec![]])
+            .unwrap_err()
+            .to_string();
+        assert_eq!(e, "grid: point 0 lists neighbour 5, but there are only 3 points");
         assert!(Grid::with_neighbors(pts.clone(), GridKind::Irregular, vec![]).is_err());
         let mut bad = pts;
         bad[1] = [f64::NAN, 0.0, 0.0];
@@ -655,10 +629,7 @@ mod tests {
                 elevation_deg: 16.7
             }
         );
-        assert_eq!(
-            "sphere:2522".parse::<GridSpec>().unwrap().build(1.0).len(),
-            2522
-        );
+        assert_eq!("sphere:2522".parse::<GridSpec>().unwrap().build(1.0).len(), 2522);
         assert_eq!("ring:10".parse::<GridSpec>().unwrap().build(2.0).len(), 36);
         for bad in [
             "ring:7",

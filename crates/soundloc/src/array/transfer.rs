@@ -171,8 +171,7 @@ impl TransferFunctions {
                 ),
             ));
         };
-        tf.validate()
-            .map_err(|e| Error::format(path, e.to_string()))?;
+        tf.validate().map_err(|e| Error::format(path, e.to_string()))?;
         Ok(tf)
     }
 
@@ -260,9 +259,7 @@ impl TransferFunctions {
     /// empty list, an index ≥ num_mics, or a repeated index.
     pub fn select_channels(&self, channels: &[usize]) -> Result<Self> {
         if channels.is_empty() {
-            return Err(Error::Config(
-                "TF_CHANNEL_SELECTION: no channels selected".into(),
-            ));
+            return Err(Error::Config("TF_CHANNEL_SELECTION: no channels selected".into()));
         }
         for (i, &c) in channels.iter().enumerate() {
             if c >= self.num_mics {
@@ -333,13 +330,8 @@ impl TransferFunctions {
 
     /// A summary for `soundloc tf inspect`.
     pub fn summary(&self) -> TfSummary {
-        let ((az0, az1), (el0, el1)) = self
-            .grid
-            .angle_ranges_deg()
-            .unwrap_or(((0.0, 0.0), (0.0, 0.0)));
-        let radii: Vec<f64> = (0..self.num_dirs())
-            .map(|i| self.grid.radius_m(i))
-            .collect();
+        let ((az0, az1), (el0, el1)) = self.grid.angle_ranges_deg().unwrap_or(((0.0, 0.0), (0.0, 0.0)));
+        let radii: Vec<f64> = (0..self.num_dirs()).map(|i| self.grid.radius_m(i)).collect();
         let r0 = radii.iter().copied().fold(f64::INFINITY, f64::min);
         let r1 = radii.iter().copied().fold(f64::NEG_INFINITY, f64::max);
         let end = self.first_bin + self.num_bins;
@@ -442,8 +434,7 @@ mod tests {
         assert!(tf.validate().is_err());
         let mut tf = small();
         tf.num_bins = 6;
-        tf.data
-            .extend(std::iter::repeat_n(Complex::new(0.0, 0.0), 12));
+        tf.data.extend(std::iter::repeat_n(Complex::new(0.0, 0.0), 12));
         assert!(tf.validate().unwrap_err().to_string().contains("exceed"));
     }
 
@@ -456,9 +447,7 @@ mod tests {
         );
         assert_eq!(s.grid_kind, GridKind::Ring);
         assert_eq!(s.last_bin_hz, 8000.0);
-        assert!(
-            (s.azimuth_max_deg - 180.0).abs() < 1e-9 && (s.azimuth_min_deg + 90.0).abs() < 1e-9
-        );
+        assert!((s.azimuth_max_deg - 180.0).abs() < 1e-9 && (s.azimuth_min_deg + 90.0).abs() < 1e-9);
         let text = s.to_string();
         assert!(text.contains("left/right"), "{text}");
         let json = serde_json::to_string(&s).unwrap();
@@ -471,10 +460,7 @@ mod tests {
         std::fs::write(&p, b"RIFF1234WAVEfmt ").unwrap();
         let e = TransferFunctions::load(&p).unwrap_err().to_string();
         let _ = std::fs::remove_file(&p);
-        assert!(
-            e.contains("not a HARK transfer-function zip or HGTF file"),
-            "{e}"
-        );
+        assert!(e.contains("not a HARK transfer-function zip or HGTF file"), "{e}");
         assert!(e.contains("soundloc-notatf"), "{e}");
     }
 }

@@ -65,7 +65,10 @@ impl<T: Real> Backend<T> for CpuBackend<T> {
                 spectra.num_mics, spectra.num_bins, m, nb
             )));
         }
-        if let Some(w) = windows.iter().find(|w| w.start + w.len > spectra.num_frames || w.len == 0) {
+        if let Some(w) = windows
+            .iter()
+            .find(|w| w.start + w.len > spectra.num_frames || w.len == 0)
+        {
             return Err(Error::Mismatch(format!(
                 "cpu backend: window {}..{} outside the {} frames given",
                 w.start,
@@ -88,13 +91,18 @@ impl<T: Real> Backend<T> for CpuBackend<T> {
         self.decs.resize_with(nw * nb, || Decomposition::new(m));
         let r = &self.r;
         let alg = plan.config.algorithm;
-        self.decs
-            .par_iter_mut()
-            .enumerate()
-            .try_for_each_init(
-                || Workspace::new(m),
-                |ws, (i, dec)| decompose(alg, &r[i * mm..(i + 1) * mm], plan.whitening_matrix(i % nb), ws, dec),
-            )?;
+        self.decs.par_iter_mut().enumerate().try_for_each_init(
+            || Workspace::new(m),
+            |ws, (i, dec)| {
+                decompose(
+                    alg,
+                    &r[i * mm..(i + 1) * mm],
+                    plan.whitening_matrix(i % nb),
+                    ws,
+                    dec,
+                )
+            },
+        )?;
         self.times.decomposition_ms += ms(t);
 
         // 3. Broadband spectrum per window: Σ_k w_k g_k P_k(d), then dB.
@@ -152,7 +160,9 @@ impl<T: Real> Backend<T> for CpuBackend<T> {
             || plan.num_bins() != self.plan.num_bins()
             || plan.num_dirs != self.plan.num_dirs
         {
-            return Err(Error::Mismatch("cpu backend: a new plan must keep mics, bins and directions".into()));
+            return Err(Error::Mismatch(
+                "cpu backend: a new plan must keep mics, bins and directions".into(),
+            ));
         }
         self.plan = plan;
         Ok(())

@@ -235,12 +235,8 @@ pub fn write_mat(m: &MatData) -> Vec<u8> {
                 out.extend_from_slice(&c.im.to_le_bytes());
             }
         }
-        MatValues::Float32(v) => v
-            .iter()
-            .for_each(|x| out.extend_from_slice(&x.to_le_bytes())),
-        MatValues::Int32(v) => v
-            .iter()
-            .for_each(|x| out.extend_from_slice(&x.to_le_bytes())),
+        MatValues::Float32(v) => v.iter().for_each(|x| out.extend_from_slice(&x.to_le_bytes())),
+        MatValues::Int32(v) => v.iter().for_each(|x| out.extend_from_slice(&x.to_le_bytes())),
     }
     out
 }
@@ -288,11 +284,7 @@ mod tests {
 
     #[test]
     fn malformed() {
-        let good = write_mat(&MatData::complex(
-            8,
-            257,
-            vec![Complex::new(1.0, 0.0); 8 * 257],
-        ));
+        let good = write_mat(&MatData::complex(8, 257, vec![Complex::new(1.0, 0.0); 8 * 257]));
         let e = read_mat(&good[..1200], p()).unwrap_err().to_string();
         assert_eq!(
             e,

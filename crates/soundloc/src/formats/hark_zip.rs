@@ -73,12 +73,9 @@ pub fn read_zip_entries(path: &Path) -> Result<BTreeMap<String, Vec<u8>>> {
     })?;
     let mut out = BTreeMap::new();
     for i in 0..ar.len() {
-        let mut f = ar.by_index(i).map_err(|e| {
-            Error::format(
-                path,
-                format!("zip entry #{i} cannot be read (corrupt?): {e}"),
-            )
-        })?;
+        let mut f = ar
+            .by_index(i)
+            .map_err(|e| Error::format(path, format!("zip entry #{i} cannot be read (corrupt?): {e}")))?;
         if f.is_dir() {
             continue;
         }
@@ -93,9 +90,8 @@ pub fn read_zip_entries(path: &Path) -> Result<BTreeMap<String, Vec<u8>>> {
             ));
         }
         let mut buf = Vec::with_capacity(f.size() as usize);
-        f.read_to_end(&mut buf).map_err(|e| {
-            Error::format(entry_path(path, &name), format!("corrupt zip entry: {e}"))
-        })?;
+        f.read_to_end(&mut buf)
+            .map_err(|e| Error::format(entry_path(path, &name), format!("corrupt zip entry: {e}")))?;
         out.insert(name, buf);
     }
     Ok(out)
@@ -122,8 +118,8 @@ pub fn write_zip_entries(path: &Path, entries: &[(String, Vec<u8>)]) -> Result<(
     let result = (|| -> Result<()> {
         let file = std::fs::File::create(&tmp).map_err(|e| Error::io(&tmp, e))?;
         let mut w = zip::ZipWriter::new(std::io::BufWriter::new(file));
-        let opts = zip::write::SimpleFileOptions::default()
-            .compression_method(zip::CompressionMethod::Deflated);
+        let opts =
+            zip::write::SimpleFileOptions::default().compression_method(zip::CompressionMethod::Deflated);
         let zerr = |e: zip::result::ZipError| Error::io(path, std::io::Error::other(e.to_string()));
         for (name, bytes) in entries {
             if name.ends_with('/') {
@@ -134,9 +130,7 @@ pub fn write_zip_entries(path: &Path, entries: &[(String, Vec<u8>)]) -> Result<(
             }
         }
         let buf = w.finish().map_err(zerr)?;
-        let file = buf
-            .into_inner()
-            .map_err(|e| Error::io(path, e.into_error()))?;
+        let file = buf.into_inner().map_err(|e| Error::io(path, e.into_error()))?;
         file.sync_all().map_err(|e| Error::io(path, e))?;
         Ok(())
     })();
@@ -154,10 +148,7 @@ pub fn write_zip_entries(path: &Path, entries: &[(String, Vec<u8>)]) -> Result<(
 
 /// Find the container's root folder (with trailing `/`, e.g. `transferFunction/`) and
 /// its trimmed `whatisthis.txt` text. Error when no `whatisthis.txt` exists.
-pub fn container_root(
-    entries: &BTreeMap<String, Vec<u8>>,
-    path: &Path,
-) -> Result<(String, String)> {
+pub fn container_root(entries: &BTreeMap<String, Vec<u8>>, path: &Path) -> Result<(String, String)> {
     let mut found: Vec<&String> = entries
         .keys()
         .filter(|k| k.rsplit('/').next() == Some("whatisthis.txt"))
@@ -237,19 +228,13 @@ impl HarkConfig {
                 None => Ok(default),
                 Some(t) if t.is_empty() => Ok(default),
                 Some(t) => t.parse::<i64>().map_err(|_| {
-                    Error::format(
-                        path,
-                        format!("<config><{n}>: expected an integer, found {t:?}"),
-                    )
+                    Error::format(path, format!("<config><{n}>: expected an integer, found {t:?}"))
                 }),
             }
         };
         let nfft = int("nfft", -1)?;
         if nfft < 2 {
-            return Err(Error::format(
-                path,
-                "<config><nfft> missing or smaller than 2",
-            ));
+            return Err(Error::format(path, "<config><nfft> missing or smaller than 2"));
         }
         let fs = int("samplingRate", -1)?;
         if fs <= 0 || fs > u32::MAX as i64 {
@@ -266,11 +251,7 @@ impl HarkConfig {
         c.signal_max = int("signalMax", c.signal_max)?;
         c.tsp_length = int("TSPLength", c.tsp_length)?;
         if let Some(ps) = cfg.child("PeakSearch") {
-            let a = |n: &str| {
-                ps.attr(n)
-                    .and_then(|v| v.trim().parse::<i64>().ok())
-                    .unwrap_or(0)
-            };
+            let a = |n: &str| ps.attr(n).and_then(|v| v.trim().parse::<i64>().ok()).unwrap_or(0);
             c.peak_search = (a("from"), a("to"));
         }
         Ok(c)
@@ -280,9 +261,7 @@ impl HarkConfig {
     pub fn to_element(&self) -> Element {
         Element::new("config")
             .with_child(Element::new("comment").with_text(&self.comment))
-            .with_child(
-                Element::new("SynchronousAverage").with_text(self.synchronous_average.to_string()),
-            )
+            .with_child(Element::new("SynchronousAverage").with_text(self.synchronous_average.to_string()))
             .with_child(Element::new("TSPpath").with_text(&self.tsp_path))
             .with_child(Element::new("TSPOffset").with_text(self.tsp_offset.to_string()))
             .with_child(
@@ -363,10 +342,7 @@ pub fn read_positions(doc: &Element, kind: &str, path: &Path) -> Result<Option<V
             p
         };
         if out[id].is_some() {
-            return Err(Error::format(
-                path,
-                format!("position id {id} appears twice"),
-            ));
+            return Err(Error::format(path, format!("position id {id} appears twice")));
         }
         out[id] = Some(p);
     }
@@ -403,10 +379,7 @@ pub fn positions_element(kind: &str, points: &[[f64; 3]], paths: Option<&[String
         .with_attr("type", kind)
         .with_attr("coordinate", "cartesian");
     for (i, p) in points.iter().enumerate() {
-        let path = paths
-            .and_then(|v| v.get(i))
-            .map(String::as_str)
-            .unwrap_or("");
+        let path = paths.and_then(|v| v.get(i)).map(String::as_str).unwrap_or("");
         ps.children.push(
             Element::new("position")
                 .with_attr("x", fmt_num(p[0]))
@@ -453,12 +426,12 @@ pub fn read_neighbors(doc: &Element, n: usize, path: &Path) -> Result<Option<Vec
             }
             let j = match tok.parse::<usize>() {
                 Ok(j) if j < n => j,
-                _ => return Err(Error::format(
-                    path,
-                    format!(
-                        "<neighbor id=\"{id}\">: neighbour {tok:?} is not a direction id in 0..{n}"
-                    ),
-                )),
+                _ => {
+                    return Err(Error::format(
+                        path,
+                        format!("<neighbor id=\"{id}\">: neighbour {tok:?} is not a direction id in 0..{n}"),
+                    ))
+                }
             };
             if j != id && !out[id].contains(&j) {
                 out[id].push(j);
@@ -549,12 +522,9 @@ pub fn read_tf_zip(path: &Path) -> Result<TransferFunctions> {
     for id in 0..d {
         let name = tf_entry_name(&root, "localization", id);
         let ep = entry_path(path, &name);
-        let bytes = entries.get(&name).ok_or_else(|| {
-            Error::format(
-                path,
-                format!("missing entry {name} (direction {id} of {d})"),
-            )
-        })?;
+        let bytes = entries
+            .get(&name)
+            .ok_or_else(|| Error::format(path, format!("missing entry {name} (direction {id} of {d})")))?;
         let m = read_mat(bytes, &ep)?;
         if id == 0 {
             num_mics = m.rows;
@@ -573,10 +543,7 @@ pub fn read_tf_zip(path: &Path) -> Result<TransferFunctions> {
             ));
         }
         let v = m.into_complex(&ep)?;
-        if let Some(k) = v
-            .iter()
-            .position(|c| !(c.re.is_finite() && c.im.is_finite()))
-        {
+        if let Some(k) = v.iter().position(|c| !(c.re.is_finite() && c.im.is_finite())) {
             return Err(Error::format(
                 &ep,
                 format!(
@@ -631,10 +598,7 @@ pub fn tf_zip_entries(tf: &TransferFunctions, comment: &str) -> Result<Vec<(Stri
     let root = format!("{TF_ROOT}/");
     let mut out: Vec<(String, Vec<u8>)> = Vec::with_capacity(6 + 2 * d);
     out.push((root.clone(), Vec::new()));
-    out.push((
-        format!("{root}whatisthis.txt"),
-        TF_WHATISTHIS.as_bytes().to_vec(),
-    ));
+    out.push((format!("{root}whatisthis.txt"), TF_WHATISTHIS.as_bytes().to_vec()));
     out.push((
         format!("{root}microphones.xml"),
         hark_xml_document(

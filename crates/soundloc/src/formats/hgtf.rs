@@ -72,12 +72,8 @@ pub fn read_hgtf(bytes: &[u8], path_for_errors: &Path) -> Result<TransferFunctio
             return Err(fail(format!("truncated chunk header at byte {off}")));
         }
         let tag = String::from_utf8_lossy(&bytes[off..off + 4]).to_string();
-        let size = u32::from_le_bytes([
-            bytes[off + 4],
-            bytes[off + 5],
-            bytes[off + 6],
-            bytes[off + 7],
-        ]) as usize;
+        let size =
+            u32::from_le_bytes([bytes[off + 4], bytes[off + 5], bytes[off + 6], bytes[off + 7]]) as usize;
         let body_start = off + 8;
         let body_end = body_start.saturating_add(size);
         if body_end > end {
@@ -142,10 +138,7 @@ pub fn read_hgtf(bytes: &[u8], path_for_errors: &Path) -> Result<TransferFunctio
     let body = m2pg.ok_or_else(|| {
         fail(format!(
             "no \"M2PG\" (localization TF) chunk (chunks found: fmt{})",
-            other_kinds
-                .iter()
-                .map(|t| format!(", {t:?}"))
-                .collect::<String>()
+            other_kinds.iter().map(|t| format!(", {t:?}")).collect::<String>()
         ))
     })?;
     if body.len() < 12 {
@@ -286,17 +279,11 @@ mod tests {
     #[test]
     fn reads_range_zero() {
         let tf = read_hgtf(&synth(), Path::new("x_loc.dat")).unwrap();
-        assert_eq!(
-            (tf.num_mics, tf.num_dirs(), tf.nfft, tf.num_bins),
-            (2, 4, 4, 3)
-        );
+        assert_eq!((tf.num_mics, tf.num_dirs(), tf.nfft, tf.num_bins), (2, 4, 4, 3));
         assert_eq!(tf.sample_rate_hz, 16000);
         assert_eq!(tf.get(2, 1, 2), Complex::new(2012.0, -2012.0));
         assert_eq!(tf.get(3, 0, 0), Complex::new(3000.0, -3000.0));
-        assert!(
-            (tf.grid.radius_m(1) - 1.0).abs() < 1e-6,
-            "range 0 positions"
-        );
+        assert!((tf.grid.radius_m(1) - 1.0).abs() < 1e-6, "range 0 positions");
         assert_eq!(tf.grid.kind, crate::array::GridKind::Ring);
         assert!((tf.mic_positions[1][0] + 0.1).abs() < 1e-7);
     }
@@ -308,11 +295,7 @@ mod tests {
         let e = |b: &[u8]| read_hgtf(b, p).unwrap_err().to_string();
         let mut bad = good.clone();
         bad[8..12].copy_from_slice(b"RIFF");
-        assert!(
-            e(&bad).starts_with("x_loc.dat: not an HGTF file"),
-            "{}",
-            e(&bad)
-        );
+        assert!(e(&bad).starts_with("x_loc.dat: not an HGTF file"), "{}", e(&bad));
         assert!(
             e(&good[..good.len() - 5]).contains("truncated"),
             "{}",
@@ -325,11 +308,7 @@ mod tests {
         assert!(e(&bad).contains("format id 3"), "{}", e(&bad));
         let mut bad = good.clone();
         bad[32..36].copy_from_slice(&6i32.to_le_bytes()); // nfft 4 -> 6 (4 bins)
-        assert!(
-            e(&bad).contains("i.e. 3 bins instead of nfft/2+1"),
-            "{}",
-            e(&bad)
-        );
+        assert!(e(&bad).contains("i.e. 3 bins instead of nfft/2+1"), "{}", e(&bad));
         // NaN value.
         // NaN in range 0 (read) is an error; header 12 + fmt 8+48 + M2PG header 8+12 +
         // 4×2 positions × 12 = 184 is direction 0, mic 0, bin 0.

@@ -227,9 +227,9 @@ pub fn parse_xml(text: &str, path: &Path, frame_period_s: f64) -> Result<Vec<Loc
         let mut sources = Vec::new();
         for (k, p) in block.children_named("position").enumerate() {
             let get = |name: &str| -> Result<f64> {
-                let v = p.attr(name).ok_or_else(|| {
-                    ctx(format!("frame {frame}: <position> #{k}: missing {name}"))
-                })?;
+                let v = p
+                    .attr(name)
+                    .ok_or_else(|| ctx(format!("frame {frame}: <position> #{k}: missing {name}")))?;
                 match v.trim().parse::<f64>() {
                     Ok(x) if x.is_finite() => Ok(x),
                     _ => Err(ctx(format!(
@@ -259,11 +259,7 @@ pub fn parse_xml(text: &str, path: &Path, frame_period_s: f64) -> Result<Vec<Loc
 
 /// The format of log content: XML when the first non-blank character is `<`, else text.
 pub fn detect(text: &str) -> SourceLogFormat {
-    if text
-        .trim_start_matches('\u{feff}')
-        .trim_start()
-        .starts_with('<')
-    {
+    if text.trim_start_matches('\u{feff}').trim_start().starts_with('<') {
         SourceLogFormat::Xml
     } else {
         SourceLogFormat::Text
@@ -274,8 +270,7 @@ pub fn detect(text: &str) -> SourceLogFormat {
 /// `time_s` = frame × frame_period_s.
 pub fn read(path: &Path, frame_period_s: f64) -> Result<Vec<LocalizationResult>> {
     let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
-    let text = String::from_utf8(bytes)
-        .map_err(|e| Error::format(path, format!("not UTF-8 text: {e}")))?;
+    let text = String::from_utf8(bytes).map_err(|e| Error::format(path, format!("not UTF-8 text: {e}")))?;
     match detect(&text) {
         SourceLogFormat::Text => parse_text(&text, path, frame_period_s),
         SourceLogFormat::Xml => parse_xml(&text, path, frame_period_s),

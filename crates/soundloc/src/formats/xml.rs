@@ -516,8 +516,7 @@ mod tests {
             .with_attr("version", "1.3")
             .with_child(Element::new("nfft").with_text("512"))
             .with_child(
-                Element::new("positions")
-                    .with_child(Element::new("position").with_attr("path", "<&\"'>")),
+                Element::new("positions").with_child(Element::new("position").with_attr("path", "<&\"'>")),
             );
         let s = el.to_xml_string(0);
         assert!(s.contains("    <nfft>512</nfft>\n"), "{s}");

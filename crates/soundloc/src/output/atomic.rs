@@ -151,8 +151,7 @@ mod tests {
 
     pub(crate) fn temp_dir(tag: &str) -> PathBuf {
         let n = COUNTER.fetch_add(1, Ordering::Relaxed);
-        let d =
-            std::env::temp_dir().join(format!("soundloc-atomic-{tag}-{}-{n}", std::process::id()));
+        let d = std::env::temp_dir().join(format!("soundloc-atomic-{tag}-{}-{n}", std::process::id()));
         std::fs::create_dir_all(&d).unwrap();
         d
     }

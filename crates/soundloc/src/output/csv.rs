@@ -16,8 +16,7 @@ use std::io::{self, Write};
 use std::path::Path;
 
 /// The header line (without newline).
-pub const CSV_HEADER: &str =
-    "frame,time_s,rank,id,azimuth_deg,elevation_deg,x,y,z,power_db,grid_index";
+pub const CSV_HEADER: &str = "frame,time_s,rank,id,azimuth_deg,elevation_deg,x,y,z,power_db,grid_index";
 
 /// Writes results as CSV to any [`Write`]: the header on creation, then one row per source.
 #[derive(Debug)]
@@ -139,10 +138,7 @@ mod tests {
         std::fs::create_dir_all(&d).unwrap();
         let p = d.join("r.csv");
         write_csv_file(&p, &[]).unwrap();
-        assert_eq!(
-            std::fs::read_to_string(&p).unwrap(),
-            format!("{CSV_HEADER}\n")
-        );
+        assert_eq!(std::fs::read_to_string(&p).unwrap(), format!("{CSV_HEADER}\n"));
         std::fs::remove_dir_all(&d).unwrap();
     }
 }

@@ -81,9 +81,8 @@ pub fn encode(
     for s in &result.sources {
         let id = match s.id {
             None => -1,
-            Some(id) => i32::try_from(id).map_err(|_| {
-                Error::Mismatch(format!("hark stream: source id {id} does not fit in i32"))
-            })?,
+            Some(id) => i32::try_from(id)
+                .map_err(|_| Error::Mismatch(format!("hark stream: source id {id} does not fit in i32")))?,
         };
         ids.push(id);
     }
@@ -150,9 +149,7 @@ impl HarkStreamSender {
 
     /// Sends `result` with frame count `count`, time-stamped with the current wall clock.
     pub fn send(&mut self, result: &LocalizationResult, count: i32) -> Result<()> {
-        let now = SystemTime::now()
-            .duration_since(UNIX_EPOCH)
-            .unwrap_or_default();
+        let now = SystemTime::now().duration_since(UNIX_EPOCH).unwrap_or_default();
         let sec = i64::try_from(now.as_secs()).unwrap_or(i64::MAX);
         self.send_with_timestamp(result, count, sec, i64::from(now.subsec_micros()))
     }

@@ -162,8 +162,7 @@ pub fn read_jsonl<R: BufRead>(reader: R, name: &Path) -> Result<Vec<Localization
         if line.trim().is_empty() {
             continue;
         }
-        let r = from_json_line(&line)
-            .map_err(|e| Error::format(name, format!("line {}: {e}", i + 1)))?;
+        let r = from_json_line(&line).map_err(|e| Error::format(name, format!("line {}: {e}", i + 1)))?;
         out.push(r);
     }
     Ok(out)

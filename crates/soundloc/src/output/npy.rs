@@ -69,12 +69,7 @@ pub fn write_npy_f32<W: Write>(mut w: W, rows: usize, cols: usize, data: &[f32])
 }
 
 /// Write a `(rows, cols)` f32 array to `path`, atomically.
-pub fn write_npy_f32_file(
-    path: impl AsRef<Path>,
-    rows: usize,
-    cols: usize,
-    data: &[f32],
-) -> Result<()> {
+pub fn write_npy_f32_file(path: impl AsRef<Path>, rows: usize, cols: usize, data: &[f32]) -> Result<()> {
     super::atomic::write_atomically(path, |f| write_npy_f32(f, rows, cols, data))
 }
 
@@ -118,12 +113,10 @@ pub fn read_npy_f32<R: Read>(mut r: R, name: &Path) -> Result<NpyF32> {
     let dict = String::from_utf8_lossy(&header);
     let descr = dict_value(&dict, "descr").ok_or_else(|| bad("header has no 'descr'".into()))?;
     if descr != "'<f4'" {
-        return Err(bad(format!(
-            "dtype {descr} is not little-endian float32 '<f4'"
-        )));
+        return Err(bad(format!("dtype {descr} is not little-endian float32 '<f4'")));
     }
-    let fortran = dict_value(&dict, "fortran_order")
-        .ok_or_else(|| bad("header has no 'fortran_order'".into()))?;
+    let fortran =
+        dict_value(&dict, "fortran_order").ok_or_else(|| bad("header has no 'fortran_order'".into()))?;
     if fortran != "False" {
         return Err(bad("Fortran-order arrays are not supported".into()));
     }

@@ -95,9 +95,7 @@ fn validate(p: &SpectrumPlot) -> Result<()> {
         )));
     }
     if p.times_s.iter().any(|t| !t.is_finite()) || p.azimuth_deg.iter().any(|a| !a.is_finite()) {
-        return Err(Error::Mismatch(
-            "plot: times and azimuths must be finite".into(),
-        ));
+        return Err(Error::Mismatch("plot: times and azimuths must be finite".into()));
     }
     if p.times_s.windows(2).any(|w| w[1] <= w[0]) {
         return Err(Error::Mismatch(
@@ -200,8 +198,7 @@ fn colour(v: f32, lo: f32, hi: f32) -> RGBColor {
 
 fn register_font() -> Result<()> {
     static DONE: OnceLock<bool> = OnceLock::new();
-    let ok = *DONE
-        .get_or_init(|| plotters::style::register_font(FAMILY, FontStyle::Normal, FONT).is_ok());
+    let ok = *DONE.get_or_init(|| plotters::style::register_font(FAMILY, FontStyle::Normal, FONT).is_ok());
     if ok {
         Ok(())
     } else {
@@ -299,10 +296,7 @@ fn draw<DB: DrawingBackend>(
         let s = chart.draw_series(DashedLineSeries::new(vec![(t0, az), (t1, az)], 10, 6, dash))?;
         if k == 0 {
             s.label("true direction").legend(move |(x, y)| {
-                PathElement::new(
-                    vec![(x, y), (x + 20, y)],
-                    RGBColor(120, 120, 120).stroke_width(2),
-                )
+                PathElement::new(vec![(x, y), (x + 20, y)], RGBColor(120, 120, 120).stroke_width(2))
             });
         }
     }
@@ -334,11 +328,7 @@ fn draw<DB: DrawingBackend>(
             )?
             .label("detected peak")
             .legend(|(x, y)| Circle::new((x + 10, y), 3, RGBColor(230, 30, 30).filled()));
-        chart.draw_series(
-            marks
-                .iter()
-                .map(|&c| Circle::new(c, 3, WHITE.stroke_width(1))),
-        )?;
+        chart.draw_series(marks.iter().map(|&c| Circle::new(c, 3, WHITE.stroke_width(1))))?;
     }
     if !marks.is_empty() || !p.truth_azimuths_deg.is_empty() {
         chart
@@ -394,9 +384,7 @@ pub fn plot_spectrum(path: impl AsRef<Path>, plot: &SpectrumPlot) -> Result<()> 
     validate(plot)?;
     register_font()?;
     let perr = |e: String| Error::io(path, std::io::Error::other(format!("drawing: {e}")));
-    let svg = path
-        .extension()
-        .is_some_and(|e| e.eq_ignore_ascii_case("svg"));
+    let svg = path.extension().is_some_and(|e| e.eq_ignore_ascii_case("svg"));
     if svg {
         let hm = heat_map(plot, 300);
         let mut text = String::new();
@@ -443,8 +431,8 @@ mod tests {
                 let d2 = wrap_az(a - s2).abs();
                 let elev_drop = el[j].abs() / 10.0;
                 db.push(
-                    (25.0 * (-d1 * d1 / 200.0).exp() + 18.0 * (-d2 * d2 / 200.0).exp() + 2.0
-                        - elev_drop) as f32,
+                    (25.0 * (-d1 * d1 / 200.0).exp() + 18.0 * (-d2 * d2 / 200.0).exp() + 2.0 - elev_drop)
+                        as f32,
                 );
             }
             peaks.push(vec![(s1, 27.0), (s2, 20.0)]);

@@ -226,9 +226,8 @@ fn speech(g: &mut Gauss, fs: f64, total: usize, offset: usize) -> Vec<f64> {
             0.0
         };
         if j % block == 0 {
-            let drift = 1.0
-                + 0.12 * (2.0 * PI * 0.7 * t + ph1).sin()
-                + 0.06 * (2.0 * PI * 2.3 * t + ph2).sin();
+            let drift =
+                1.0 + 0.12 * (2.0 * PI * 0.7 * t + ph1).sin() + 0.06 * (2.0 * PI * 2.3 * t + ph2).sin();
             f0 = (f0_base * s.pitch_factor * drift).clamp(100.0, 250.0);
             for (h, a) in amps.iter_mut().enumerate() {
                 let f = (h + 1) as f64 * f0;

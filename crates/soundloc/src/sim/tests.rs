@@ -79,14 +79,11 @@ fn delay_between_mics_matches_geometry() {
         let pos = position_from_az_el(az, 10.0, 2.0);
         let scene = Scene::new().with_source(SceneSource::new(pos, signal));
         let a = render(&scene, &geo, FS, 2.0, 11);
-        let expected = (distance(&pos, &geo.mics[1]) - distance(&pos, &geo.mics[0]))
-            / SPEED_OF_SOUND_M_S
-            * FS as f64;
+        let expected =
+            (distance(&pos, &geo.mics[1]) - distance(&pos, &geo.mics[0])) / SPEED_OF_SOUND_M_S * FS as f64;
         let got = delay_samples(&a.channels[0], &a.channels[1]);
         let err = (got - expected).abs();
-        eprintln!(
-            "{signal:?} az {az}: expected {expected:.4} samples, got {got:.4}, error {err:.2e}"
-        );
+        eprintln!("{signal:?} az {az}: expected {expected:.4} samples, got {got:.4}, error {err:.2e}");
         assert!(err < 0.05, "{signal:?}: expected {expected}, got {got}");
         worst = worst.max(err);
     }
@@ -98,8 +95,7 @@ fn amplitude_falls_as_one_over_r() {
     let geo = Geometry {
         mics: vec![[1.0, 0.0, 0.0], [0.0, 3.0, 0.0], [0.0, 0.0, -0.5]],
     };
-    let scene =
-        Scene::new().with_source(SceneSource::new([0.0; 3], Signal::WhiteNoise).with_gain(100.0));
+    let scene = Scene::new().with_source(SceneSource::new([0.0; 3], Signal::WhiteNoise).with_gain(100.0));
     let a = render(&scene, &geo, FS, 2.0, 5);
     let r: Vec<f64> = a.channels.iter().map(|c| rms(c)).collect();
     eprintln!("RMS at 1 m, 3 m, 0.5 m: {r:?} (expected 100, 33.3, 200)");
@@ -119,10 +115,8 @@ fn talkers_and_drone() -> (Scene, Geometry) {
     };
     let scene = Scene {
         sources: vec![
-            SceneSource::new(position_from_az_el(30.0, 0.0, 2.0), Signal::Speech)
-                .active_between(1.0, 4.0),
-            SceneSource::new(position_from_az_el(-100.0, 10.0, 1.5), Signal::Speech)
-                .active_between(1.2, 4.0),
+            SceneSource::new(position_from_az_el(30.0, 0.0, 2.0), Signal::Speech).active_between(1.0, 4.0),
+            SceneSource::new(position_from_az_el(-100.0, 10.0, 1.5), Signal::Speech).active_between(1.2, 4.0),
             SceneSource::new([0.0, 0.0, 0.35], Signal::Rotor).with_gain(3.0),
         ],
         sensor_noise_std: 0.05,
@@ -143,12 +137,7 @@ fn scale_to_snr_gives_requested_ratio() {
         let p = |a: &Audio| {
             a.channels
                 .iter()
-                .map(|c| {
-                    c[FS as usize..]
-                        .iter()
-                        .map(|&v| (v as f64).powi(2))
-                        .sum::<f64>()
-                })
+                .map(|c| c[FS as usize..].iter().map(|&v| (v as f64).powi(2)).sum::<f64>())
                 .sum::<f64>()
         };
         let snr = 10.0 * (p(&sig) / p(&noise)).log10();
@@ -234,10 +223,7 @@ fn image_sources_of_a_shoebox() {
     };
     let im2 = image_sources(src, Some(&room2));
     assert_eq!(im2.len(), 25);
-    assert_eq!(
-        im2.iter().filter(|(_, g)| (g - 0.25).abs() < 1e-12).count(),
-        18
-    );
+    assert_eq!(im2.iter().filter(|(_, g)| (g - 0.25).abs() < 1e-12).count(), 18);
     assert!(has_in(&im2, [-5.0, -4.5, 0.2], 0.25)); // x = -2 and y = -2 walls
     assert_eq!(image_sources(src, None), vec![(src, 1.0)]);
 
@@ -263,11 +249,7 @@ fn validate_reports_bad_scenes() {
     ok.validate(&geo, FS).unwrap();
     let mut s = ok.clone();
     s.sources[0].signal = Signal::Tone(9000.0);
-    assert!(s
-        .validate(&geo, FS)
-        .unwrap_err()
-        .to_string()
-        .contains("tone"));
+    assert!(s.validate(&geo, FS).unwrap_err().to_string().contains("tone"));
     let mut s = ok.clone();
     s.sources[0].active = Some((2.0, 1.0));
     assert!(s.validate(&geo, FS).is_err());
@@ -372,10 +354,7 @@ fn rotor_is_stationary_and_harmonic() {
     // Blade-passing lines stand well above the broadband floor in 130-230 Hz.
     let s = spectrum(&x);
     let bin = |f: f64| (f * n as f64 / fs) as usize;
-    let mut band: Vec<f64> = s[bin(130.0)..bin(230.0)]
-        .iter()
-        .map(|c| c.norm_sqr())
-        .collect();
+    let mut band: Vec<f64> = s[bin(130.0)..bin(230.0)].iter().map(|c| c.norm_sqr()).collect();
     band.sort_by(f64::total_cmp);
     let ratio = band[band.len() - 1] / band[band.len() / 2];
     eprintln!("rotor: strongest line / median in 130-230 Hz = {ratio:.0}");

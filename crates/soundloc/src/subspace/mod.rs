@@ -73,20 +73,16 @@ impl<T: Real> Workspace<T> {
     pub fn new(m: usize) -> Self {
         use faer::linalg::{evd, svd};
         let par = Par::Seq;
-        let req = evd::self_adjoint_evd_scratch::<C<T>>(
-            m,
-            evd::ComputeEigenvectors::Yes,
-            par,
-            Default::default(),
-        )
-        .or(svd::svd_scratch::<C<T>>(
-            m,
-            m,
-            svd::ComputeSvdVectors::Full,
-            svd::ComputeSvdVectors::No,
-            par,
-            Default::default(),
-        ));
+        let req =
+            evd::self_adjoint_evd_scratch::<C<T>>(m, evd::ComputeEigenvectors::Yes, par, Default::default())
+                .or(svd::svd_scratch::<C<T>>(
+                    m,
+                    m,
+                    svd::ComputeSvdVectors::Full,
+                    svd::ComputeSvdVectors::No,
+                    par,
+                    Default::default(),
+                ));
         Workspace {
             m,
             a: Mat::zeros(m, m),
@@ -158,14 +154,8 @@ pub fn decompose<T: Real>(
     ws: &mut Workspace<T>,
     out: &mut Decomposition<T>,
 ) -> Result<()> {
-    let need_w = || {
-        w.ok_or_else(|| {
-            Error::Config(format!(
-                "{} needs a noise correlation matrix",
-                algorithm.name()
-            ))
-        })
-    };
+    let need_w =
+        || w.ok_or_else(|| Error::Config(format!("{} needs a noise correlation matrix", algorithm.name())));
     match algorithm {
         Algorithm::Sevd => sevd::decompose(r, ws, out),
         Algorithm::Gevd => gevd::decompose(r, need_w()?, ws, out),
@@ -180,7 +170,10 @@ mod tests {
     use rand::{Rng, SeedableRng};
 
     fn crandn<T: Real>(rng: &mut impl Rng) -> C<T> {
-        C::new(T::of_f64(rng.gen_range(-1.0..1.0)), T::of_f64(rng.gen_range(-1.0..1.0)))
+        C::new(
+            T::of_f64(rng.gen_range(-1.0..1.0)),
+            T::of_f64(rng.gen_range(-1.0..1.0)),
+        )
     }
 
     /// A random Hermitian positive semi-definite X Xᴴ / n (row-major), rank `rank`.
@@ -205,7 +198,13 @@ mod tests {
         let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
         let r = random_r::<T>(m, m + 10, &mut rng);
         let w: Vec<C<T>> = (0..m * m)
-            .map(|k| if k % (m + 1) == 0 { C::new(T::of_f64(2.0), T::zero()) } else { crandn::<T>(&mut rng) * T::of_f64(0.05) })
+            .map(|k| {
+                if k % (m + 1) == 0 {
+                    C::new(T::of_f64(2.0), T::zero())
+                } else {
+                    crandn::<T>(&mut rng) * T::of_f64(0.05)
+                }
+            })
             .collect();
         // Hermitian, as every whitening matrix the plan builds for GEVD-HARK is (K^{-1/2}).
         let w: Vec<C<T>> = (0..m * m)
@@ -215,12 +214,16 @@ mod tests {
         let mut dec = Decomposition::new(m);
         decompose(alg, &r, Some(&w), &mut ws, &mut dec).unwrap();
         for k in 1..m {
-            assert!(dec.values[k - 1] >= dec.values[k], "{alg:?}: values not descending at {k}");
+            assert!(
+                dec.values[k - 1] >= dec.values[k],
+                "{alg:?}: values not descending at {k}"
+            );
         }
         // The matrix actually decomposed, in f64.
         let to64 = |z: C<T>| num_complex::Complex::new(z.re.to_f64(), z.im.to_f64());
         let rm = |v: &[C<T>], i: usize, j: usize| to64(v[i * m + j]);
-        let mul = |a: &dyn Fn(usize, usize) -> num_complex::Complex<f64>, b: &dyn Fn(usize, usize) -> num_complex::Complex<f64>| {
+        let mul = |a: &dyn Fn(usize, usize) -> num_complex::Complex<f64>,
+                   b: &dyn Fn(usize, usize) -> num_complex::Complex<f64>| {
             let mut o = vec![num_complex::Complex::new(0.0, 0.0); m * m];
             for i in 0..m {
                 for j in 0..m {
@@ -278,8 +281,16 @@ mod tests {
             for (m, seed) in [(8, 1), (60, 2)] {
                 let (orth, recon) = check::<T>(alg, m, seed);
                 let tol = 200.0 * T::EPS * m as f64;
-                assert!(orth < tol, "{alg:?} M={m} {}: orthonormality {orth:e} > {tol:e}", T::NAME);
-                assert!(recon < tol, "{alg:?} M={m} {}: reconstruction {recon:e} > {tol:e}", T::NAME);
+                assert!(
+                    orth < tol,
+                    "{alg:?} M={m} {}: orthonormality {orth:e} > {tol:e}",
+                    T::NAME
+                );
+                assert!(
+                    recon < tol,
+                    "{alg:?} M={m} {}: reconstruction {recon:e} > {tol:e}",
+                    T::NAME
+                );
             }
         }
     }
