@@ -399,3 +399,44 @@ fn cuda_without_a_gpu_is_a_clear_error() {
     }
     assert_clean_failure(&o, &["device"]);
 }
+
+/// The drone scene written to a WAV, a geometric TF zip from `tf make`, then `localize`
+/// with K from a time range and from online segments: the textbook GEVD (the default when
+/// noise is given) finds both talkers in every window after they start.
+#[test]
+fn noisy_recording_with_noise_range_and_online_segments() {
+    let scene = soundloc::demo::ring8_drone(-10.0, 1).unwrap();
+    let wav = tmp("drone.wav");
+    scene
+        .render()
+        .write_wav(&wav, soundloc::audio::SampleFormat::Float32)
+        .unwrap();
+    let zip = tmp("circle8.zip");
+    let o = bin()
+        .args(["tf", "make", "--builtin", "circle8", "--grid", "ring:5", "-o"])
+        .arg(&zip)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", stderr(&o));
+    for noise in [["--noise-range", "0:1"], ["--noise-segments", "0:1"]] {
+        let o = bin()
+            .arg("localize")
+            .arg(&wav)
+            .arg("--tf")
+            .arg(&zip)
+            .args(noise)
+            .args(["--device", "cpu"])
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{}", stderr(&o));
+        assert!(stderr(&o).contains("textbook GEVD"), "{}", stderr(&o));
+        let results = soundloc::output::jsonl::read_jsonl(&o.stdout[..], Path::new("stdout")).unwrap();
+        let after: Vec<_> = results.iter().filter(|r| r.time_s >= 1.0).collect();
+        assert!(after.len() >= 3);
+        for r in after {
+            let mut az: Vec<i64> = r.sources.iter().map(|s| s.azimuth_deg.round() as i64).collect();
+            az.sort();
+            assert_eq!(az, vec![-120, 30], "{noise:?} at {} s: {az:?}", r.time_s);
+        }
+    }
+}

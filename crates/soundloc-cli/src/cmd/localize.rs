@@ -10,6 +10,7 @@ use soundloc::audio::{read_audio, Audio};
 use soundloc::config::{Denominator, SpectrumWeight};
 use soundloc::engine::{estimate_noise, Engine, Localization};
 use soundloc::noise::NoiseMatrices;
+use soundloc::online::{localize_online, NoiseUpdate};
 use soundloc::output::plot::{plot_spectrum, SpectrumPlot};
 use soundloc::output::{atomic::write_atomically, csv::CsvWriter, jsonl::JsonlWriter, npy::write_npy_f32};
 use soundloc::tracking::{IntervalExtenderConfig, SourceTracker, TrackerConfig};
@@ -155,6 +156,14 @@ pub struct Args {
     /// Noise correlation matrix file (HARK text pair or zip).
     #[arg(long)]
     pub noise_cm: Option<PathBuf>,
+    /// iGSVD/iGEVD: update K online from these noise-only segments of the input,
+    /// START:END[,START:END...] seconds (each used once its frames are complete).
+    #[arg(long, conflicts_with = "noise_preceding")]
+    pub noise_segments: Option<String>,
+    /// iGSVD/iGEVD: update K before each window from the FRAMES frames ending GAP frames
+    /// before it (HARK's delayed correlation maker), FRAMES[:GAP].
+    #[arg(long)]
+    pub noise_preceding: Option<String>,
     #[command(flatten)]
     pub analysis: AnalysisArgs,
     /// Output format.
@@ -255,21 +264,43 @@ impl AnalysisArgs {
     }
 }
 
+/// The online noise-update rule from --noise-segments / --noise-preceding.
+fn noise_update(a: &Args) -> anyhow::Result<NoiseUpdate> {
+    if let Some(s) = &a.noise_segments {
+        let segs = s
+            .split(',')
+            .map(parse_range)
+            .collect::<anyhow::Result<Vec<_>>>()?;
+        return Ok(NoiseUpdate::Segments(segs));
+    }
+    if let Some(s) = &a.noise_preceding {
+        let (f, g) = s.split_once(':').unwrap_or((s, "0"));
+        let bad = || format!("--noise-preceding {s:?}: expected FRAMES[:GAP]");
+        let frames: usize = f.trim().parse().with_context(bad)?;
+        let gap: usize = g.trim().parse().with_context(bad)?;
+        if frames == 0 {
+            bail!("--noise-preceding {s:?}: FRAMES must be at least 1");
+        }
+        return Ok(NoiseUpdate::Preceding { frames, gap });
+    }
+    Ok(NoiseUpdate::Fixed)
+}
+
 /// Parse `START:END` seconds.
 pub fn parse_range(s: &str) -> anyhow::Result<(f64, f64)> {
     let (a, b) = s
         .split_once(':')
-        .ok_or_else(|| anyhow!("--noise-range {s:?}: expected START:END in seconds, e.g. 0:1.5"))?;
+        .ok_or_else(|| anyhow!("noise range {s:?}: expected START:END in seconds, e.g. 0:1.5"))?;
     let a: f64 = a
         .trim()
         .parse()
-        .with_context(|| format!("--noise-range {s:?}: bad start"))?;
+        .with_context(|| format!("noise range {s:?}: bad start"))?;
     let b: f64 = b
         .trim()
         .parse()
-        .with_context(|| format!("--noise-range {s:?}: bad end"))?;
+        .with_context(|| format!("noise range {s:?}: bad end"))?;
     if !(a >= 0.0 && b > a) {
-        bail!("--noise-range {s:?}: need 0 <= START < END");
+        bail!("noise range {s:?}: need 0 <= START < END");
     }
     Ok((a, b))
 }
@@ -327,7 +358,11 @@ fn select_audio(audio: Audio, channels: &[usize], full_mics: usize, what: &Path)
 
 pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     let audio = read_audio(&a.input)?;
-    let noise_given = a.noise.is_some() || a.noise_range.is_some() || a.noise_cm.is_some();
+    let update = noise_update(&a)?;
+    let noise_given = a.noise.is_some()
+        || a.noise_range.is_some()
+        || a.noise_cm.is_some()
+        || !matches!(update, NoiseUpdate::Fixed);
     let algorithm: Algorithm = match a.analysis.algorithm {
         Some(x) => x.into(),
         None if noise_given => {
@@ -420,6 +455,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
             noise.as_ref(),
             a.device,
             &audio,
+            &update,
             want_spectrum,
             show_progress,
         )?,
@@ -429,6 +465,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
             noise.as_ref(),
             a.device,
             &audio,
+            &update,
             want_spectrum,
             show_progress,
         )?,
@@ -527,12 +564,14 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     Ok(ExitCode::SUCCESS)
 }
 
+#[allow(clippy::too_many_arguments)]
 fn localize<T: soundloc::Real>(
     config: &LocalizeConfig,
     tf: &TransferFunctions,
     noise: Option<&NoiseMatrices>,
     device: DeviceArg,
     audio: &Audio,
+    update: &NoiseUpdate,
     want_spectrum: bool,
     progress: bool,
 ) -> anyhow::Result<Localization> {
@@ -553,7 +592,12 @@ fn localize<T: soundloc::Real>(
             b.set_position(done as u64);
         }
     };
-    let run = engine.localize_samples(audio.sample_rate_hz, &audio.channels, want_spectrum, &mut cb)?;
+    let run = if matches!(update, NoiseUpdate::Fixed) {
+        engine.localize_samples(audio.sample_rate_hz, &audio.channels, want_spectrum, &mut cb)?
+    } else {
+        let spectra = engine.spectra(audio.sample_rate_hz, &audio.channels)?;
+        localize_online(&mut engine, &spectra, update, want_spectrum, &mut cb)?
+    };
     if let Some(b) = bar {
         b.finish_and_clear();
     }

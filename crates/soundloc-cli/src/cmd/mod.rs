@@ -104,6 +104,9 @@ pub fn noise_cm_for(
     num_mics: usize,
 ) -> anyhow::Result<soundloc::noise::NoiseMatrices> {
     use soundloc::formats::noise_cm::{Expected, NoiseCm};
-    let expected = Expected { num_mics: Some(num_mics), nfft: Some(config.nfft) };
+    let expected = Expected {
+        num_mics: Some(num_mics),
+        nfft: Some(config.nfft),
+    };
     Ok(NoiseCm::load(path, expected)?.to_noise_matrices(config.bin_range())?)
 }
