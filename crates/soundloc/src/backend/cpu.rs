@@ -59,23 +59,7 @@ impl<T: Real> Backend<T> for CpuBackend<T> {
     ) -> Result<()> {
         let plan = &*self.plan;
         let (m, nb, d) = (plan.num_mics, plan.num_bins(), plan.num_dirs);
-        if spectra.num_mics != m || spectra.num_bins != nb {
-            return Err(Error::Mismatch(format!(
-                "cpu backend: spectra have {} mics × {} bins, plan expects {} × {}",
-                spectra.num_mics, spectra.num_bins, m, nb
-            )));
-        }
-        if let Some(w) = windows
-            .iter()
-            .find(|w| w.start + w.len > spectra.num_frames || w.len == 0)
-        {
-            return Err(Error::Mismatch(format!(
-                "cpu backend: window {}..{} outside the {} frames given",
-                w.start,
-                w.start + w.len,
-                spectra.num_frames
-            )));
-        }
+        super::check_batch("cpu backend", plan, spectra, windows)?;
         let nw = windows.len();
         let mm = m * m;
         // 1. Correlation matrices, [window][bin][M×M].

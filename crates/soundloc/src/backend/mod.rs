@@ -80,6 +80,40 @@ pub struct WindowSpec {
     pub len: usize,
 }
 
+/// Check that a batch fits a plan: `spectra` has the plan's mics and bins and holds every
+/// frame of every window. `who` names the backend in the message.
+pub fn check_batch<T: Real>(
+    who: &str,
+    plan: &Plan<T>,
+    spectra: &Spectra<T>,
+    windows: &[WindowSpec],
+) -> Result<()> {
+    let (m, nb) = (plan.num_mics, plan.num_bins());
+    if spectra.num_mics != m || spectra.num_bins != nb {
+        return Err(crate::Error::Mismatch(format!(
+            "{who}: spectra have {} mics × {} bins, plan expects {m} × {nb}",
+            spectra.num_mics, spectra.num_bins
+        )));
+    }
+    if spectra.data.len() < spectra.num_frames * nb * m {
+        return Err(crate::Error::Mismatch(format!(
+            "{who}: spectra hold {} values, {} frames × {nb} bins × {m} mics need {}",
+            spectra.data.len(),
+            spectra.num_frames,
+            spectra.num_frames * nb * m
+        )));
+    }
+    if let Some(w) = windows.iter().find(|w| w.start + w.len > spectra.num_frames || w.len == 0) {
+        return Err(crate::Error::Mismatch(format!(
+            "{who}: window {}..{} outside the {} frames given",
+            w.start,
+            w.start + w.len,
+            spectra.num_frames
+        )));
+    }
+    Ok(())
+}
+
 /// A local maximum of the broadband spectrum.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Peak {
