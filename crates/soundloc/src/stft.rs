@@ -96,6 +96,13 @@ impl<T: Real> Stft<T> {
 
     /// Transform every complete frame of `channels` (planar, equal lengths).
     pub fn process(&self, channels: &[Vec<f32>]) -> Result<Spectra<T>> {
+        let len = channels.first().map_or(0, |c| c.len());
+        self.process_frames(channels, 0..self.num_frames(len))
+    }
+
+    /// Transform frames `frames` only (frame f of the result is STFT frame
+    /// `frames.start + f`): bounded memory on long recordings.
+    pub fn process_frames(&self, channels: &[Vec<f32>], frames: Range<usize>) -> Result<Spectra<T>> {
         let m = channels.len();
         let len = channels.first().map_or(0, |c| c.len());
         if m == 0 || channels.iter().any(|c| c.len() != len) {
@@ -103,7 +110,16 @@ impl<T: Real> Stft<T> {
                 "STFT: channels must be non-empty and of equal length".into(),
             ));
         }
-        let nf = self.num_frames(len);
+        if frames.end > self.num_frames(len) {
+            return Err(Error::Mismatch(format!(
+                "STFT: frames {}..{} asked, the signal has {}",
+                frames.start,
+                frames.end,
+                self.num_frames(len)
+            )));
+        }
+        let nf = frames.len();
+        let first = frames.start;
         let nb = self.bins.len();
         let mut out = Spectra::zeros(nf, nb, m);
         let frame_len = nb * m;
@@ -119,7 +135,7 @@ impl<T: Real> Stft<T> {
                     )
                 },
                 |(inp, spec, scratch), (f, dst)| {
-                    let off = f * self.hop;
+                    let off = (first + f) * self.hop;
                     for (mic, ch) in channels.iter().enumerate() {
                         for (i, v) in inp.iter_mut().enumerate() {
                             *v = T::of_f64(ch[off + i] as f64) * self.window[i];

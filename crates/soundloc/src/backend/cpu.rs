@@ -23,6 +23,7 @@ pub struct CpuBackend<T: Real> {
     times: StageTimes,
     r: Vec<C<T>>,
     decs: Vec<Decomposition<T>>,
+    contrib: Vec<T>,
 }
 
 impl<T: Real> CpuBackend<T> {
@@ -33,6 +34,7 @@ impl<T: Real> CpuBackend<T> {
             times: StageTimes::default(),
             r: Vec::new(),
             decs: Vec::new(),
+            contrib: Vec::new(),
         }
     }
 }
@@ -91,29 +93,29 @@ impl<T: Real> Backend<T> for CpuBackend<T> {
 
         // 3. Broadband spectrum per window: Σ_k w_k g_k P_k(d), then dB.
         let t = Instant::now();
+        // Per-bin contributions in parallel, then the sum over bins in bin order: the
+        // result does not depend on how rayon splits the work (bit-reproducible).
         let decs = &self.decs;
+        self.contrib.clear();
+        self.contrib.resize(nw * nb * d, T::zero());
+        self.contrib.par_chunks_mut(d).enumerate().for_each_init(
+            || SpectrumScratch::new(plan),
+            |sc, (i, acc)| accumulate_bin(plan, i % nb, &decs[i], sc, acc),
+        );
+        let contrib = &self.contrib;
         let spectra_lin: Vec<Vec<T>> = (0..nw)
             .into_par_iter()
             .map(|w| {
-                (0..nb)
-                    .into_par_iter()
-                    .fold(
-                        || (vec![T::zero(); d], SpectrumScratch::new(plan)),
-                        |(mut acc, mut sc), b| {
-                            accumulate_bin(plan, b, &decs[w * nb + b], &mut sc, &mut acc);
-                            (acc, sc)
-                        },
-                    )
-                    .map(|(acc, _)| acc)
-                    .reduce(
-                        || vec![T::zero(); d],
-                        |mut a, b| {
-                            for (x, y) in a.iter_mut().zip(&b) {
-                                *x += *y;
-                            }
-                            a
-                        },
-                    )
+                let mut acc = vec![T::zero(); d];
+                for b in 0..nb {
+                    for (x, y) in acc
+                        .iter_mut()
+                        .zip(&contrib[(w * nb + b) * d..(w * nb + b + 1) * d])
+                    {
+                        *x += *y;
+                    }
+                }
+                acc
             })
             .collect();
         let db: Vec<Vec<f64>> = spectra_lin
