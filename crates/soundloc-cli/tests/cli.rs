@@ -440,3 +440,47 @@ fn noisy_recording_with_noise_range_and_online_segments() {
         }
     }
 }
+
+#[test]
+fn input_channel_selector_drops_extra_channels() {
+    let Some(d) = data() else {
+        return skipped("input_channel_selector_drops_extra_channels");
+    };
+    // A 9-channel file: the 8 array channels of jinsei.wav plus a silent reference channel.
+    let a = soundloc::audio::read_audio(d.join("jinsei.wav")).unwrap();
+    let mut ch = a.channels.clone();
+    ch.insert(0, vec![0.0; a.num_samples()]);
+    let nine = soundloc::audio::Audio::new(a.sample_rate_hz, ch).unwrap();
+    let w = tmp("nine.wav");
+    nine.write_wav(&w, soundloc::audio::SampleFormat::Int16).unwrap();
+    let tf = d.join("tamago_rectf.zip");
+    let o = bin()
+        .arg("localize")
+        .arg(&w)
+        .arg("--tf")
+        .arg(&tf)
+        .output()
+        .unwrap();
+    assert_clean_failure(&o, &["9 channels"]);
+    let o = bin()
+        .arg("localize")
+        .arg(&w)
+        .arg("--tf")
+        .arg(&tf)
+        .args(["--input-channels", "1,2,3,4,5,6,7,8", "-q", "--device", "cpu"])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", stderr(&o));
+    let direct = bin()
+        .arg("localize")
+        .arg(d.join("jinsei.wav"))
+        .arg("--tf")
+        .arg(&tf)
+        .args(["-q", "--device", "cpu"])
+        .output()
+        .unwrap();
+    assert_eq!(
+        o.stdout, direct.stdout,
+        "selected channels must give the original file's results"
+    );
+}

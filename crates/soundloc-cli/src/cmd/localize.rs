@@ -147,6 +147,10 @@ pub struct Args {
     /// audio too when it has the TF's full channel count.
     #[arg(long, value_delimiter = ',')]
     pub channels: Vec<usize>,
+    /// ChannelSelector: input channels to keep, comma-separated (0-based), applied to the
+    /// recording and to --noise before anything else (e.g. drop a reference channel).
+    #[arg(long, value_delimiter = ',')]
+    pub input_channels: Vec<usize>,
     /// Noise-only recording for K.
     #[arg(long, conflicts_with_all = ["noise_range", "noise_cm"])]
     pub noise: Option<PathBuf>,
@@ -339,6 +343,16 @@ fn transfer_functions(a: &Args, config: &LocalizeConfig) -> anyhow::Result<Trans
     })
 }
 
+/// Apply --input-channels (HARK's ChannelSelector).
+fn pick_input_channels(audio: Audio, keep: &[usize], what: &Path) -> anyhow::Result<Audio> {
+    if keep.is_empty() {
+        return Ok(audio);
+    }
+    audio
+        .select_channels(keep)
+        .with_context(|| format!("{}: --input-channels", what.display()))
+}
+
 /// Apply --channels to audio that has the TF's full channel count.
 fn select_audio(audio: Audio, channels: &[usize], full_mics: usize, what: &Path) -> anyhow::Result<Audio> {
     if channels.is_empty() || audio.num_channels() == channels.len() {
@@ -357,7 +371,7 @@ fn select_audio(audio: Audio, channels: &[usize], full_mics: usize, what: &Path)
 }
 
 pub fn run(a: Args) -> anyhow::Result<ExitCode> {
-    let audio = read_audio(&a.input)?;
+    let audio = pick_input_channels(read_audio(&a.input)?, &a.input_channels, &a.input)?;
     let update = noise_update(&a)?;
     let noise_given = a.noise.is_some()
         || a.noise_range.is_some()
@@ -421,7 +435,8 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     let noise: Option<NoiseMatrices> = if !algorithm.uses_noise() {
         None
     } else if let Some(p) = &a.noise {
-        let n = select_audio(read_audio(p)?, &a.channels, full_mics, p)?;
+        let n = pick_input_channels(read_audio(p)?, &a.input_channels, p)?;
+        let n = select_audio(n, &a.channels, full_mics, p)?;
         if n.num_channels() != tf.num_mics {
             bail!(
                 "{}: noise recording has {} channels, the transfer functions {}",
