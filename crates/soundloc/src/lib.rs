@@ -18,7 +18,7 @@
 //! | tracking | [`tracking`] | peaks over time → sources with ids |
 //! | outputs | [`output`] | JSON lines, CSV, .npy, plots, HARK logs and streams |
 //!
-//! Beside it: the array description in [`array`] (geometry, direction grid, transfer
+//! Beside it: the array description in [`array`](mod@array) (geometry, direction grid, transfer
 //! functions), file formats in [`formats`], a scene simulator in [`sim`], and the compute
 //! backends in [`backend`] (CPU and CUDA behind one batch interface). [`engine`] is the
 //! only orchestration: it plans once ([`plan`]), then feeds batches of windows to a backend.

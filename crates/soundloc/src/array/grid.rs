@@ -261,7 +261,7 @@ impl Grid {
         m
     }
 
-    /// True when j ∈ neighbors[i] ⇔ i ∈ neighbors[j] for all pairs.
+    /// True when `j ∈ neighbors[i] ⇔ i ∈ neighbors[j]` for all pairs.
     pub fn neighbors_symmetric(&self) -> bool {
         self.neighbors
             .iter()

@@ -128,7 +128,7 @@ impl TransferFunctions {
     pub fn bins(&self) -> std::ops::Range<usize> {
         self.first_bin..self.first_bin + self.num_bins
     }
-    /// a_{dir,bin}[mic]. `bin` is an absolute FFT bin index; panics if not held.
+    /// `a_{dir,bin}[mic]`. `bin` is an absolute FFT bin index; panics if not held.
     #[inline]
     pub fn get(&self, dir: usize, mic: usize, bin: usize) -> Complex<f32> {
         debug_assert!(self.bins().contains(&bin));

@@ -20,9 +20,9 @@
 //! read from `azimuth`/`elevation` (degrees) and `radius` (metres, default 1) — that
 //! variant's attribute names are inferred, no real file was available. `<neighbors>`
 //! lists each point first, then its neighbours; the point itself is dropped. The grid is
-//! [`GridKind::Ring`] when all points share one elevation (±0.5°), step around the circle
+//! [`GridKind::Ring`](crate::array::GridKind::Ring) when all points share one elevation (±0.5°), step around the circle
 //! by equal steps, and the table is exactly left/right; otherwise
-//! [`GridKind::Irregular`] with the stored table (or, with no table, the 6 nearest).
+//! [`GridKind::Irregular`](crate::array::GridKind::Irregular) with the stored table (or, with no table, the 6 nearest).
 //! The separation TFs are not read. Placeholder microphone positions (tamago_rectf.zip
 //! has them) are kept as found.
 //!
