@@ -4,6 +4,8 @@
 // X       [frame][bin][mic]   the uploaded frames (frame 0 = first uploaded frame)
 // win     [window][2]         (first frame relative to X, number of frames)
 // R       [window][bin][M×M]  column-major output (R[j*M+i] = R_ij)
+// scale   [window][bin]       the divisor max|Re R_ij| + 1 (for the decomposition's
+//                             factor form, which rebuilds R's factor from the frames)
 // Grid: (windows × bins) blocks, matrix index = window * nb + bin. Dynamic shared
 // memory: fc × M complex (a chunk of fc frames) + 32 reals.
 #include "common.cuh"
@@ -12,7 +14,7 @@
 
 template <typename T>
 __device__ void correlate_impl(const cplx<T>* __restrict__ X, int nb, int M, const int* __restrict__ win, int fc,
-                               int mat0, cplx<T>* __restrict__ R) {
+                               int mat0, cplx<T>* __restrict__ R, T* __restrict__ scale) {
     SL_DYN_SMEM(sl_smem);
     cplx<T>* xs = reinterpret_cast<cplx<T>*>(sl_smem);
     T* red = reinterpret_cast<T*>(xs + (size_t)fc * M);
@@ -73,15 +75,16 @@ __device__ void correlate_impl(const cplx<T>* __restrict__ X, int nb, int M, con
     }
     const T mx = block_max(maxre, red);  // includes a __syncthreads: R writes are visible
     const T inv_s = (T)1 / (mx + (T)1);
+    if (tid == 0) scale[blockIdx.x] = mx + (T)1;
     __syncthreads();
     for (int k = tid; k < M * M; k += nt) Rm[k] = cscale(Rm[k], inv_s);
 }
 
 extern "C" __global__ void correlate_f32(const cplx<float>* X, int nb, int M, const int* win, int fc, int mat0,
-                                         cplx<float>* R) {
-    correlate_impl<float>(X, nb, M, win, fc, mat0, R);
+                                         cplx<float>* R, float* scale) {
+    correlate_impl<float>(X, nb, M, win, fc, mat0, R, scale);
 }
 extern "C" __global__ void correlate_f64(const cplx<double>* X, int nb, int M, const int* win, int fc, int mat0,
-                                         cplx<double>* R) {
-    correlate_impl<double>(X, nb, M, win, fc, mat0, R);
+                                         cplx<double>* R, double* scale) {
+    correlate_impl<double>(X, nb, M, win, fc, mat0, R, scale);
 }

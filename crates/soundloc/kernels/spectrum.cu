@@ -11,16 +11,19 @@
 // St [bin][dir][M] the denominator's steering (whitened for the textbook GEVD),
 // n2den/n2num [bin][dir] its ‖·‖² and the raw ‖a‖², E [wl*nb + b][ne][M] the basis of the
 // sub-batch's windows (ne = ns, or M for the unsquared form), gain [wl*nb + b].
-// Grid: x = direction tiles of blockDim.x, y = groups of SL_SPEC_WG windows, z = groups of
+// Block: dt directions × (blockDim.x / dt) windows, one (direction, window) per thread;
+// per bin the block stages the steering tile (dt × M) and, when e_smem, the windows'
+// vectors in shared memory. Grid: x = direction tiles, y = window groups, z = groups of
 // bins; each z writes its own partial sum Ppart[z][wl][dir] (summed in peaks.cu, in a
-// fixed order). Dynamic shared memory: blockDim.x × (M | 1) complex (the steering tile).
+// fixed order). Dynamic shared memory: dt × (M | 1) complex (+ wg × ne × M complex).
 #include "common.cuh"
 
-#define SL_SPEC_WG 8
+// Signal vectors per pass over a (independent accumulators).
+#define SL_SPEC_NSB 4
 
 // ‖(I − E Eᴴ) a‖² for the ns rows of E (each of length M), two MGS passes.
 template <typename T>
-__device__ __noinline__ T residual_norm2(const cplx<T>* a, const cplx<T>* __restrict__ e, int M, int ns) {
+__device__ __noinline__ T residual_norm2(const cplx<T>* a, const cplx<T>* e, int M, int ns) {
     cplx<T> r[SL_MAXN];
     for (int i = 0; i < M; ++i) r[i] = a[i];
     for (int pass = 0; pass < 2; ++pass) {
@@ -40,84 +43,108 @@ __device__ __noinline__ T residual_norm2(const cplx<T>* a, const cplx<T>* __rest
     return s2;
 }
 
+// Σ_{s0 ≤ s < s1} f(aᴴ e_s), SL_SPEC_NSB vectors per pass; f = |·|² (sq) or |·|.
+template <typename T, bool SQ>
+__device__ __forceinline__ T proj_sum(const cplx<T>* a, const cplx<T>* e, int M, int s0, int s1) {
+    T tot = (T)0;
+    for (int sb = s0; sb < s1; sb += SL_SPEC_NSB) {
+        cplx<T> pr[SL_SPEC_NSB];
+#pragma unroll
+        for (int k = 0; k < SL_SPEC_NSB; ++k) pr[k] = czero<T>();
+        const int cnt = min(SL_SPEC_NSB, s1 - sb);
+        const cplx<T>* eb = e + (size_t)sb * M;
+        if (cnt == SL_SPEC_NSB) {
+            for (int i = 0; i < M; ++i) {
+                const cplx<T> ai = a[i];
+#pragma unroll
+                for (int k = 0; k < SL_SPEC_NSB; ++k) cmacc(pr[k], ai, eb[(size_t)k * M + i]);
+            }
+        } else if (cnt == 2) {
+            for (int i = 0; i < M; ++i) {
+                const cplx<T> ai = a[i];
+                cmacc(pr[0], ai, eb[i]);
+                cmacc(pr[1], ai, eb[(size_t)M + i]);
+            }
+        } else {
+            for (int i = 0; i < M; ++i) {
+                const cplx<T> ai = a[i];
+                for (int k = 0; k < cnt; ++k) cmacc(pr[k], ai, eb[(size_t)k * M + i]);
+            }
+        }
+#pragma unroll
+        for (int k = 0; k < SL_SPEC_NSB; ++k) {
+            if (k < cnt) tot += SQ ? cnorm2(pr[k]) : sl_sqrt(cnorm2(pr[k]));
+        }
+    }
+    return tot;
+}
+
 template <typename T>
 __device__ void spectrum_impl(const cplx<T>* __restrict__ St, const T* __restrict__ n2den,
                               const T* __restrict__ n2num, const cplx<T>* __restrict__ E, int ne,
                               const T* __restrict__ gain, int M, int nb, int D, int ns, int squared, int nwin, T tau,
-                              T* __restrict__ Ppart) {
+                              int dt, int e_smem, T* __restrict__ Ppart) {
     SL_DYN_SMEM(sl_smem);
-    cplx<T>* tile = reinterpret_cast<cplx<T>*>(sl_smem);
     const int lds = M | 1;
+    cplx<T>* tile = reinterpret_cast<cplx<T>*>(sl_smem);
+    cplx<T>* etile = tile + (size_t)dt * lds;
     const int tid = threadIdx.x, nt = blockDim.x;
-    const int d0 = blockIdx.x * nt;
-    const int d = d0 + tid;
-    const int w0 = blockIdx.y * SL_SPEC_WG;
+    const int wg = nt / dt;
+    const int dl = tid % dt, wi = tid / dt;
+    const int d0 = blockIdx.x * dt;
+    const int d = d0 + dl;
+    const int w0 = blockIdx.y * wg;
+    const int wl = w0 + wi;
+    const int nwg = min(wg, nwin - w0);
     const int bpg = (nb + gridDim.z - 1) / gridDim.z;
     const int b0 = blockIdx.z * bpg, b1 = min(nb, b0 + bpg);
-    const int ndt = min(nt, D - d0);
+    const int ndt = min(dt, D - d0);
+    const bool mine = d < D && wl < nwin;
     const T eps = sl_eps<T>::v();
-    T acc[SL_SPEC_WG];
-#pragma unroll
-    for (int k = 0; k < SL_SPEC_WG; ++k) acc[k] = (T)0;
+    T acc = (T)0;
     for (int b = b0; b < b1; ++b) {
         __syncthreads();
         const cplx<T>* src = St + ((size_t)b * D + d0) * M;
         for (int idx = tid; idx < ndt * M; idx += nt) {
-            const int dl = idx / M, i = idx - dl * M;
-            tile[dl * lds + i] = src[idx];
+            const int r = idx / M, i = idx - r * M;
+            tile[r * lds + i] = src[idx];
+        }
+        if (e_smem) {
+            const int per = ne * M;
+            for (int idx = tid; idx < nwg * per; idx += nt) {
+                const int k = idx / per, j = idx - k * per;
+                etile[idx] = E[((size_t)(w0 + k) * nb + b) * per + j];
+            }
         }
         __syncthreads();
-        if (d >= D) continue;
-        const cplx<T>* a = tile + tid * lds;
+        if (!mine) continue;
+        const T g = gain[(size_t)wl * nb + b];
+        if (g == (T)0) continue;
+        const cplx<T>* a = tile + dl * lds;
+        const cplx<T>* e = e_smem ? etile + (size_t)wi * ne * M : E + ((size_t)wl * nb + b) * ne * M;
         const T nd = n2den[(size_t)b * D + d], nn = n2num[(size_t)b * D + d];
-#pragma unroll
-        for (int k = 0; k < SL_SPEC_WG; ++k) {
-            const int wl = w0 + k;
-            if (wl >= nwin) break;
-            const T g = gain[(size_t)wl * nb + b];
-            if (g == (T)0) continue;
-            const cplx<T>* e = E + ((size_t)wl * nb + b) * ne * M;
-            T den;
-            if (squared) {
-                T sig = (T)0;
-                for (int s = 0; s < ns; ++s) {
-                    const cplx<T>* es = e + (size_t)s * M;
-                    cplx<T> pr = czero<T>();
-                    for (int i = 0; i < M; ++i) cmacc(pr, a[i], es[i]);  // aᴴ e_s
-                    sig += cnorm2(pr);
-                }
-                den = nd - sig;
-                if (den < tau * nd) den = residual_norm2(a, e, M, ns);
-                den = sl_max(den, eps * nd);
-            } else {
-                den = (T)0;
-                for (int s = ns; s < M; ++s) {
-                    const cplx<T>* es = e + (size_t)s * M;
-                    cplx<T> pr = czero<T>();
-                    for (int i = 0; i < M; ++i) cmacc(pr, a[i], es[i]);
-                    den += sl_sqrt(cnorm2(pr));
-                }
-                den = sl_max(den, eps * sl_sqrt(nd));
-            }
-            if (den > (T)0) acc[k] += g * nn / den;
+        T den;
+        if (squared) {
+            den = nd - proj_sum<T, true>(a, e, M, 0, ns);
+            if (den < tau * nd) den = residual_norm2(a, e, M, ns);
+            den = sl_max(den, eps * nd);
+        } else {
+            den = proj_sum<T, false>(a, e, M, ns, M);
+            den = sl_max(den, eps * sl_sqrt(nd));
         }
+        if (den > (T)0) acc += g * nn / den;
     }
-    if (d < D) {
-#pragma unroll
-        for (int k = 0; k < SL_SPEC_WG; ++k) {
-            const int wl = w0 + k;
-            if (wl < nwin) Ppart[((size_t)blockIdx.z * nwin + wl) * D + d] = acc[k];
-        }
-    }
+    if (mine) Ppart[((size_t)blockIdx.z * nwin + wl) * D + d] = acc;
 }
 
 extern "C" __global__ void spectrum_f32(const cplx<float>* St, const float* n2den, const float* n2num,
                                         const cplx<float>* E, int ne, const float* gain, int M, int nb, int D, int ns,
-                                        int squared, int nwin, float tau, float* Ppart) {
-    spectrum_impl<float>(St, n2den, n2num, E, ne, gain, M, nb, D, ns, squared, nwin, tau, Ppart);
+                                        int squared, int nwin, float tau, int dt, int e_smem, float* Ppart) {
+    spectrum_impl<float>(St, n2den, n2num, E, ne, gain, M, nb, D, ns, squared, nwin, tau, dt, e_smem, Ppart);
 }
 extern "C" __global__ void spectrum_f64(const cplx<double>* St, const double* n2den, const double* n2num,
                                         const cplx<double>* E, int ne, const double* gain, int M, int nb, int D,
-                                        int ns, int squared, int nwin, double tau, double* Ppart) {
-    spectrum_impl<double>(St, n2den, n2num, E, ne, gain, M, nb, D, ns, squared, nwin, tau, Ppart);
+                                        int ns, int squared, int nwin, double tau, int dt, int e_smem,
+                                        double* Ppart) {
+    spectrum_impl<double>(St, n2den, n2num, E, ne, gain, M, nb, D, ns, squared, nwin, tau, dt, e_smem, Ppart);
 }

@@ -78,20 +78,32 @@ struct Run {
 }
 
 fn run<T: Real>(b: &mut dyn Backend<T>, spectra: &Spectra<T>, windows: &[WindowSpec], batch: usize) -> Run {
-    let mut r = Run { db: Vec::new(), peaks: Vec::new(), bin_weight: Vec::new() };
+    let mut r = Run {
+        db: Vec::new(),
+        peaks: Vec::new(),
+        bin_weight: Vec::new(),
+    };
     let mut out = BatchOutput::default();
     for chunk in windows.chunks(batch.max(1)) {
         b.process(spectra, chunk, true, &mut out).expect("process");
         assert_eq!(out.peaks.len(), chunk.len());
         r.db.extend_from_slice(&out.spectrum_db);
         r.bin_weight.extend_from_slice(&out.bin_weight);
-        r.peaks.extend(out.peaks.iter().map(|p| p.iter().map(|p| p.dir).collect::<Vec<_>>()));
+        r.peaks.extend(
+            out.peaks
+                .iter()
+                .map(|p| p.iter().map(|p| p.dir).collect::<Vec<_>>()),
+        );
         // The reported peak power is the spectrum's value at that direction.
         let d = out.spectrum_db.len() / chunk.len();
         for (w, ps) in out.peaks.iter().enumerate() {
             for p in ps {
                 let s = out.spectrum_db[w * d + p.dir] as f64;
-                assert!((s - p.power_db).abs() <= 1e-4 * (1.0 + s.abs()), "peak power {} vs spectrum {s}", p.power_db);
+                assert!(
+                    (s - p.power_db).abs() <= 1e-4 * (1.0 + s.abs()),
+                    "peak power {} vs spectrum {s}",
+                    p.power_db
+                );
             }
         }
     }
@@ -115,7 +127,12 @@ fn compare(a: &Run, reference: &Run) -> Stats {
         s2 += e * e;
         mx = mx.max(e);
     }
-    let same = a.peaks.iter().zip(&reference.peaks).filter(|(x, y)| x == y).count();
+    let same = a
+        .peaks
+        .iter()
+        .zip(&reference.peaks)
+        .filter(|(x, y)| x == y)
+        .count();
     Stats {
         rms_db: (s2 / a.db.len() as f64).sqrt(),
         max_db: mx,
@@ -133,7 +150,11 @@ fn report(what: &str, s: &Stats) {
 }
 
 /// Build f32 and f64 plans for `config` and `tf`.
-fn plans(config: &LocalizeConfig, tf: &TransferFunctions, k: Option<&NoiseMatrices>) -> (Arc<Plan<f32>>, Arc<Plan<f64>>) {
+fn plans(
+    config: &LocalizeConfig,
+    tf: &TransferFunctions,
+    k: Option<&NoiseMatrices>,
+) -> (Arc<Plan<f32>>, Arc<Plan<f64>>) {
     (
         Arc::new(Plan::<f32>::new(config, tf, k).expect("plan f32")),
         Arc::new(Plan::<f64>::new(config, tf, k).expect("plan f64")),
@@ -161,11 +182,21 @@ fn scene(geometry: Geometry, grid: Grid, seed: u64) -> SceneData {
         sensor_noise_std: 0.002,
         ..Scene::default()
     };
-    let noise_only = Scene { sources: vec![rotor], sensor_noise_std: 0.002, ..Scene::default() };
+    let noise_only = Scene {
+        sources: vec![rotor],
+        sensor_noise_std: 0.002,
+        ..Scene::default()
+    };
     talkers.validate(&geometry, fs).expect("scene");
     let audio = render(&talkers, &geometry, fs, 1.2, seed).channels;
     let noise = render(&noise_only, &geometry, fs, 1.0, seed + 1).channels;
-    SceneData { geometry, grid, audio, noise, fs }
+    SceneData {
+        geometry,
+        grid,
+        audio,
+        noise,
+        fs,
+    }
 }
 
 fn spectra<T: Real>(config: &LocalizeConfig, plan: &Plan<T>, audio: &[Vec<f32>]) -> Spectra<T> {
@@ -205,24 +236,46 @@ fn parity_case(
     for (a, b) in gpu64.bin_weight.iter().zip(&cpu64.bin_weight) {
         bw = bw.max((*a as f64 - *b as f64).abs() / (1e-30 + b.abs() as f64));
     }
-    let (a, b, c) = (compare(&gpu32, &cpu64), compare(&gpu64, &cpu64), compare(&cpu32, &cpu64));
-    note(&format!("{label}: {} windows, {} directions on {name}", windows.len(), p64.num_dirs));
+    let (a, b, c) = (
+        compare(&gpu32, &cpu64),
+        compare(&gpu64, &cpu64),
+        compare(&cpu32, &cpu64),
+    );
+    note(&format!(
+        "{label}: {} windows, {} directions on {name}",
+        windows.len(),
+        p64.num_dirs
+    ));
     report("gpu f32 vs cpu f64", &a);
     report("gpu f64 vs cpu f64", &b);
     report("cpu f32 vs cpu f64", &c);
-    note(&format!("  max relative bin-weight difference (gpu f64) {bw:.2e}"));
+    note(&format!(
+        "  max relative bin-weight difference (gpu f64) {bw:.2e}"
+    ));
     assert!(bw < 1e-6, "{label}: bin weights differ by {bw}");
     (a, b, c)
 }
 
 fn scene_config(algorithm: Algorithm, window: usize, period: usize) -> LocalizeConfig {
-    LocalizeConfig { algorithm, window, period, num_sources: 2, ..Default::default() }
+    LocalizeConfig {
+        algorithm,
+        window,
+        period,
+        num_sources: 2,
+        ..Default::default()
+    }
 }
 
 fn check_scene(label: &str, r: (Stats, Stats, Stats)) {
     let (g32, g64, c32) = r;
-    assert_eq!(g32.same_peaks, 1.0, "{label}: GPU f32 peaks differ from the f64 reference");
-    assert_eq!(g64.same_peaks, 1.0, "{label}: GPU f64 peaks differ from the f64 reference");
+    assert_eq!(
+        g32.same_peaks, 1.0,
+        "{label}: GPU f32 peaks differ from the f64 reference"
+    );
+    assert_eq!(
+        g64.same_peaks, 1.0,
+        "{label}: GPU f64 peaks differ from the f64 reference"
+    );
     assert!(g64.rms_db < 1e-6, "{label}: GPU f64 spectrum differs: {g64:?}");
     assert!(
         g32.rms_db <= 1.5 * c32.rms_db + 1e-6,
@@ -251,71 +304,187 @@ fn kernels_compile_with_nvrtc() {
     }
     let t = std::time::Instant::now();
     let r = cuda::nvrtc_compile_all("sm_90").unwrap_or_else(|e| panic!("{e}"));
-    note(&format!("kernels_compile_with_nvrtc: {r:?} in {:.1} s", t.elapsed().as_secs_f64()));
+    note(&format!(
+        "kernels_compile_with_nvrtc: {r:?} in {:.1} s",
+        t.elapsed().as_secs_f64()
+    ));
     assert_eq!(r.len(), 5);
 }
 
 #[test]
 fn scene_ring_array_every_algorithm() {
-    let Some(mode) = mode("scene_ring_array_every_algorithm") else { return };
+    let Some(mode) = mode("scene_ring_array_every_algorithm") else {
+        return;
+    };
     let sd = scene(Geometry::circle(8, 0.0365, 0.0), Grid::ring(5.0, 0.0, 1.0), 7);
     let base = scene_config(Algorithm::Sevd, 50, 10);
-    let tf = free_field(&sd.geometry, &sd.grid, base.nfft, sd.fs, base.bin_range(), DEFAULT_SPEED_OF_SOUND_M_S).unwrap();
+    let tf = free_field(
+        &sd.geometry,
+        &sd.grid,
+        base.nfft,
+        sd.fs,
+        base.bin_range(),
+        DEFAULT_SPEED_OF_SOUND_M_S,
+    )
+    .unwrap();
     let k = estimate_noise(&base, sd.fs, &sd.noise, None).expect("noise");
     for alg in Algorithm::ALL {
         let cfg = scene_config(alg, 50, 10);
-        let r = parity_case(&mode, &format!("ring8 {}", alg.name()), &cfg, &tf, Some(&k), &sd.audio, 4);
+        let r = parity_case(
+            &mode,
+            &format!("ring8 {}", alg.name()),
+            &cfg,
+            &tf,
+            Some(&k),
+            &sd.audio,
+            4,
+        );
         check_scene(alg.name(), r);
     }
     // Unsquared denominator (all noise vectors), and other window types / PERIOD 1.
     for alg in [Algorithm::Sevd, Algorithm::Gsvd, Algorithm::Gevd] {
-        let cfg = LocalizeConfig { denominator: Denominator::Unsquared, ..scene_config(alg, 50, 10) };
-        let r = parity_case(&mode, &format!("ring8 {} unsquared", alg.name()), &cfg, &tf, Some(&k), &sd.audio, 4);
+        let cfg = LocalizeConfig {
+            denominator: Denominator::Unsquared,
+            ..scene_config(alg, 50, 10)
+        };
+        let r = parity_case(
+            &mode,
+            &format!("ring8 {} unsquared", alg.name()),
+            &cfg,
+            &tf,
+            Some(&k),
+            &sd.audio,
+            4,
+        );
         check_scene(&format!("{} unsquared", alg.name()), r);
     }
-    let cfg = LocalizeConfig { window_type: WindowType::Past, eigenvalue_weight: false, ..scene_config(Algorithm::Gevd, 30, 1) };
-    let r = parity_case(&mode, "ring8 gevd past W30 P1 no-eigw", &cfg, &tf, Some(&k), &sd.audio, 64);
+    // Fewer frames than microphones: the decomposition's factor form.
+    for alg in Algorithm::ALL {
+        let cfg = scene_config(alg, 6, 9);
+        let r = parity_case(
+            &mode,
+            &format!("ring8 {} W6 (factor form)", alg.name()),
+            &cfg,
+            &tf,
+            Some(&k),
+            &sd.audio,
+            5,
+        );
+        check_scene(&format!("{} W6", alg.name()), r);
+    }
+    let cfg = LocalizeConfig {
+        window_type: WindowType::Past,
+        eigenvalue_weight: false,
+        ..scene_config(Algorithm::Gevd, 30, 1)
+    };
+    let r = parity_case(
+        &mode,
+        "ring8 gevd past W30 P1 no-eigw",
+        &cfg,
+        &tf,
+        Some(&k),
+        &sd.audio,
+        64,
+    );
     check_scene("gevd past", r);
-    let cfg = LocalizeConfig { window_type: WindowType::Middle, max_peaks: 0, ..scene_config(Algorithm::Sevd, 25, 7) };
-    let r = parity_case(&mode, "ring8 sevd middle W25 P7 all peaks", &cfg, &tf, Some(&k), &sd.audio, 3);
+    let cfg = LocalizeConfig {
+        window_type: WindowType::Middle,
+        max_peaks: 0,
+        ..scene_config(Algorithm::Sevd, 25, 7)
+    };
+    let r = parity_case(
+        &mode,
+        "ring8 sevd middle W25 P7 all peaks",
+        &cfg,
+        &tf,
+        Some(&k),
+        &sd.audio,
+        3,
+    );
     check_scene("sevd middle all peaks", r);
 }
 
 #[test]
 fn scene_sphere_array_60_mics() {
-    let Some(mode) = mode("scene_sphere_array_60_mics") else { return };
+    let Some(mode) = mode("scene_sphere_array_60_mics") else {
+        return;
+    };
     let (mics, dirs) = if mode.is_emulator() { (16, 200) } else { (60, 2522) };
     let sd = scene(Geometry::sphere(mics, 0.1), Grid::sphere(dirs, 1.0), 11);
     let base = scene_config(Algorithm::Gsvd, 50, 25);
-    let tf = free_field(&sd.geometry, &sd.grid, base.nfft, sd.fs, base.bin_range(), DEFAULT_SPEED_OF_SOUND_M_S).unwrap();
+    let tf = free_field(
+        &sd.geometry,
+        &sd.grid,
+        base.nfft,
+        sd.fs,
+        base.bin_range(),
+        DEFAULT_SPEED_OF_SOUND_M_S,
+    )
+    .unwrap();
     let k = estimate_noise(&base, sd.fs, &sd.noise, None).expect("noise");
     for alg in Algorithm::ALL {
         let cfg = scene_config(alg, 50, 25);
-        let r = parity_case(&mode, &format!("sphere{mics} {}", alg.name()), &cfg, &tf, Some(&k), &sd.audio, 8);
+        let r = parity_case(
+            &mode,
+            &format!("sphere{mics} {}", alg.name()),
+            &cfg,
+            &tf,
+            Some(&k),
+            &sd.audio,
+            8,
+        );
         check_scene(alg.name(), r);
     }
 }
 
 #[test]
 fn seed_config_random_data_every_algorithm() {
-    let Some(mode) = mode("seed_config_random_data_every_algorithm") else { return };
+    let Some(mode) = mode("seed_config_random_data_every_algorithm") else {
+        return;
+    };
     for alg in Algorithm::ALL {
+        let env = |k: &str, d: usize| std::env::var(k).ok().and_then(|v| v.parse().ok()).unwrap_or(d);
         let cfg = if mode.is_emulator() {
-            BenchConfig { algorithm: alg, num_mics: 10, num_dirs: 300, window: 20, batch: 3, ..Default::default() }
+            BenchConfig {
+                algorithm: alg,
+                num_mics: env("SOUNDLOC_EMU_MICS", 10),
+                num_dirs: env("SOUNDLOC_EMU_DIRS", 300),
+                window: env("SOUNDLOC_EMU_WINDOW", 20),
+                batch: env("SOUNDLOC_EMU_BATCH", 3),
+                ..Default::default()
+            }
         } else {
-            BenchConfig { algorithm: alg, batch: 24, ..Default::default() }
+            BenchConfig {
+                algorithm: alg,
+                batch: 24,
+                ..Default::default()
+            }
         };
         let i64_ = inputs::<f64>(&cfg).expect("inputs f64");
         let i32_ = inputs::<f32>(&cfg).expect("inputs f32");
-        let cpu64 = run(&mut CpuBackend::new(i64_.plan.clone()), &i64_.spectra, &i64_.windows, 8);
-        let cpu32 = run(&mut CpuBackend::new(i32_.plan.clone()), &i32_.spectra, &i32_.windows, 8);
+        let cpu64 = run(
+            &mut CpuBackend::new(i64_.plan.clone()),
+            &i64_.spectra,
+            &i64_.windows,
+            8,
+        );
+        let cpu32 = run(
+            &mut CpuBackend::new(i32_.plan.clone()),
+            &i32_.spectra,
+            &i32_.windows,
+            8,
+        );
         let mut g = gpu(&mode, i32_.plan.clone());
         let gpu32 = run(&mut *g, &i32_.spectra, &i32_.windows, cfg.batch);
         drop(g);
         let mut g = gpu(&mode, i64_.plan.clone());
         let gpu64 = run(&mut *g, &i64_.spectra, &i64_.windows, 5);
         drop(g);
-        let (a, b, c) = (compare(&gpu32, &cpu64), compare(&gpu64, &cpu64), compare(&cpu32, &cpu64));
+        let (a, b, c) = (
+            compare(&gpu32, &cpu64),
+            compare(&gpu64, &cpu64),
+            compare(&cpu32, &cpu64),
+        );
         note(&format!(
             "seed config {} (M={} D={} W={} Ns={}), {} windows:",
             alg.name(),

@@ -9,6 +9,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <functional>
+#include <mutex>
 #include <string>
 #include <tuple>
 #include <unordered_map>
@@ -183,6 +184,9 @@ uint64_t* emu_warp_slots(int buf) { return g_block.warps[emu_cur->warp].slots[bu
 
 extern "C" int emu_launch(const char* name, unsigned gx, unsigned gy, unsigned gz, unsigned bx, unsigned by,
                           unsigned bz, unsigned smem, void** params) {
+    // One launch at a time: the block state and `__shared__` statics are process-global.
+    static std::mutex mu;
+    std::lock_guard<std::mutex> lock(mu);
     const auto& r = registry();
     auto it = r.find(name);
     if (it == r.end()) return -1;

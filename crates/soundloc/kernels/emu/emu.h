@@ -20,6 +20,7 @@
 #define __noinline__ __attribute__((noinline))
 #define __restrict__ __restrict
 #define __align__(n) alignas(n)
+#define __launch_bounds__(...)
 #define __shared__ static
 
 using std::max;

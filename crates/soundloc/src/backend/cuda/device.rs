@@ -66,8 +66,15 @@ pub(crate) trait Gpu: Send {
     ///
     /// # Safety
     /// `params` must match the kernel's signature and point to live values.
-    unsafe fn launch(&self, f: Func, grid: [u32; 3], block: u32, smem: u32, s: Stream, params: &mut [*mut c_void])
-        -> Result<()>;
+    unsafe fn launch(
+        &self,
+        f: Func,
+        grid: [u32; 3],
+        block: u32,
+        smem: u32,
+        s: Stream,
+        params: &mut [*mut c_void],
+    ) -> Result<()>;
     /// A new timing event.
     fn event(&mut self) -> Result<Event>;
     /// Record `e` on `s`.
@@ -126,7 +133,9 @@ pub(crate) fn device_info(ordinal: usize) -> Result<(String, u32, usize)> {
         return Err(Error::Device("the CUDA driver reports no GPU".into()));
     }
     if ordinal >= count as usize {
-        return Err(Error::Device(format!("cuda:{ordinal} requested, but only {count} GPU(s) present")));
+        return Err(Error::Device(format!(
+            "cuda:{ordinal} requested, but only {count} GPU(s) present"
+        )));
     }
     let dev = drv::device::get(ordinal as i32).map_err(|e| dev_err("cuDeviceGet", e))?;
     let name = drv::device::get_name(dev).map_err(|e| dev_err("cuDeviceGetName", e))?;
@@ -159,11 +168,15 @@ impl CudaGpu {
         let img = kernels::image_for(variant, cc).map_err(Error::Device)?;
         let dev = drv::device::get(ordinal as i32).map_err(|e| dev_err("cuDeviceGet", e))?;
         // SAFETY: `dev` is valid; the context is retained until Drop.
-        let ctx = unsafe { drv::primary_ctx::retain(dev) }.map_err(|e| dev_err("cuDevicePrimaryCtxRetain", e))?;
+        let ctx =
+            unsafe { drv::primary_ctx::retain(dev) }.map_err(|e| dev_err("cuDevicePrimaryCtxRetain", e))?;
         // SAFETY: ctx is a live primary context.
         unsafe { drv::ctx::set_current(ctx) }.map_err(|e| dev_err("cuCtxSetCurrent", e))?;
         let smem_optin = unsafe {
-            drv::device::get_attribute(dev, sys::CUdevice_attribute::CU_DEVICE_ATTRIBUTE_MAX_SHARED_MEMORY_PER_BLOCK_OPTIN)
+            drv::device::get_attribute(
+                dev,
+                sys::CUdevice_attribute::CU_DEVICE_ATTRIBUTE_MAX_SHARED_MEMORY_PER_BLOCK_OPTIN,
+            )
         }
         .map_err(|e| dev_err("cuDeviceGetAttribute", e))? as usize;
         let mut g = CudaGpu {
@@ -179,8 +192,10 @@ impl CudaGpu {
             smem_optin,
             arch: img.arch.clone(),
         };
-        g.compute = drv::stream::create(drv::stream::StreamKind::NonBlocking).map_err(|e| dev_err("cuStreamCreate", e))?;
-        g.copy = drv::stream::create(drv::stream::StreamKind::NonBlocking).map_err(|e| dev_err("cuStreamCreate", e))?;
+        g.compute = drv::stream::create(drv::stream::StreamKind::NonBlocking)
+            .map_err(|e| dev_err("cuStreamCreate", e))?;
+        g.copy = drv::stream::create(drv::stream::StreamKind::NonBlocking)
+            .map_err(|e| dev_err("cuStreamCreate", e))?;
         // SAFETY: a CUBIN, or NUL-terminated PTX.
         g.module = unsafe { drv::module::load_data(img.bytes.as_ptr() as *const c_void) }
             .map_err(|e| dev_err(&format!("cuModuleLoadData ({})", img.arch), e))?;
@@ -218,7 +233,10 @@ impl Drop for CudaGpu {
 
 impl Gpu for CudaGpu {
     fn describe(&self) -> String {
-        format!("cuda:{} {} (sm_{}, {})", self.ordinal, self.name, self.cc, self.arch)
+        format!(
+            "cuda:{} {} (sm_{}, {})",
+            self.ordinal, self.name, self.cc, self.arch
+        )
     }
 
     fn make_current(&self) -> Result<()> {
@@ -240,7 +258,8 @@ impl Gpu for CudaGpu {
 
     fn alloc(&mut self, bytes: usize) -> Result<DevPtr> {
         // SAFETY: plain allocation in the current context.
-        unsafe { drv::malloc_sync(bytes.max(16)) }.map_err(|e| dev_err(&format!("cuMemAlloc({bytes} bytes)"), e))
+        unsafe { drv::malloc_sync(bytes.max(16)) }
+            .map_err(|e| dev_err(&format!("cuMemAlloc({bytes} bytes)"), e))
     }
 
     fn free(&mut self, p: DevPtr) {
@@ -329,13 +348,18 @@ impl Gpu for CudaGpu {
 
     fn record(&self, e: Event, s: Stream) -> Result<()> {
         // SAFETY: `e` from `event`.
-        unsafe { drv::event::record(e as sys::CUevent, self.stream(s)) }.map_err(|e| dev_err("cuEventRecord", e))
+        unsafe { drv::event::record(e as sys::CUevent, self.stream(s)) }
+            .map_err(|e| dev_err("cuEventRecord", e))
     }
 
     fn wait(&self, s: Stream, e: Event) -> Result<()> {
         // SAFETY: `e` from `event`.
         unsafe {
-            drv::stream::wait_event(self.stream(s), e as sys::CUevent, sys::CUevent_wait_flags::CU_EVENT_WAIT_DEFAULT)
+            drv::stream::wait_event(
+                self.stream(s),
+                e as sys::CUevent,
+                sys::CUevent_wait_flags::CU_EVENT_WAIT_DEFAULT,
+            )
         }
         .map_err(|e| dev_err("cuStreamWaitEvent", e))
     }
@@ -347,7 +371,8 @@ impl Gpu for CudaGpu {
 
     fn elapsed_ms(&self, a: Event, b: Event) -> Result<f32> {
         // SAFETY: both from `event`, recorded and completed.
-        unsafe { drv::event::elapsed(a as sys::CUevent, b as sys::CUevent) }.map_err(|e| dev_err("cuEventElapsedTime", e))
+        unsafe { drv::event::elapsed(a as sys::CUevent, b as sys::CUevent) }
+            .map_err(|e| dev_err("cuEventElapsedTime", e))
     }
 
     fn sync(&self, s: Stream) -> Result<()> {

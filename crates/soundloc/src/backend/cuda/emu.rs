@@ -55,7 +55,10 @@ impl EmuGpu {
             }
             let f = dlsym(h, c"emu_launch".as_ptr());
             if f.is_null() {
-                return Err(Error::Device(format!("emulator {}: no emu_launch", path.display())));
+                return Err(Error::Device(format!(
+                    "emulator {}: no emu_launch",
+                    path.display()
+                )));
             }
             Ok(EmuGpu {
                 launch_fn: std::mem::transmute::<*mut c_void, LaunchFn>(f),
@@ -113,7 +116,8 @@ impl Gpu for EmuGpu {
         Ok(())
     }
     fn function(&mut self, name: &str) -> Result<Func> {
-        self.names.push(CString::new(name).map_err(|e| Error::Device(e.to_string()))?);
+        self.names
+            .push(CString::new(name).map_err(|e| Error::Device(e.to_string()))?);
         Ok((self.names.len() - 1) as u64)
     }
     fn set_max_smem(&self, _f: Func, _bytes: usize) -> Result<()> {
@@ -130,7 +134,19 @@ impl Gpu for EmuGpu {
     ) -> Result<()> {
         let name = &self.names[f as usize];
         // SAFETY: caller's contract; the emulator copies the parameter values.
-        let r = unsafe { (self.launch_fn)(name.as_ptr(), grid[0], grid[1], grid[2], block, 1, 1, smem, params.as_mut_ptr()) };
+        let r = unsafe {
+            (self.launch_fn)(
+                name.as_ptr(),
+                grid[0],
+                grid[1],
+                grid[2],
+                block,
+                1,
+                1,
+                smem,
+                params.as_mut_ptr(),
+            )
+        };
         if r != 0 {
             return Err(Error::Device(format!("emulator: unknown kernel {name:?}")));
         }

@@ -24,7 +24,12 @@ pub(crate) enum KernelId {
 }
 
 impl KernelId {
-    pub(crate) const ALL: [KernelId; 4] = [KernelId::Correlate, KernelId::Decompose, KernelId::Spectrum, KernelId::Peaks];
+    pub(crate) const ALL: [KernelId; 4] = [
+        KernelId::Correlate,
+        KernelId::Decompose,
+        KernelId::Spectrum,
+        KernelId::Peaks,
+    ];
 
     fn source(self) -> &'static str {
         match self {
@@ -125,11 +130,18 @@ fn supported_archs() -> Vec<i32> {
     let mut n: c_int = 0;
     // SAFETY: out-parameters sized by the first call.
     unsafe {
-        if cudarc::nvrtc::sys::nvrtcGetNumSupportedArchs(&mut n).result().is_err() || n <= 0 {
+        if cudarc::nvrtc::sys::nvrtcGetNumSupportedArchs(&mut n)
+            .result()
+            .is_err()
+            || n <= 0
+        {
             return Vec::new();
         }
         let mut v = vec![0 as c_int; n as usize];
-        if cudarc::nvrtc::sys::nvrtcGetSupportedArchs(v.as_mut_ptr()).result().is_err() {
+        if cudarc::nvrtc::sys::nvrtcGetSupportedArchs(v.as_mut_ptr())
+            .result()
+            .is_err()
+        {
             return Vec::new();
         }
         v
@@ -140,7 +152,8 @@ fn supported_archs() -> Vec<i32> {
 pub(crate) fn nvrtc_compile(source: &str, opts: &[String], cubin: bool) -> Result<Vec<u8>, String> {
     use cudarc::nvrtc::{result, sys};
     let src = CString::new(source).map_err(|e| e.to_string())?;
-    let prog = result::create_program(&src, Some(c"soundloc.cu")).map_err(|e| format!("nvrtcCreateProgram: {e}"))?;
+    let prog =
+        result::create_program(&src, Some(c"soundloc.cu")).map_err(|e| format!("nvrtcCreateProgram: {e}"))?;
     // SAFETY: `prog` is valid until destroyed below; buffers are sized by the size calls.
     unsafe {
         let compiled = result::compile_program(prog, opts);
@@ -183,12 +196,17 @@ pub(crate) fn nvrtc_compile(source: &str, opts: &[String], cubin: bool) -> Resul
 }
 
 fn options(v: Variant, arch: &str) -> Vec<String> {
-    vec![
+    let mut o = vec![
         format!("--gpu-architecture={arch}"),
         "--std=c++17".to_string(),
         format!("-DSL_LPP={}", v.lpp),
         format!("-DSL_RPL={}", v.rpl),
-    ]
+    ];
+    // Developer hook for tuning runs (e.g. "-DSL_F32_MINB=3"); fixed for the process.
+    if let Ok(extra) = std::env::var("SOUNDLOC_CUDA_NVRTC_OPTS") {
+        o.extend(extra.split_whitespace().map(str::to_string));
+    }
+    o
 }
 
 /// Compile (or fetch from the process-wide cache) the module for a device of compute
@@ -198,9 +216,11 @@ pub(crate) fn image_for(v: Variant, cc: u32) -> Result<Image, String> {
         return Ok(img.clone());
     }
     if !nvrtc_present() {
-        return Err("libnvrtc (the CUDA run-time compiler) was not found; install the CUDA toolkit \
+        return Err(
+            "libnvrtc (the CUDA run-time compiler) was not found; install the CUDA toolkit \
                     or add its lib64 folder to LD_LIBRARY_PATH"
-            .into());
+                .into(),
+        );
     }
     let src = full_source(v);
     let archs = supported_archs();
@@ -214,13 +234,21 @@ pub(crate) fn image_for(v: Variant, cc: u32) -> Result<Image, String> {
     } else {
         ptx_fallback(v, &src, cc, &archs)?
     };
-    cache().lock().map_err(|e| e.to_string())?.insert((v, cc), img.clone());
+    cache()
+        .lock()
+        .map_err(|e| e.to_string())?
+        .insert((v, cc), img.clone());
     Ok(img)
 }
 
 fn ptx_fallback(v: Variant, src: &str, cc: u32, archs: &[i32]) -> Result<Image, String> {
     // The newest virtual architecture NVRTC knows that the device can run.
-    let best = archs.iter().copied().filter(|&a| a as u32 <= cc).max().unwrap_or(75);
+    let best = archs
+        .iter()
+        .copied()
+        .filter(|&a| a as u32 <= cc)
+        .max()
+        .unwrap_or(75);
     let arch = format!("compute_{best}");
     let bytes = nvrtc_compile(src, &options(v, &arch), false)?;
     Ok(Image { bytes, arch })

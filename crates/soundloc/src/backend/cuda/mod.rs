@@ -52,12 +52,11 @@ use device::{CudaGpu, DevPtr, Event, Func, Gpu, Stream};
 use kernels::Variant;
 use rayon::prelude::*;
 use std::ffi::c_void;
+use std::io::Write;
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::path::Path;
 use std::sync::Arc;
 
-/// Windows per spectrum block (must match `SL_SPEC_WG` in spectrum.cu).
-const SPEC_WG: usize = 8;
 /// Bytes per pinned staging buffer for frame uploads.
 const STAGE_BYTES: usize = 16 << 20;
 /// Jacobi sweep cap (a converged 60 × 60 problem takes well under this).
@@ -164,7 +163,9 @@ struct Args {
 
 impl Args {
     fn new() -> Self {
-        Args { v: Vec::with_capacity(24) }
+        Args {
+            v: Vec::with_capacity(24),
+        }
     }
     fn p(mut self, p: DevPtr) -> Self {
         self.v.push(p);
@@ -202,6 +203,10 @@ struct Layout {
     squared: bool,
     left: usize,
     right: usize,
+    /// How the decomposition kernel evaluates the largest value (decompose.cu).
+    valmode: usize,
+    alg: Algorithm,
+    lpp: usize,
     want_v: bool,
     ld: usize,
     dec_smem_mode: bool,
@@ -210,8 +215,14 @@ struct Layout {
     dec_scratch_per_mat: usize,
     corr_fc: usize,
     corr_smem: usize,
+    /// Directions per spectrum block.
     spec_dt: usize,
-    spec_smem: usize,
+    /// Windows per spectrum block (at most).
+    spec_wg: usize,
+    /// Whether the spectrum kernel stages the windows' vectors in shared memory.
+    spec_e_smem: bool,
+    /// Shared memory of the steering tile.
+    spec_tile: usize,
     peak_cap: usize,
     peak_kout: usize,
     peak_smem: usize,
@@ -233,6 +244,9 @@ pub struct CudaBackend<T: Real> {
     times: StageTimes,
     max_batch: usize,
     sub_batch: usize,
+    debug: bool,
+    /// Whether the factor form may be used (SOUNDLOC_CUDA_FACTOR=0 turns it off).
+    factor_ok: bool,
     // Plan data on the device.
     d_st: Buf,
     d_n2den: Buf,
@@ -253,6 +267,7 @@ pub struct CudaBackend<T: Real> {
     d_gain: Buf,
     d_bw: Buf,
     d_info: Buf,
+    d_scale: Buf,
     d_db: Buf,
     d_spec: Buf,
     d_out: Buf,
@@ -295,6 +310,8 @@ impl<T: Real> CudaBackend<T> {
             times: StageTimes::default(),
             max_batch: 1,
             sub_batch: 1,
+            debug: std::env::var("SOUNDLOC_CUDA_DEBUG").is_ok_and(|v| v == "1"),
+            factor_ok: std::env::var("SOUNDLOC_CUDA_FACTOR").map_or(true, |v| v != "0"),
             d_st: Buf::default(),
             d_n2den: Buf::default(),
             d_n2num: Buf::default(),
@@ -313,6 +330,7 @@ impl<T: Real> CudaBackend<T> {
             d_gain: Buf::default(),
             d_bw: Buf::default(),
             d_info: Buf::default(),
+            d_scale: Buf::default(),
             d_db: Buf::default(),
             d_spec: Buf::default(),
             d_out: Buf::default(),
@@ -348,7 +366,15 @@ impl<T: Real> CudaBackend<T> {
         for (f, s) in [
             (self.f.correlate, l.corr_smem),
             (self.f.decompose, l.dec_smem),
-            (self.f.spectrum, l.spec_smem),
+            (
+                self.f.spectrum,
+                l.spec_tile
+                    + if l.spec_e_smem {
+                        l.spec_wg * l.ne * l.m * csize::<T>()
+                    } else {
+                        0
+                    },
+            ),
             (self.f.peaks, l.peak_smem + 64),
         ] {
             if s > SMEM_DEFAULT {
@@ -452,13 +478,15 @@ impl<T: Real> CudaBackend<T> {
         // About 32 matrices per multiprocessor per sub-batch: several waves of the Jacobi
         // kernel, so that the tail of one wave does not dominate.
         let sub = (32 * sms).div_ceil(l.nb).clamp(1, 256);
-        let per_sub_window = l.nb * l.m * l.m * cs + l.nb * l.ne * l.m * cs + l.nb * l.dec_scratch_per_mat + l.nb * l.d * ts;
+        let per_sub_window =
+            l.nb * l.m * l.m * cs + l.nb * l.ne * l.m * cs + l.nb * l.dec_scratch_per_mat + l.nb * l.d * ts;
         let (free, _) = self.gpu.mem_info()?;
         let budget = free / 4;
         self.sub_batch = sub.min((budget / per_sub_window.max(1)).max(1));
         let w = self.plan.config.window.max(1);
         let per_window = w * l.nb * l.m * cs + l.d * (8 + 4 + ts) + l.nb * (ts + 8) + (1 + l.peak_kout) * 16;
-        self.max_batch = ((free / 4).saturating_sub(self.sub_batch * per_sub_window) / per_window.max(1)).clamp(1, 4096);
+        self.max_batch =
+            ((free / 4).saturating_sub(self.sub_batch * per_sub_window) / per_window.max(1)).clamp(1, 4096);
         Ok(())
     }
 
@@ -473,6 +501,7 @@ impl<T: Real> CudaBackend<T> {
             Scratch::Gain => &mut self.d_gain,
             Scratch::Bw => &mut self.d_bw,
             Scratch::Info => &mut self.d_info,
+            Scratch::Scale => &mut self.d_scale,
             Scratch::Db => &mut self.d_db,
             Scratch::Spec => &mut self.d_spec,
             Scratch::Out => &mut self.d_out,
@@ -494,6 +523,7 @@ impl<T: Real> CudaBackend<T> {
                 Scratch::Gain => &mut self.d_gain,
                 Scratch::Bw => &mut self.d_bw,
                 Scratch::Info => &mut self.d_info,
+                Scratch::Scale => &mut self.d_scale,
                 Scratch::Db => &mut self.d_db,
                 Scratch::Spec => &mut self.d_spec,
                 Scratch::Out => &mut self.d_out,
@@ -541,12 +571,20 @@ impl<T: Real> CudaBackend<T> {
     /// Spectrum bin groups for a sub-batch of `nwb` windows: enough blocks to fill the GPU.
     fn bin_groups(&self, nwb: usize) -> usize {
         let l = &self.lay;
-        let xy = l.d.div_ceil(l.spec_dt) * nwb.div_ceil(SPEC_WG);
-        (2 * self.gpu.sm_count()).div_ceil(xy.max(1)).clamp(1, l.nb)
+        let xy = l.d.div_ceil(l.spec_dt) * nwb.div_ceil(l.spec_wg.min(nwb).max(1));
+        (4 * self.gpu.sm_count()).div_ceil(xy.max(1)).clamp(1, l.nb)
     }
 
     #[allow(clippy::too_many_arguments)]
-    fn launch_sub_batch(&mut self, k: usize, nw: usize, kout: usize, want_spectrum: bool, ev: &[Event]) -> Result<()> {
+    fn launch_sub_batch(
+        &mut self,
+        k: usize,
+        nw: usize,
+        kout: usize,
+        want_spectrum: bool,
+        mode: &DecMode,
+        ev: &[Event],
+    ) -> Result<()> {
         let l = self.lay.clone();
         let (cs, ts) = (csize::<T>(), std::mem::size_of::<T>());
         let sb = self.sub_batch;
@@ -565,22 +603,29 @@ impl<T: Real> CudaBackend<T> {
             .i(l.corr_fc)
             .i(mat0)
             .p(self.d_r.ptr)
+            .p(self.d_scale.ptr)
             .launch(g, self.f.correlate, [nmat, 1, 1], 256, l.corr_smem)?;
         g.record(ev[1], Stream::Compute)?;
         let vec_all = usize::from(!l.squared);
         Args::new()
             .p(self.d_r.ptr)
+            .p(self.d_x.ptr)
+            .p(self.d_win.ptr)
+            .p(self.d_scale.ptr)
             .p(self.d_wcm.ptr)
             .p(self.d_wrm.ptr)
             .i(l.m)
             .i(l.nb)
             .i(l.ld)
-            .i(l.left)
-            .i(l.right)
+            .i(mode.ncf)
+            .i(mode.factor)
+            .i(mode.left)
+            .i(mode.right)
             .i(l.ns)
             .i(vec_all)
             .i(MAX_SWEEPS as usize)
             .i(usize::from(self.plan.config.eigenvalue_weight))
+            .i(l.valmode)
             .p(self.d_weights.ptr)
             .i(mat0)
             .p(self.d_e.ptr)
@@ -588,9 +633,15 @@ impl<T: Real> CudaBackend<T> {
             .p(self.d_bw.ptr)
             .p(self.d_info.ptr)
             .p(self.d_scratch.ptr)
-            .launch(g, self.f.decompose, [nmat, 1, 1], l.dec_threads, l.dec_smem)?;
+            .launch(g, self.f.decompose, [nmat, 1, 1], mode.threads, l.dec_smem)?;
         g.record(ev[2], Stream::Compute)?;
-        let n2den = if self.d_n2den.bytes > 0 { self.d_n2den.ptr } else { self.d_n2num.ptr };
+        let n2den = if self.d_n2den.bytes > 0 {
+            self.d_n2den.ptr
+        } else {
+            self.d_n2num.ptr
+        };
+        let wg = l.spec_wg.min(nwb).max(1);
+        let spec_smem = l.spec_tile + if l.spec_e_smem { wg * l.ne * l.m * cs } else { 0 };
         Args::new()
             .p(self.d_st.ptr)
             .p(n2den)
@@ -605,17 +656,23 @@ impl<T: Real> CudaBackend<T> {
             .i(usize::from(l.squared))
             .i(nwb)
             .r(T::of_f64(crate::music::REFINE_RATIO))
+            .i(l.spec_dt)
+            .i(usize::from(l.spec_e_smem))
             .p(self.d_ppart.ptr)
             .launch(
                 g,
                 self.f.spectrum,
-                [l.d.div_ceil(l.spec_dt), nwb.div_ceil(SPEC_WG), nbg],
-                l.spec_dt,
-                l.spec_smem,
+                [l.d.div_ceil(l.spec_dt), nwb.div_ceil(wg), nbg],
+                l.spec_dt * wg,
+                spec_smem,
             )?;
         g.record(ev[3], Stream::Compute)?;
         let row = (1 + kout) * 16;
-        let spec_ptr = if want_spectrum { self.d_spec.ptr + (w0 * l.d * 4) as u64 } else { 0 };
+        let spec_ptr = if want_spectrum {
+            self.d_spec.ptr + (w0 * l.d * 4) as u64
+        } else {
+            0
+        };
         Args::new()
             .p(self.d_ppart.ptr)
             .i(nbg)
@@ -633,7 +690,12 @@ impl<T: Real> CudaBackend<T> {
         // SAFETY: the pinned buffers were sized for the whole batch before the loop and
         // are not touched by the host until the compute stream is synchronised.
         unsafe {
-            g.dtoh(self.h_out.ptr.add(w0 * row), self.d_out.ptr + (w0 * row) as u64, nwb * row, Stream::Compute)?;
+            g.dtoh(
+                self.h_out.ptr.add(w0 * row),
+                self.d_out.ptr + (w0 * row) as u64,
+                nwb * row,
+                Stream::Compute,
+            )?;
             if want_spectrum {
                 g.dtoh(
                     self.h_spec.ptr.add(w0 * l.d * 4),
@@ -653,6 +715,19 @@ impl<T: Real> CudaBackend<T> {
         let _ = cs;
         Ok(())
     }
+}
+
+/// How the decomposition kernel forms the matrix it rotates (per batch).
+#[derive(Debug, Clone, Copy)]
+struct DecMode {
+    /// 0: the M × M matrix from R; 1: the factor W·Yᴴ (W < M frames, Hermitian cases);
+    /// 2: the GSVD factor K⁻¹ R Q (Q an orthonormal basis of the frames).
+    factor: usize,
+    /// Columns of the factor (even).
+    ncf: usize,
+    left: usize,
+    right: usize,
+    threads: usize,
 }
 
 #[derive(Clone, Copy)]
@@ -679,6 +754,7 @@ enum Scratch {
     Gain,
     Bw,
     Info,
+    Scale,
     Db,
     Spec,
     Out,
@@ -708,6 +784,12 @@ fn layout<T: Real>(plan: &Plan<T>, gpu: &dyn Gpu) -> Result<Layout> {
         (Algorithm::Gsvd, true) => (1, 0),
         (Algorithm::Gsvd, false) => (0, 1),
     };
+    let valmode = match plan.config.algorithm {
+        Algorithm::Sevd => 0,
+        Algorithm::Gevd => 1,
+        Algorithm::GevdHark => 2,
+        Algorithm::Gsvd => 3,
+    };
     let want_v = !squared;
     let ne = if squared { ns } else { m };
     let v = variant_for(plan)?;
@@ -718,22 +800,30 @@ fn layout<T: Real>(plan: &Plan<T>, gpu: &dyn Gpu) -> Result<Layout> {
     }
     let optin = gpu.max_smem_optin().max(SMEM_DEFAULT);
     let mats = if want_v { 2 } else { 1 } * n * ld * cs;
-    let small = (n * ts + 32 * ts + n * 4).div_ceil(16) * 16;
+    let small = (3 * n * cs + n * ts + 32 * ts + 2 * n * 4).div_ceil(16) * 16;
     let dec_smem_mode = mats + small <= optin;
-    let (dec_smem, dec_scratch_per_mat) = if dec_smem_mode { (mats + small, 0) } else { (small, mats) };
+    let (dec_smem, dec_scratch_per_mat) = if dec_smem_mode {
+        (mats + small, 0)
+    } else {
+        (small, mats)
+    };
     let groups = n / 2 * v.lpp as usize;
     let dec_threads = groups.div_ceil(32).clamp(1, 32) * 32;
     let corr_fc = ((SMEM_DEFAULT - 32 * ts) / (m * cs)).clamp(1, 32);
     let corr_smem = corr_fc * m * cs + 32 * ts;
     let lds = m | 1;
-    let mut spec_dt = 128;
+    let mut spec_dt = 64;
     while spec_dt > 32 && spec_dt * lds * cs > 64 * 1024 {
         spec_dt /= 2;
     }
-    let spec_smem = spec_dt * lds * cs;
-    if spec_smem > optin {
-        return Err(Error::Device(format!("{m} microphones: the spectrum tile does not fit in shared memory")));
+    let spec_tile = spec_dt * lds * cs;
+    if spec_tile > optin {
+        return Err(Error::Device(format!(
+            "{m} microphones: the spectrum tile does not fit in shared memory"
+        )));
     }
+    let spec_wg = if squared { 4 } else { 1 };
+    let spec_e_smem = spec_tile + spec_wg * ne * m * cs <= optin.min(160 * 1024);
     let peak_cap = d.next_power_of_two().clamp(1, 4096);
     let peak_kout = plan.peak_table.max_out.min(peak_cap);
     let peak_smem = peak_cap * 12;
@@ -746,6 +836,9 @@ fn layout<T: Real>(plan: &Plan<T>, gpu: &dyn Gpu) -> Result<Layout> {
         squared,
         left,
         right,
+        valmode,
+        alg: plan.config.algorithm,
+        lpp: v.lpp as usize,
         want_v,
         ld,
         dec_smem_mode,
@@ -755,7 +848,9 @@ fn layout<T: Real>(plan: &Plan<T>, gpu: &dyn Gpu) -> Result<Layout> {
         corr_fc,
         corr_smem,
         spec_dt,
-        spec_smem,
+        spec_wg,
+        spec_e_smem,
+        spec_tile,
         peak_cap,
         peak_kout,
         peak_smem,
@@ -785,7 +880,10 @@ impl<T: Real> Backend<T> for CudaBackend<T> {
                 spectra.num_mics, spectra.num_bins, m, nb
             )));
         }
-        if let Some(w) = windows.iter().find(|w| w.start + w.len > spectra.num_frames || w.len == 0) {
+        if let Some(w) = windows
+            .iter()
+            .find(|w| w.start + w.len > spectra.num_frames || w.len == 0)
+        {
             return Err(Error::Mismatch(format!(
                 "cuda backend: window {}..{} outside the {} frames given",
                 w.start,
@@ -794,7 +892,9 @@ impl<T: Real> Backend<T> for CudaBackend<T> {
             )));
         }
         if spectra.data.len() < spectra.num_frames * nb * m {
-            return Err(Error::Mismatch("cuda backend: spectra data shorter than its shape".into()));
+            return Err(Error::Mismatch(
+                "cuda backend: spectra data shorter than its shape".into(),
+            ));
         }
         out.peaks.clear();
         out.spectrum_db.clear();
@@ -824,11 +924,15 @@ impl<T: Real> Backend<T> for CudaBackend<T> {
         if !l.dec_smem_mode {
             self.ensure(Scratch::Jacobi, nwb_max * nb * l.dec_scratch_per_mat)?;
         }
-        let nbg_max = (0..nsb).map(|k| self.bin_groups(sb.min(nw - k * sb))).max().unwrap_or(1);
+        let nbg_max = (0..nsb)
+            .map(|k| self.bin_groups(sb.min(nw - k * sb)))
+            .max()
+            .unwrap_or(1);
         self.ensure(Scratch::Ppart, nbg_max * nwb_max * d * ts)?;
         self.ensure(Scratch::Gain, nw * nb * ts)?;
         self.ensure(Scratch::Bw, nw * nb * 4)?;
         self.ensure(Scratch::Info, nw * nb * 4)?;
+        self.ensure(Scratch::Scale, nwb_max * nb * ts)?;
         self.ensure(Scratch::Db, nw * d * 8)?;
         if want_spectrum {
             self.ensure(Scratch::Spec, nw * d * 4)?;
@@ -862,6 +966,28 @@ impl<T: Real> Backend<T> for CudaBackend<T> {
         // SAFETY: pinned source, device buffer sized above; ordered before the frame chunks.
         unsafe { self.gpu.htod(self.d_win.ptr, h_win, nw * 8, Stream::Copy)? };
 
+        // The factor form (fewer, better-conditioned columns) when every window has fewer
+        // frames than microphones and only the signal vectors are needed.
+        let maxlen = windows.iter().map(|w| w.len).max().unwrap_or(0);
+        let mode = if l.squared && maxlen < m && self.factor_ok {
+            let ncf = maxlen + (maxlen & 1);
+            DecMode {
+                factor: if l.alg == Algorithm::Gsvd { 2 } else { 1 },
+                ncf,
+                left: usize::from(l.alg != Algorithm::Sevd),
+                right: 0,
+                threads: (ncf / 2 * l.lpp).div_ceil(32).clamp(1, 32) * 32,
+            }
+        } else {
+            DecMode {
+                factor: 0,
+                ncf: 0,
+                left: l.left,
+                right: l.right,
+                threads: l.dec_threads,
+            }
+        };
+
         // Frames needed by sub-batches 0..=k (prefix maximum of window ends).
         let mut need = Vec::with_capacity(nsb);
         let mut mx = 0usize;
@@ -892,11 +1018,21 @@ impl<T: Real> Backend<T> for CudaBackend<T> {
             copy_to_pinned(part, stage);
             // SAFETY: the staging buffer holds `bytes`; it is not rewritten before `ev`
             // (recorded next) completes.
-            unsafe { self.gpu.htod(self.d_x.ptr + (c0 * fbytes) as u64, stage, bytes, Stream::Copy)? };
+            unsafe {
+                self.gpu
+                    .htod(self.d_x.ptr + (c0 * fbytes) as u64, stage, bytes, Stream::Copy)?
+            };
             self.gpu.record(ev, Stream::Copy)?;
             while next < nsb && need[next] <= c1 {
                 self.gpu.wait(Stream::Compute, ev)?;
-                self.launch_sub_batch(next, nw, kout, want_spectrum, &events[5 * next..5 * next + 5])?;
+                self.launch_sub_batch(
+                    next,
+                    nw,
+                    kout,
+                    want_spectrum,
+                    &mode,
+                    &events[5 * next..5 * next + 5],
+                )?;
                 next += 1;
             }
             c0 = c1;
@@ -927,10 +1063,16 @@ impl<T: Real> Backend<T> for CudaBackend<T> {
                 let mut db = vec![0f64; d];
                 // SAFETY: synchronous copy into a host Vec after the stream is idle.
                 unsafe {
-                    self.gpu.dtoh(db.as_mut_ptr() as *mut u8, self.d_db.ptr + (w * d * 8) as u64, d * 8, Stream::Compute)?;
+                    self.gpu.dtoh(
+                        db.as_mut_ptr() as *mut u8,
+                        self.d_db.ptr + (w * d * 8) as u64,
+                        d * 8,
+                        Stream::Compute,
+                    )?;
                 }
                 self.gpu.sync(Stream::Compute)?;
-                out.peaks.push(crate::peaks::find_peaks(&db, &self.plan.peak_table));
+                out.peaks
+                    .push(crate::peaks::find_peaks(&db, &self.plan.peak_table));
                 continue;
             }
             let k = count.min(kout);
@@ -942,6 +1084,28 @@ impl<T: Real> Backend<T> for CudaBackend<T> {
                 v.push(Peak { dir, power_db: db });
             }
             out.peaks.push(v);
+        }
+        if self.debug {
+            // Jacobi sweeps per matrix (SOUNDLOC_CUDA_DEBUG=1).
+            let mut info = vec![0i32; nw * nb];
+            // SAFETY: synchronous copy after the stream is idle.
+            unsafe {
+                self.gpu.dtoh(
+                    info.as_mut_ptr() as *mut u8,
+                    self.d_info.ptr,
+                    nw * nb * 4,
+                    Stream::Compute,
+                )?
+            };
+            self.gpu.sync(Stream::Compute)?;
+            let mean = info.iter().map(|&x| x as f64).sum::<f64>() / info.len() as f64;
+            let _ = writeln!(
+                std::io::stderr(),
+                "soundloc cuda: {nw} windows in {nsb} sub-batches of {sb}, factor form {}; Jacobi sweeps min {} mean {mean:.2} max {}",
+                mode.factor,
+                info.iter().min().unwrap_or(&0),
+                info.iter().max().unwrap_or(&0)
+            );
         }
         if want_spectrum {
             // SAFETY: filled by the downloads above.
@@ -960,7 +1124,9 @@ impl<T: Real> Backend<T> for CudaBackend<T> {
             || plan.num_bins() != self.plan.num_bins()
             || plan.num_dirs != self.plan.num_dirs
         {
-            return Err(Error::Mismatch("cuda backend: a new plan must keep mics, bins and directions".into()));
+            return Err(Error::Mismatch(
+                "cuda backend: a new plan must keep mics, bins and directions".into(),
+            ));
         }
         self.gpu.make_current()?;
         self.gpu.sync(Stream::Compute)?;
@@ -990,13 +1156,13 @@ impl<T: Real> Backend<T> for CudaBackend<T> {
 
 /// Copy host bytes into pinned memory, in parallel for large copies.
 fn copy_to_pinned(src: &[u8], dst: *mut u8) {
-    const PIECE: usize = 1 << 20;
+    const PIECE: usize = 256 << 10;
     struct P(*mut u8);
     // SAFETY: disjoint pieces of one buffer are written by different threads.
     unsafe impl Sync for P {}
     unsafe impl Send for P {}
     let d = P(dst);
-    if src.len() <= 2 * PIECE {
+    if src.len() <= 2 * PIECE || rayon::current_num_threads() < 2 {
         // SAFETY: the caller sized `dst` for `src`.
         unsafe { std::ptr::copy_nonoverlapping(src.as_ptr(), dst, src.len()) };
         return;
@@ -1032,6 +1198,7 @@ impl<T: Real> Drop for CudaBackend<T> {
             self.d_gain.ptr,
             self.d_bw.ptr,
             self.d_info.ptr,
+            self.d_scale.ptr,
             self.d_db.ptr,
             self.d_spec.ptr,
             self.d_out.ptr,

@@ -1,0 +1,64 @@
+#!/usr/bin/env bash
+# Device-side run of the CUDA backend's checks and benchmarks (see docs/gpu.md).
+#
+# Build here first (no Rust on the device), then carry .devcarry/:
+#   cargo build --release && cargo test --release -p soundloc --test gpu_parity --no-run
+#   scripts/gpu_run.sh --stage        # copies the binaries and the peer into .devcarry/
+# On the device (repo root, $OUT set by the device tool):
+#   scripts/gpu_run.sh [parity] [bench] [peer] [bigbatch] [f64]   (default: parity bench peer)
+set -uo pipefail
+root="$(cd "$(dirname "$0")/.." && pwd)"
+C="$root/.devcarry"
+if [ "${1:-}" = "--stage" ]; then
+  mkdir -p "$C"
+  cp "$root/target/release/soundloc" "$C/soundloc"
+  t=$(ls -t "$root"/target/release/deps/gpu_parity-* | grep -v '\.d$' | head -1)
+  cp "$t" "$C/gpu_parity"
+  cp "${PEER:-$root/../shared/bench/peer_torch_gsvd.py}" "$C/peer_torch_gsvd.py"
+  ls -la "$C"; du -sh "$C"; exit 0
+fi
+OUT="${OUT:-/tmp/gpu_out}"; mkdir -p "$OUT"
+for d in /usr/local/cuda/lib64 /usr/local/cuda/targets/x86_64-linux/lib; do
+  [ -d "$d" ] && export LD_LIBRARY_PATH="$d:${LD_LIBRARY_PATH:-}"
+done
+if ! ls /usr/local/cuda/lib64/libnvrtc.so* >/dev/null 2>&1; then
+  n=$(python3 -c 'import nvidia.cu13, os; print(os.path.join(os.path.dirname(nvidia.cu13.__file__), "lib"))' 2>/dev/null)
+  [ -n "$n" ] && export LD_LIBRARY_PATH="$n:$LD_LIBRARY_PATH"
+fi
+steps="${*:-parity bench peer}"
+nvidia-smi --query-gpu=name,driver_version,clocks.sm,clocks.max.sm,memory.used --format=csv | tee "$OUT/gpu.txt"
+echo "LD_LIBRARY_PATH=$LD_LIBRARY_PATH"
+for s in $steps; do
+  case $s in
+    parity)
+      SOUNDLOC_CUDA_DEBUG=1 SOUNDLOC_REQUIRE_GPU=1 "$C/gpu_parity" --nocapture --test-threads=1 2>&1 | tee "$OUT/parity.log" | grep -v "^$" ;;
+    bench)
+      for b in ${BENCH_BATCHES:-64 256 1024}; do
+        "$C/soundloc" bench --device cuda --algorithm gsvd --algorithm gevd --batch $b --repeats 10 --json
+      done 2>&1 | tee "$OUT/bench.jsonl" ;;
+    f64)
+      "$C/soundloc" bench --device cuda --precision f64 --algorithm gsvd --batch 256 --repeats 5 --json 2>&1 | tee -a "$OUT/bench.jsonl" ;;
+    allalg)
+      "$C/soundloc" bench --device cuda --algorithm sevd --algorithm gevd-hark --batch 256 --repeats 10 --json 2>&1 | tee -a "$OUT/bench.jsonl" ;;
+    peer)
+      B=${PEER_B:-20} PYTHONUNBUFFERED=1 python3 "$C/peer_torch_gsvd.py" 2>&1 | tee "$OUT/peer.json" ;;
+  esac
+done
+if [ -s "$OUT/bench.jsonl" ] && [ -s "$OUT/peer.json" ]; then
+  python3 - "$OUT/bench.jsonl" "$OUT/peer.json" <<'PY'
+import json, sys
+rows = [json.loads(l) for l in open(sys.argv[1]) if l.startswith("{")]
+peer = json.load(open(sys.argv[2]))
+peer_one = peer["torch_gpu_one_window_ms"]; peer_lps = peer["B"] / (peer["torch_gpu_batch_ms"] / 1e3)
+gevd_one = peer["torch_gpu_gevd_one_window_ms"]; gevd_lps = peer["B"] / (peer["torch_gpu_gevd_batch_ms"] / 1e3)
+print(f"peer GSVD: {peer_one:.1f} ms/loc, {peer_lps:.2f} loc/s; peer GEVD: {gevd_one:.1f} ms/loc, {gevd_lps:.2f} loc/s")
+print("alg   prec batch  ms/loc(1)  loc/s(batch)  ms/s@P50  ms/s@P1   corr/dec/spec/peaks ms per loc   x peer(batch)  x peer(1)")
+for r in rows:
+    c = r["config"]; s = r["stages_per_localization"]; a = c["algorithm"]
+    pl, po = (peer_lps, peer_one) if a == "gsvd" else (gevd_lps, gevd_one)
+    print(f'{a:5} {r["precision"]} {c["batch"]:5}  {r["ms_per_localization"]:9.3f}  {r["localizations_per_s"]:12.1f}  '
+          f'{r["ms_per_audio_s_period50"]:8.3f}  {r["ms_per_audio_s_period1"]:8.2f}   '
+          f'{s["correlation_ms"]:.4f}/{s["decomposition_ms"]:.4f}/{s["spectrum_ms"]:.4f}/{s["peaks_ms"]:.4f}   '
+          f'{r["localizations_per_s"]/pl:10.0f}  {po/r["ms_per_localization"]:8.0f}')
+PY
+fi
