@@ -36,19 +36,28 @@ for s in $steps; do
       for b in ${BENCH_BATCHES:-64 256 1024}; do
         "$C/soundloc" bench --device cuda --algorithm gsvd --algorithm gevd --batch $b --repeats 10 --json
       done 2>&1 | tee "$OUT/bench.jsonl" ;;
+    ab)
+      # A/B of tuning knobs on GSVD, batch 256: no factor form; other register caps.
+      for v in "SOUNDLOC_CUDA_FACTOR=0" "SOUNDLOC_CUDA_NVRTC_OPTS=-DSL_F32_MINB=2" "SOUNDLOC_CUDA_NVRTC_OPTS=-DSL_F32_MINB=3"; do
+        echo "== $v"
+        env "$v" "$C/soundloc" bench --device cuda --algorithm gsvd --batch 256 --repeats 10 --json
+      done 2>&1 | tee "$OUT/ab.jsonl" ;;
     f64)
-      "$C/soundloc" bench --device cuda --precision f64 --algorithm gsvd --batch 256 --repeats 5 --json 2>&1 | tee -a "$OUT/bench.jsonl" ;;
+      "$C/soundloc" bench --device cuda --precision f64 --algorithm gsvd --algorithm gevd --batch 64 --repeats 5 --json 2>&1 | tee -a "$OUT/bench.jsonl" ;;
     allalg)
       "$C/soundloc" bench --device cuda --algorithm sevd --algorithm gevd-hark --batch 256 --repeats 10 --json 2>&1 | tee -a "$OUT/bench.jsonl" ;;
     peer)
       B=${PEER_B:-20} PYTHONUNBUFFERED=1 python3 "$C/peer_torch_gsvd.py" 2>&1 | tee "$OUT/peer.json" ;;
   esac
 done
-if [ -s "$OUT/bench.jsonl" ] && [ -s "$OUT/peer.json" ]; then
-  python3 - "$OUT/bench.jsonl" "$OUT/peer.json" <<'PY'
+peer="$OUT/peer.json"; [ -s "$peer" ] || peer="$C/peer_last.json"
+if [ -s "$OUT/bench.jsonl" ] && [ -s "$peer" ]; then
+  cat "$OUT"/ab.jsonl >> "$OUT/bench.jsonl" 2>/dev/null
+  python3 - "$OUT/bench.jsonl" "$peer" <<'PY'
 import json, sys
 rows = [json.loads(l) for l in open(sys.argv[1]) if l.startswith("{")]
 peer = json.load(open(sys.argv[2]))
+print("peer figures from", sys.argv[2])
 peer_one = peer["torch_gpu_one_window_ms"]; peer_lps = peer["B"] / (peer["torch_gpu_batch_ms"] / 1e3)
 gevd_one = peer["torch_gpu_gevd_one_window_ms"]; gevd_lps = peer["B"] / (peer["torch_gpu_gevd_batch_ms"] / 1e3)
 print(f"peer GSVD: {peer_one:.1f} ms/loc, {peer_lps:.2f} loc/s; peer GEVD: {gevd_one:.1f} ms/loc, {gevd_lps:.2f} loc/s")

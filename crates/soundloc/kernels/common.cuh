@@ -3,7 +3,8 @@
 // Compiled at run time by NVRTC (no CUDA headers needed: only builtins are used), with
 // the layout variant passed as -D macros (see backend/cuda/kernels.rs):
 //   SL_LPP  lanes that share one column pair in the Jacobi kernel (4, 8 or 16)
-//   SL_RPL  rows each of those lanes holds in registers (4, 8 or 16)
+//   SL_RPL  rows each of those lanes holds in registers (4, 8 or 16; exact on the device)
+//   SL_NFIX the Jacobi's row count n = M rounded up to even (device builds only)
 // The same sources also build, with -DSOUNDLOC_EMU, into a CPU emulator library
 // (kernels/emu/) that the parity tests use where no GPU is present.
 //

@@ -80,11 +80,15 @@ __device__ void correlate_impl(const cplx<T>* __restrict__ X, int nb, int M, con
     for (int k = tid; k < M * M; k += nt) Rm[k] = cscale(Rm[k], inv_s);
 }
 
+#ifndef SL_NO_F32
 extern "C" __global__ void correlate_f32(const cplx<float>* X, int nb, int M, const int* win, int fc, int mat0,
                                          cplx<float>* R, float* scale) {
     correlate_impl<float>(X, nb, M, win, fc, mat0, R, scale);
 }
+#endif
+#ifndef SL_NO_F64
 extern "C" __global__ void correlate_f64(const cplx<double>* X, int nb, int M, const int* win, int fc, int mat0,
                                          cplx<double>* R, double* scale) {
     correlate_impl<double>(X, nb, M, win, fc, mat0, R, scale);
 }
+#endif

@@ -154,7 +154,12 @@ __device__ void decompose_impl(const cplx<T>* __restrict__ R, const cplx<T>* __r
                                cplx<T>* __restrict__ E, T* __restrict__ gain, float* __restrict__ bw,
                                int* __restrict__ info, cplx<T>* __restrict__ scratch) {
     SL_DYN_SMEM(sl_smem);
+#ifdef SL_NFIX
+    // The device build fixes n = M rounded up to even at compile time (-DSL_NFIX).
+    constexpr int n = SL_NFIX;
+#else
     const int n = M + (M & 1);
+#endif
     const int tid = threadIdx.x, nt = blockDim.x;
     const int lane = tid & 31, warp = tid >> 5, nwarps = nt >> 5;
     const int mat = mat0 + blockIdx.x;
@@ -420,8 +425,10 @@ __device__ void decompose_impl(const cplx<T>* __restrict__ R, const cplx<T>* __r
     }
 }
 
-// Threads per block the host launches at most for this variant (n/2 pairs × SL_LPP lanes).
-#define SL_DEC_THREADS ((SL_MAXN / 2 * SL_LPP) > 1024 ? 1024 : ((SL_MAXN / 2 * SL_LPP) < 32 ? 32 : (SL_MAXN / 2 * SL_LPP)))
+// Threads per block the host launches at most for this variant (n/2 pairs × SL_LPP lanes,
+// rounded up to whole warps; must match `layout` in backend/cuda/mod.rs).
+#define SL_DEC_WARPS ((SL_MAXN / 2 * SL_LPP + 31) / 32)
+#define SL_DEC_THREADS (SL_DEC_WARPS > 32 ? 1024 : SL_DEC_WARPS * 32)
 
 #define SL_DECOMPOSE(NAME, T, SMEM, WANT_V, MINB)                                                                     \
     extern "C" __global__ void __launch_bounds__(SL_DEC_THREADS, MINB)                                               \
@@ -437,11 +444,15 @@ __device__ void decompose_impl(const cplx<T>* __restrict__ R, const cplx<T>* __r
 #ifndef SL_F32_MINB
 #define SL_F32_MINB (SL_DEC_THREADS <= 128 ? 4 : 1)
 #endif
+#ifndef SL_NO_F32
 SL_DECOMPOSE(decompose_sn_f32, float, true, false, SL_F32_MINB)
 SL_DECOMPOSE(decompose_sv_f32, float, true, true, SL_F32_MINB)
 SL_DECOMPOSE(decompose_gn_f32, float, false, false, SL_F32_MINB)
 SL_DECOMPOSE(decompose_gv_f32, float, false, true, SL_F32_MINB)
+#endif
+#ifndef SL_NO_F64
 SL_DECOMPOSE(decompose_sn_f64, double, true, false, 1)
 SL_DECOMPOSE(decompose_sv_f64, double, true, true, 1)
 SL_DECOMPOSE(decompose_gn_f64, double, false, false, 1)
 SL_DECOMPOSE(decompose_gv_f64, double, false, true, 1)
+#endif

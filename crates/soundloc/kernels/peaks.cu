@@ -98,13 +98,17 @@ __device__ void peaks_impl(const T* __restrict__ Ppart, int nbg, int nwin, int D
     }
 }
 
+#ifndef SL_NO_F32
 extern "C" __global__ void peaks_f32(const float* Ppart, int nbg, int nwin, int D, const int* offs, const int* nbrs,
                                      const unsigned char* azok, int kout, int cap, double* DB, float* spec,
                                      PeakOut* out) {
     peaks_impl<float>(Ppart, nbg, nwin, D, offs, nbrs, azok, kout, cap, DB, spec, out);
 }
+#endif
+#ifndef SL_NO_F64
 extern "C" __global__ void peaks_f64(const double* Ppart, int nbg, int nwin, int D, const int* offs, const int* nbrs,
                                      const unsigned char* azok, int kout, int cap, double* DB, float* spec,
                                      PeakOut* out) {
     peaks_impl<double>(Ppart, nbg, nwin, D, offs, nbrs, azok, kout, cap, DB, spec, out);
 }
+#endif

@@ -137,14 +137,18 @@ __device__ void spectrum_impl(const cplx<T>* __restrict__ St, const T* __restric
     if (mine) Ppart[((size_t)blockIdx.z * nwin + wl) * D + d] = acc;
 }
 
+#ifndef SL_NO_F32
 extern "C" __global__ void spectrum_f32(const cplx<float>* St, const float* n2den, const float* n2num,
                                         const cplx<float>* E, int ne, const float* gain, int M, int nb, int D, int ns,
                                         int squared, int nwin, float tau, int dt, int e_smem, float* Ppart) {
     spectrum_impl<float>(St, n2den, n2num, E, ne, gain, M, nb, D, ns, squared, nwin, tau, dt, e_smem, Ppart);
 }
+#endif
+#ifndef SL_NO_F64
 extern "C" __global__ void spectrum_f64(const cplx<double>* St, const double* n2den, const double* n2num,
                                         const cplx<double>* E, int ne, const double* gain, int M, int nb, int D,
                                         int ns, int squared, int nwin, double tau, int dt, int e_smem,
                                         double* Ppart) {
     spectrum_impl<double>(St, n2den, n2num, E, ne, gain, M, nb, D, ns, squared, nwin, tau, dt, e_smem, Ppart);
 }
+#endif

@@ -62,6 +62,8 @@ pub(crate) trait Gpu: Send {
     fn function(&mut self, name: &str) -> Result<Func>;
     /// Allow `bytes` of dynamic shared memory for `f`.
     fn set_max_smem(&self, f: Func, bytes: usize) -> Result<()>;
+    /// The largest block `f` can be launched with (its launch bounds and registers).
+    fn max_threads(&self, f: Func) -> Result<usize>;
     /// Launch `f` (1-D blocks).
     ///
     /// # Safety
@@ -315,6 +317,18 @@ impl Gpu for CudaGpu {
             )
         }
         .map_err(|e| dev_err("cuFuncSetAttribute(max dynamic shared memory)", e))
+    }
+
+    fn max_threads(&self, f: Func) -> Result<usize> {
+        // SAFETY: `f` from `function`.
+        unsafe {
+            drv::function::get_function_attribute(
+                f as sys::CUfunction,
+                sys::CUfunction_attribute::CU_FUNC_ATTRIBUTE_MAX_THREADS_PER_BLOCK,
+            )
+        }
+        .map(|v| v as usize)
+        .map_err(|e| dev_err("cuFuncGetAttribute(max threads per block)", e))
     }
 
     unsafe fn launch(

@@ -123,6 +123,9 @@ impl Gpu for EmuGpu {
     fn set_max_smem(&self, _f: Func, _bytes: usize) -> Result<()> {
         Ok(())
     }
+    fn max_threads(&self, _f: Func) -> Result<usize> {
+        Ok(1024)
+    }
     unsafe fn launch(
         &self,
         f: Func,

@@ -49,22 +49,65 @@ const COMMON: &str = include_str!("../../../kernels/common.cuh");
 pub(crate) struct Variant {
     pub lpp: u32,
     pub rpl: u32,
+    /// n = M rounded up to even, fixed at compile time (0: read at run time, as the
+    /// emulator libraries do).
+    pub nfix: u32,
+    /// Only this precision's wrappers ("f32" / "f64"); empty: both.
+    pub only: &'static str,
 }
 
 impl Variant {
     /// Every layout, smallest first.
     pub(crate) const ALL: [Variant; 5] = [
-        Variant { lpp: 4, rpl: 4 },
-        Variant { lpp: 4, rpl: 8 },
-        Variant { lpp: 4, rpl: 16 },
-        Variant { lpp: 8, rpl: 16 },
-        Variant { lpp: 16, rpl: 16 },
+        Variant {
+            lpp: 4,
+            rpl: 4,
+            nfix: 0,
+            only: "",
+        },
+        Variant {
+            lpp: 4,
+            rpl: 8,
+            nfix: 0,
+            only: "",
+        },
+        Variant {
+            lpp: 4,
+            rpl: 16,
+            nfix: 0,
+            only: "",
+        },
+        Variant {
+            lpp: 8,
+            rpl: 16,
+            nfix: 0,
+            only: "",
+        },
+        Variant {
+            lpp: 16,
+            rpl: 16,
+            nfix: 0,
+            only: "",
+        },
     ];
 
-    /// The smallest layout for M microphones (None above 256).
+    /// The smallest generic layout for M microphones (None above 256); the emulator's.
     pub(crate) fn for_mics(m: usize) -> Option<Variant> {
         let n = m + (m & 1);
         Variant::ALL.into_iter().find(|v| v.max_cols() >= n)
+    }
+
+    /// The device layout for M microphones: the generic one's lanes per pair, exactly
+    /// ⌈n / lanes⌉ rows per lane, n fixed.
+    pub(crate) fn exact_for_mics(m: usize) -> Option<Variant> {
+        let v = Variant::for_mics(m)?;
+        let n = (m + (m & 1)) as u32;
+        Some(Variant {
+            lpp: v.lpp,
+            rpl: n.div_ceil(v.lpp),
+            nfix: n,
+            only: "",
+        })
     }
 
     /// Largest even column count.
@@ -74,13 +117,25 @@ impl Variant {
 
     /// File-name tag, e.g. `l4_r16`.
     pub(crate) fn tag(self) -> String {
-        format!("l{}_r{}", self.lpp, self.rpl)
+        if self.nfix == 0 {
+            format!("l{}_r{}", self.lpp, self.rpl)
+        } else {
+            format!("l{}_r{}_n{}", self.lpp, self.rpl, self.nfix)
+        }
     }
 }
 
 /// The whole translation unit for one variant.
 pub(crate) fn full_source(v: Variant) -> String {
     let mut s = format!("#define SL_LPP {}\n#define SL_RPL {}\n", v.lpp, v.rpl);
+    if v.nfix > 0 {
+        s.push_str(&format!("#define SL_NFIX {}\n", v.nfix));
+    }
+    match v.only {
+        "f32" => s.push_str("#define SL_NO_F64\n"),
+        "f64" => s.push_str("#define SL_NO_F32\n"),
+        _ => {}
+    }
     s.push_str(COMMON);
     s.push('\n');
     for k in KernelId::ALL {
@@ -195,13 +250,8 @@ pub(crate) fn nvrtc_compile(source: &str, opts: &[String], cubin: bool) -> Resul
     }
 }
 
-fn options(v: Variant, arch: &str) -> Vec<String> {
-    let mut o = vec![
-        format!("--gpu-architecture={arch}"),
-        "--std=c++17".to_string(),
-        format!("-DSL_LPP={}", v.lpp),
-        format!("-DSL_RPL={}", v.rpl),
-    ];
+fn options(arch: &str) -> Vec<String> {
+    let mut o = vec![format!("--gpu-architecture={arch}"), "--std=c++17".to_string()];
     // Developer hook for tuning runs (e.g. "-DSL_F32_MINB=3"); fixed for the process.
     if let Ok(extra) = std::env::var("SOUNDLOC_CUDA_NVRTC_OPTS") {
         o.extend(extra.split_whitespace().map(str::to_string));
@@ -226,13 +276,13 @@ pub(crate) fn image_for(v: Variant, cc: u32) -> Result<Image, String> {
     let archs = supported_archs();
     let img = if archs.is_empty() || archs.contains(&(cc as i32)) {
         let arch = format!("sm_{cc}");
-        match nvrtc_compile(&src, &options(v, &arch), true) {
+        match nvrtc_compile(&src, &options(&arch), true) {
             Ok(bytes) => Image { bytes, arch },
             Err(e) if archs.contains(&(cc as i32)) => return Err(e),
-            Err(_) => ptx_fallback(v, &src, cc, &archs)?,
+            Err(_) => ptx_fallback(&src, cc, &archs)?,
         }
     } else {
-        ptx_fallback(v, &src, cc, &archs)?
+        ptx_fallback(&src, cc, &archs)?
     };
     cache()
         .lock()
@@ -241,7 +291,7 @@ pub(crate) fn image_for(v: Variant, cc: u32) -> Result<Image, String> {
     Ok(img)
 }
 
-fn ptx_fallback(v: Variant, src: &str, cc: u32, archs: &[i32]) -> Result<Image, String> {
+fn ptx_fallback(src: &str, cc: u32, archs: &[i32]) -> Result<Image, String> {
     // The newest virtual architecture NVRTC knows that the device can run.
     let best = archs
         .iter()
@@ -250,15 +300,17 @@ fn ptx_fallback(v: Variant, src: &str, cc: u32, archs: &[i32]) -> Result<Image, 
         .max()
         .unwrap_or(75);
     let arch = format!("compute_{best}");
-    let bytes = nvrtc_compile(src, &options(v, &arch), false)?;
+    let bytes = nvrtc_compile(src, &options(&arch), false)?;
     Ok(Image { bytes, arch })
 }
 
-/// Compile every variant for `arch` (e.g. `sm_90`); returns (variant tag, image bytes).
+/// Compile every generic variant and the device layouts of 8, 60 and 128 microphones
+/// for `arch` (e.g. `sm_90`); returns (variant tag, image bytes).
 pub(crate) fn compile_all(arch: &str) -> Result<Vec<(String, usize)>, String> {
     let mut out = Vec::new();
-    for v in Variant::ALL {
-        let bytes = nvrtc_compile(&full_source(v), &options(v, arch), arch.starts_with("sm_"))?;
+    let exact = [8, 60, 127].into_iter().filter_map(Variant::exact_for_mics);
+    for v in Variant::ALL.into_iter().chain(exact) {
+        let bytes = nvrtc_compile(&full_source(v), &options(arch), arch.starts_with("sm_"))?;
         out.push((v.tag(), bytes.len()));
     }
     Ok(out)

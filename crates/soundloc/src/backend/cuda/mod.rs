@@ -82,7 +82,11 @@ pub fn probe() -> std::result::Result<String, String> {
 /// Build a CUDA backend on device `ordinal`, or say why none can be had.
 pub fn new_backend<T: Real>(plan: Arc<Plan<T>>, ordinal: usize) -> Result<Box<dyn Backend<T>>> {
     guarded(|| {
-        let v = variant_for(&plan)?;
+        variant_for(&plan)?;
+        let v = Variant {
+            only: T::NAME,
+            ..Variant::exact_for_mics(plan.num_mics).expect("checked by variant_for")
+        };
         let gpu = CudaGpu::new(ordinal, v)?;
         Ok(Box::new(CudaBackend::new(plan, Box::new(gpu))?) as Box<dyn Backend<T>>)
     })
@@ -379,6 +383,22 @@ impl<T: Real> CudaBackend<T> {
         ] {
             if s > SMEM_DEFAULT {
                 self.gpu.set_max_smem(f, s)?;
+            }
+        }
+        // The largest blocks each kernel is launched with must be within its limit
+        // (launch bounds, registers): a clear error here rather than a failed launch.
+        let l = &self.lay;
+        for (f, name, threads) in [
+            (self.f.correlate, "correlate", 256),
+            (self.f.decompose, "decompose", l.dec_threads),
+            (self.f.spectrum, "spectrum", l.spec_dt * l.spec_wg),
+            (self.f.peaks, "peaks", 256),
+        ] {
+            let most = self.gpu.max_threads(f)?;
+            if threads > most {
+                return Err(Error::Device(format!(
+                    "internal: {name} is launched with {threads} threads but allows {most}"
+                )));
             }
         }
         Ok(())
@@ -874,28 +894,7 @@ impl<T: Real> Backend<T> for CudaBackend<T> {
         out: &mut BatchOutput,
     ) -> Result<()> {
         let (m, nb, d) = (self.lay.m, self.lay.nb, self.lay.d);
-        if spectra.num_mics != m || spectra.num_bins != nb {
-            return Err(Error::Mismatch(format!(
-                "cuda backend: spectra have {} mics × {} bins, plan expects {} × {}",
-                spectra.num_mics, spectra.num_bins, m, nb
-            )));
-        }
-        if let Some(w) = windows
-            .iter()
-            .find(|w| w.start + w.len > spectra.num_frames || w.len == 0)
-        {
-            return Err(Error::Mismatch(format!(
-                "cuda backend: window {}..{} outside the {} frames given",
-                w.start,
-                w.start + w.len,
-                spectra.num_frames
-            )));
-        }
-        if spectra.data.len() < spectra.num_frames * nb * m {
-            return Err(Error::Mismatch(
-                "cuda backend: spectra data shorter than its shape".into(),
-            ));
-        }
+        super::check_batch("cuda backend", &self.plan, spectra, windows)?;
         out.peaks.clear();
         out.spectrum_db.clear();
         out.bin_weight.clear();
