@@ -106,69 +106,43 @@ __device__ void right_mul(cplx<T>* G, int ld, const cplx<T>* __restrict__ Wc, co
 }
 
 // Orthonormalise the first ncols columns of G (length M) in place: classical Gram–Schmidt
-// applied twice per column, on unnormalised vectors (coefficients divided by ‖q_k‖²), so that
-// a column costs four barriers; the norms of column j − 1 and of the original column j are
-// computed with column j's first coefficients, and all columns are normalised at the end.
-// A column whose residual is at rounding level of its own norm (linearly dependent or silent
-// frames) becomes zero. `coef` holds 2·ncols + 2 complex values, `red` 3·ncols reals.
+// applied twice per column. A column whose residual is at rounding level of its own norm
+// (linearly dependent frames, silent frames) becomes zero.
 template <typename T>
-__device__ void cgs2(cplx<T>* G, int ld, int M, int ncols, cplx<T>* coef, T* nrm) {
+__device__ void cgs2(cplx<T>* G, int ld, int M, int ncols, cplx<T>* coef, T* red) {
     const int tid = threadIdx.x, nt = blockDim.x;
     const int lane = tid & 31, warp = tid >> 5, nwarps = nt >> 5;
     const T eps = sl_eps<T>::v();
     const T drop2 = ((T)M * eps) * ((T)M * eps);
-    T* orig = nrm + ncols;  // ‖g_j‖² before orthogonalisation
-    for (int j = 0; j <= ncols; ++j) {
+    for (int j = 0; j < ncols; ++j) {
         cplx<T>* g = G + (size_t)j * ld;
-        for (int pass = 0; pass < 2; ++pass) {
-            // Warps compute q_kᴴ g (k < j); in the first pass also ‖q_{j-1}‖² (slot j) and
-            // ‖g_j‖² (slot j + 1).
-            const int nd = pass == 0 ? j + 2 : j;
-            for (int k = warp; k < nd; k += nwarps) {
+        T s0 = (T)0;
+        for (int i = tid; i < M; i += nt) s0 += cnorm2(g[i]);
+        const T nrm0 = block_sum(s0, red);
+        for (int pass = 0; pass < 2 && j > 0; ++pass) {
+            for (int k = warp; k < j; k += nwarps) {
                 cplx<T> c = czero<T>();
-                if (k < j && j < ncols) {
-                    for (int i = lane; i < M; i += 32) cmacc(c, G[(size_t)k * ld + i], g[i]);
-                } else if (k == j && j > 0) {
-                    const cplx<T>* q = G + (size_t)(j - 1) * ld;
-                    for (int i = lane; i < M; i += 32) c.re += cnorm2(q[i]);
-                } else if (k == j + 1 && j < ncols) {
-                    for (int i = lane; i < M; i += 32) c.re += cnorm2(g[i]);
-                }
+                for (int i = lane; i < M; i += 32) cmacc(c, G[(size_t)k * ld + i], g[i]);  // q_kᴴ g
                 c.re = group_sum<32>(c.re);
                 c.im = group_sum<32>(c.im);
                 if (lane == 0) coef[k] = c;
             }
             __syncthreads();
-            if (pass == 0) {
-                if (tid == 0) {
-                    if (j > 0) {
-                        const T n2 = coef[j].re;
-                        nrm[j - 1] = (n2 > drop2 * orig[j - 1] && n2 > (T)0) ? n2 : (T)0;
-                    }
-                    if (j < ncols) orig[j] = coef[j + 1].re;
-                }
-                __syncthreads();
-            }
-            if (j == ncols) break;
-            // g ← g − Σ_k q_k (q_kᴴ g / ‖q_k‖²), dropped q_k (norm 0) left out.
             for (int i = tid; i < M; i += nt) {
                 cplx<T> acc = czero<T>();
-                for (int k = 0; k < j; ++k) {
-                    const T nk = nrm[k];
-                    if (nk > (T)0) cmac(acc, G[(size_t)k * ld + i], cscale(coef[k], (T)1 / nk));
-                }
+                for (int k = 0; k < j; ++k) cmac(acc, G[(size_t)k * ld + i], coef[k]);
                 g[i].re -= acc.re;
                 g[i].im -= acc.im;
             }
             __syncthreads();
         }
+        T s1 = (T)0;
+        for (int i = tid; i < M; i += nt) s1 += cnorm2(g[i]);
+        const T nrm = block_sum(s1, red);
+        const T inv = (nrm > drop2 * nrm0 && nrm > (T)0) ? (T)1 / sl_sqrt(nrm) : (T)0;
+        for (int i = tid; i < M; i += nt) g[i] = cscale(g[i], inv);
+        __syncthreads();
     }
-    for (int idx = tid; idx < ncols * M; idx += nt) {
-        const int k = idx / M, i = idx - k * M;
-        const T nk = nrm[k];
-        G[(size_t)k * ld + i] = nk > (T)0 ? cscale(G[(size_t)k * ld + i], (T)1 / sl_sqrt(nk)) : czero<T>();
-    }
-    __syncthreads();
 }
 
 template <typename T, bool SMEM, bool WANT_V>
@@ -228,7 +202,7 @@ __device__ void decompose_impl(const cplx<T>* __restrict__ R, const cplx<T>* __r
         if (factor == 2) {
             // GSVD: F = A Q = K⁻¹ R Q, Q an orthonormal basis of range(Yᴴ) = range(R);
             // F Fᴴ = A Aᴴ, so F's left singular vectors are A's.
-            cgs2(G, ld, M, nc, vec, sig);  // sig/red/rank (≥ 2n + 32 reals) are free here
+            cgs2(G, ld, M, nc, vec, red);
             left_mul(G, ld, nc, Rm, M);
         }
         if (left) left_mul(G, ld, nc, Wc, M);  // W Yᴴ (GEVD, GEVD-HARK) or K⁻¹ R Q (GSVD)
