@@ -26,10 +26,7 @@ fn data(test: &str) -> Option<PathBuf> {
     if d.is_dir() {
         Some(d)
     } else {
-        let _ = writeln!(
-            std::io::stderr(),
-            "SKIPPED {test}: ../shared/data not found"
-        );
+        let _ = writeln!(std::io::stderr(), "SKIPPED {test}: ../shared/data not found");
         None
     }
 }
@@ -135,15 +132,7 @@ fn free_field_matches_tamago_geotf() {
     // (a) With the file's own (4-decimal) positions: equal within 1e-4 absolute
     // (the file is f32; we measured 2.6e-5).
     let geo = Geometry::new(file.mic_positions.clone(), Path::new("microphones.xml")).unwrap();
-    let ours = free_field(
-        &geo,
-        &file.grid,
-        512,
-        16000,
-        0..257,
-        DEFAULT_SPEED_OF_SOUND_M_S,
-    )
-    .unwrap();
+    let ours = free_field(&geo, &file.grid, 512, 16000, 0..257, DEFAULT_SPEED_OF_SOUND_M_S).unwrap();
     let max_diff = ours
         .data
         .iter()
@@ -260,10 +249,7 @@ fn tf_zip_round_trip_and_layout() {
             shape(ch, &path, out);
         }
     }
-    for name in [
-        "transferFunction/source.xml",
-        "transferFunction/microphones.xml",
-    ] {
+    for name in ["transferFunction/source.xml", "transferFunction/microphones.xml"] {
         let (mut a, mut b) = Default::default();
         shape(
             &xml::parse(&String::from_utf8_lossy(&real[name])).unwrap(),
@@ -348,12 +334,7 @@ fn malformed_tf_zips() {
     );
 
     // No whatisthis.txt.
-    let p = tampered(
-        &good,
-        "transferFunction/whatisthis.txt",
-        None,
-        "tf-nowhat.zip",
-    );
+    let p = tampered(&good, "transferFunction/whatisthis.txt", None, "tf-nowhat.zip");
     let e = err_text(TransferFunctions::load(&p));
     assert!(
         e.contains("tf-nowhat.zip") && e.contains("no whatisthis.txt"),
@@ -422,8 +403,7 @@ fn malformed_tf_zips() {
     );
     let e = err_text(TransferFunctions::load(&p));
     assert!(
-        e.contains("tf-missing.zip")
-            && e.contains("missing entry transferFunction/localization/tf00071.mat"),
+        e.contains("tf-missing.zip") && e.contains("missing entry transferFunction/localization/tf00071.mat"),
         "{e}"
     );
 
@@ -492,10 +472,7 @@ fn malformed_hgtf() {
         e.contains("kinect-magic_loc.dat: not a HARK transfer-function zip or HGTF file"),
         "{e}"
     );
-    let e = err_text(soundloc::formats::hgtf::read_hgtf(
-        &bad,
-        Path::new("k_loc.dat"),
-    ));
+    let e = err_text(soundloc::formats::hgtf::read_hgtf(&bad, Path::new("k_loc.dat")));
     assert!(e.starts_with("k_loc.dat: not an HGTF file"), "{e}");
     // NaN in the data (direction 0, mic 0, bin 5): M2PG body at 100, data after 12 + 72·12.
     let mut bad = bytes;
@@ -505,8 +482,7 @@ fn malformed_hgtf() {
     std::fs::write(&p, &bad).unwrap();
     let e = err_text(TransferFunctions::load(&p));
     assert!(
-        e.contains("kinect-nan_loc.dat: non-finite value")
-            && e.ends_with("direction 0, mic 0, bin 5"),
+        e.contains("kinect-nan_loc.dat: non-finite value") && e.ends_with("direction 0, mic 0, bin 5"),
         "{e}"
     );
 }
@@ -517,11 +493,7 @@ fn zip_entries_write_is_atomic() {
     let dir = tmp("atomic");
     std::fs::create_dir_all(&dir).unwrap();
     let p = dir.join("atomic.zip");
-    write_zip_entries(
-        &p,
-        &[("a/".into(), vec![]), ("a/x.txt".into(), b"one".to_vec())],
-    )
-    .unwrap();
+    write_zip_entries(&p, &[("a/".into(), vec![]), ("a/x.txt".into(), b"one".to_vec())]).unwrap();
     write_zip_entries(&p, &[("a/x.txt".into(), b"two".to_vec())]).unwrap();
     assert_eq!(read_zip_entries(&p).unwrap()["a/x.txt"], b"two");
     // Into a missing folder: error naming the file, nothing left behind.
@@ -548,15 +520,8 @@ fn zip_entries_write_is_atomic() {
 fn geometry_files() {
     let p = tmp("ring8.toml");
     std::fs::write(&p, Geometry::circle(8, 0.0365, 0.0).to_toml_string()).unwrap();
-    assert_eq!(
-        Geometry::load(&p).unwrap(),
-        Geometry::circle(8, 0.0365, 0.0)
-    );
-    std::fs::write(
-        &p,
-        "mics = [[0, 0, 0], [0.1, 0, 0], [0, 0.1, 0], [0.1, 0.1]]\n",
-    )
-    .unwrap();
+    assert_eq!(Geometry::load(&p).unwrap(), Geometry::circle(8, 0.0365, 0.0));
+    std::fs::write(&p, "mics = [[0, 0, 0], [0.1, 0, 0], [0, 0.1, 0], [0.1, 0.1]]\n").unwrap();
     assert_eq!(
         err_text(Geometry::load(&p)),
         format!("{}: mic 3: expected 3 coordinates, found 2", p.display())
@@ -566,9 +531,7 @@ fn geometry_files() {
         "[[mic]]\nx = 0.1\ny = 0.0\n[[mic]]\nx = 0.1\ny = 0.0\nz = 0.0\n",
     )
     .unwrap();
-    assert!(
-        err_text(Geometry::load(&p)).ends_with("mic 1: same position as mic 0 ([0.1, 0.0, 0.0])")
-    );
+    assert!(err_text(Geometry::load(&p)).ends_with("mic 1: same position as mic 0 ([0.1, 0.0, 0.0])"));
     std::fs::write(&p, "mics = [[nan, 0, 0]]\n").unwrap();
     assert!(err_text(Geometry::load(&p)).contains("mic 0: position [NaN, 0.0, 0.0] is not finite"));
 }
@@ -579,11 +542,7 @@ fn grid_specs_and_sphere_neighbours() {
     assert_eq!(g.len(), 2522);
     assert!(g.neighbors_symmetric());
     // Mean spacing √(4π/2522) ≈ 4.04°: every neighbour within 2× that.
-    assert!(
-        g.max_neighbor_angle_deg() < 8.1,
-        "{}",
-        g.max_neighbor_angle_deg()
-    );
+    assert!(g.max_neighbor_angle_deg() < 8.1, "{}", g.max_neighbor_angle_deg());
     assert!(g.neighbors.iter().all(|l| l.len() >= 6));
     let r = "ring:5:16.7".parse::<GridSpec>().unwrap().build(1.0);
     assert_eq!(r.len(), 72);

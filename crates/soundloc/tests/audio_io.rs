@@ -51,10 +51,7 @@ fn simulated_scene_round_trips_through_wav() {
     for (a, b) in audio.channels.iter().zip(&back.channels) {
         for (x, y) in a.iter().zip(b) {
             // Raw values: int16 keeps the sample value, rounded.
-            assert!(
-                (x.clamp(-32768.0, 32767.0) - y).abs() <= 0.5 + 1e-3,
-                "{x} vs {y}"
-            );
+            assert!((x.clamp(-32768.0, 32767.0) - y).abs() <= 0.5 + 1e-3, "{x} vs {y}");
         }
     }
     // Channel selection and time slicing on the read audio.

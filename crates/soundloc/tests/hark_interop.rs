@@ -16,10 +16,7 @@ use soundloc::{LocalizationResult, Source};
 
 /// A fresh, empty temporary folder for one test.
 fn tmp_dir(tag: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!(
-        "soundloc-hark-interop-{}-{tag}",
-        std::process::id()
-    ));
+    let d = std::env::temp_dir().join(format!("soundloc-hark-interop-{}-{tag}", std::process::id()));
     let _ = std::fs::remove_dir_all(&d);
     std::fs::create_dir_all(&d).expect("create temp dir");
     d
@@ -164,10 +161,7 @@ fn imaginary_file_is_found_by_hark_naming() {
     let p = d.join("cm_r.dat");
     std::fs::write(&p, "1 0 0 1\n1 0 0 1\n").unwrap();
     let msg = err_text(NoiseCm::load(&p, Expected::default()));
-    assert!(
-        msg.contains("cm_i.dat") && msg.contains("not found"),
-        "{msg}"
-    );
+    assert!(msg.contains("cm_i.dat") && msg.contains("not found"), "{msg}");
 }
 
 /// Writes a valid 2-mic, nfft-8 pair, lets `edit` change the (real, imag) texts, and
@@ -249,9 +243,7 @@ fn noise_cm_text_errors_name_file_and_line() {
         *r = r.replacen(' ', " x1 ", 1);
     });
     assert!(
-        msg.contains("cm_r.txt")
-            && msg.contains("line 1, column 2")
-            && msg.contains("not a number"),
+        msg.contains("cm_r.txt") && msg.contains("line 1, column 2") && msg.contains("not a number"),
         "{msg}"
     );
     // Non-Hermitian: K(0, 1) changed in the real part of bin 3 only.
@@ -301,10 +293,7 @@ fn noise_cm_zip_errors_name_the_file() {
             nfft: None,
         },
     ));
-    assert!(
-        msg.contains("good.zip") && msg.contains("4 microphones"),
-        "{msg}"
-    );
+    assert!(msg.contains("good.zip") && msg.contains("4 microphones"), "{msg}");
     let msg = err_text(NoiseCm::load(
         &good,
         Expected {
@@ -312,10 +301,7 @@ fn noise_cm_zip_errors_name_the_file() {
             nfft: Some(16),
         },
     ));
-    assert!(
-        msg.contains("good.zip") && msg.contains("expected 9"),
-        "{msg}"
-    );
+    assert!(msg.contains("good.zip") && msg.contains("expected 9"), "{msg}");
     // A transfer-function zip is refused.
     let mut e = random_cm(2, 8, 4).zip_entries().unwrap();
     e[1].1 = b"transfer function".to_vec();
@@ -446,9 +432,7 @@ fn source_log_xml_round_trip() {
     source_log::write(&p, &orig, SourceLogFormat::Xml).expect("write");
     let text = std::fs::read_to_string(&p).unwrap();
     assert!(text.starts_with("<hark_xml version=\"1.3\">"));
-    assert!(
-        text.contains("<positions type=\"localization\" frame=\"50\" coordinate=\"cartesian\">")
-    );
+    assert!(text.contains("<positions type=\"localization\" frame=\"50\" coordinate=\"cartesian\">"));
     assert!(text.contains("id=\"-1\"/>"));
     assert_eq!(source_log::detect(&text), SourceLogFormat::Xml);
     check_log_round_trip(&source_log::read(&p, 0.01).expect("read"), &orig);
@@ -483,10 +467,22 @@ fn source_log_text_errors_name_file_and_line() {
         );
     }
     let xml_cases: &[(&str, &str)] = &[
-        ("<hark_xml><positions frame=\"1\"><position x=\"1\" y=\"0\"/></positions></hark_xml>", "missing z"),
-        ("<hark_xml><positions frame=\"1\"><position x=\"1\" y=\"nan\" z=\"0\"/></positions></hark_xml>", "y is not a finite number"),
-        ("<hark_xml><positions><position x=\"1\" y=\"0\" z=\"0\"/></positions></hark_xml>", "no frame attribute"),
-        ("<hark_xml><positions frame=\"2\" coordinate=\"polar\"></positions></hark_xml>", "not supported"),
+        (
+            "<hark_xml><positions frame=\"1\"><position x=\"1\" y=\"0\"/></positions></hark_xml>",
+            "missing z",
+        ),
+        (
+            "<hark_xml><positions frame=\"1\"><position x=\"1\" y=\"nan\" z=\"0\"/></positions></hark_xml>",
+            "y is not a finite number",
+        ),
+        (
+            "<hark_xml><positions><position x=\"1\" y=\"0\" z=\"0\"/></positions></hark_xml>",
+            "no frame attribute",
+        ),
+        (
+            "<hark_xml><positions frame=\"2\" coordinate=\"polar\"></positions></hark_xml>",
+            "not supported",
+        ),
         ("<hark_xml><positions frame=\"2\"></hark_xml>", "XML line"),
         ("<other/>", "no <hark_xml>"),
     ];
@@ -574,8 +570,7 @@ fn spawn_receiver(expect_bytes: usize) -> (u16, std::thread::JoinHandle<Vec<u8>>
             }
         };
         conn.set_nonblocking(false).unwrap();
-        conn.set_read_timeout(Some(Duration::from_secs(10)))
-            .unwrap();
+        conn.set_read_timeout(Some(Duration::from_secs(10))).unwrap();
         let mut buf = Vec::new();
         let mut chunk = [0u8; 4096];
         while buf.len() < expect_bytes && Instant::now() < deadline {

@@ -63,12 +63,7 @@ fn all_writers_produce_consistent_files() {
         db,
         peaks: rs
             .iter()
-            .map(|r| {
-                r.sources
-                    .iter()
-                    .map(|s| (s.azimuth_deg, s.power_db))
-                    .collect()
-            })
+            .map(|r| r.sources.iter().map(|s| (s.azimuth_deg, s.power_db)).collect())
             .collect(),
         truth_azimuths_deg: vec![30.0, 120.0],
         title: "integration".into(),

@@ -158,43 +158,25 @@ fn threshold_gates_starts_and_matches() {
 #[test]
 fn near_duplicate_peaks_start_one_source() {
     let mut t = SourceTracker::new(TrackerConfig::with_thresh(0.0));
-    let out = t.update(&result(
-        0,
-        vec![peak(10.0, 0.0, 30.0), peak(15.0, 0.0, 31.0)],
-    ));
+    let out = t.update(&result(0, vec![peak(10.0, 0.0, 30.0), peak(15.0, 0.0, 31.0)]));
     assert_eq!(out.sources.len(), 1);
-    assert_eq!(
-        out.sources[0].azimuth_deg, 15.0,
-        "the strongest peak starts it"
-    );
+    assert_eq!(out.sources[0].azimuth_deg, 15.0, "the strongest peak starts it");
     // Just inside MIN_SRC_INTERVAL of the source: dropped; just outside: a new source.
-    let out = t.update(&result(
-        1,
-        vec![peak(15.0, 0.0, 30.0), peak(34.99, 0.0, 30.0)],
-    ));
+    let out = t.update(&result(1, vec![peak(15.0, 0.0, 30.0), peak(34.99, 0.0, 30.0)]));
     assert_eq!(ids(&out), vec![0]);
-    let out = t.update(&result(
-        2,
-        vec![peak(15.0, 0.0, 30.0), peak(35.01, 0.0, 30.0)],
-    ));
+    let out = t.update(&result(2, vec![peak(15.0, 0.0, 30.0), peak(35.01, 0.0, 30.0)]));
     assert_eq!(ids(&out), vec![0, 1]);
 }
 
 #[test]
 fn a_peak_is_claimed_by_the_closest_source_only() {
     let mut t = SourceTracker::new(TrackerConfig::with_thresh(0.0));
-    let out = t.update(&result(
-        0,
-        vec![peak(0.0, 0.0, 30.0), peak(30.0, 0.0, 30.0)],
-    ));
+    let out = t.update(&result(0, vec![peak(0.0, 0.0, 30.0), peak(30.0, 0.0, 30.0)]));
     assert_eq!(id_at(&out, 0.0, 0.0), Some(0));
     assert_eq!(id_at(&out, 30.0, 0.0), Some(1));
     // Peak at 16° is 16° from source 0 and 14° from source 1: source 1 claims it; source 0
     // is carried at 0°; the peak at 50° (34° from source 1's new place) starts source 2.
-    let out = t.update(&result(
-        1,
-        vec![peak(16.0, 0.0, 30.0), peak(50.0, 0.0, 30.0)],
-    ));
+    let out = t.update(&result(1, vec![peak(16.0, 0.0, 30.0), peak(50.0, 0.0, 30.0)]));
     assert_eq!(id_at(&out, 16.0, 0.0), Some(1));
     assert_eq!(id_at(&out, 0.0, 0.0), Some(0));
     assert_eq!(id_at(&out, 50.0, 0.0), Some(2));
@@ -273,11 +255,7 @@ fn exact_crossing_merged_peak_one_claims_other_carried() {
         let out = t.update(&result(f, peaks));
         if f == 14 {
             assert_eq!(id_at(&out, 16.0, 0.0), Some(0));
-            assert_eq!(
-                id_at(&out, 18.0, 0.0),
-                Some(1),
-                "carried at its last position"
-            );
+            assert_eq!(id_at(&out, 18.0, 0.0), Some(1), "carried at its last position");
         } else {
             assert_eq!(
                 (id_at(&out, a, 0.0), id_at(&out, b, 0.0)),
@@ -309,10 +287,7 @@ fn random_peaks_never_repeat_an_id_within_a_result() {
         v.dedup();
         assert_eq!(v.len(), len, "frame {f}");
         assert_eq!(len, out.sources.len(), "every output source has an id");
-        assert!(out
-            .sources
-            .windows(2)
-            .all(|w| w[0].power_db >= w[1].power_db));
+        assert!(out.sources.windows(2).all(|w| w[0].power_db >= w[1].power_db));
     }
 }
 
@@ -377,9 +352,7 @@ fn streaming_extender_delays_by_preroll_and_matches_batch() {
             streamed.push(o);
         }
         // Everything older than the preroll has been released.
-        assert!(streamed
-            .last()
-            .map_or(newest < 60, |o| o.frame + 60 >= newest));
+        assert!(streamed.last().map_or(newest < 60, |o| o.frame + 60 >= newest));
     }
     streamed.extend(ex.finish());
     assert_eq!(
@@ -452,11 +425,7 @@ fn tracker_config_defaults_and_validation() {
         pause_length: -1.0,
         ..c
     };
-    assert!(bad
-        .validate()
-        .unwrap_err()
-        .to_string()
-        .contains("PAUSE_LENGTH"));
+    assert!(bad.validate().unwrap_err().to_string().contains("PAUSE_LENGTH"));
     let bad = TrackerConfig {
         thresh_db: f64::NAN,
         ..c

@@ -103,7 +103,10 @@ pub fn check_batch<T: Real>(
             spectra.num_frames * nb * m
         )));
     }
-    if let Some(w) = windows.iter().find(|w| w.start + w.len > spectra.num_frames || w.len == 0) {
+    if let Some(w) = windows
+        .iter()
+        .find(|w| w.start + w.len > spectra.num_frames || w.len == 0)
+    {
         return Err(crate::Error::Mismatch(format!(
             "{who}: window {}..{} outside the {} frames given",
             w.start,
