@@ -31,7 +31,7 @@ echo "LD_LIBRARY_PATH=$LD_LIBRARY_PATH"
 for s in $steps; do
   case $s in
     parity)
-      SOUNDLOC_CUDA_DEBUG=1 SOUNDLOC_REQUIRE_GPU=1 "$C/gpu_parity" --nocapture --test-threads=1 2>&1 | tee "$OUT/parity.log" | grep -v "^$" ;;
+      SOUNDLOC_CUDA_DEBUG=1 SOUNDLOC_REQUIRE_GPU=1 "$C/gpu_parity" --nocapture --test-threads=1 --skip kernels_compile 2>&1 | tee "$OUT/parity.log" | grep -v "^$" ;;
     bench)
       for b in ${BENCH_BATCHES:-64 256 1024}; do
         "$C/soundloc" bench --device cuda --algorithm gsvd --algorithm gevd --batch $b --repeats 10 --json
@@ -52,10 +52,14 @@ for s in $steps; do
 done
 peer="$OUT/peer.json"; [ -s "$peer" ] || peer="$C/peer_last.json"
 if [ -s "$OUT/bench.jsonl" ] && [ -s "$peer" ]; then
-  cat "$OUT"/ab.jsonl >> "$OUT/bench.jsonl" 2>/dev/null
-  python3 - "$OUT/bench.jsonl" "$peer" <<'PY'
+  { cat "$OUT/bench.jsonl"; cat "$OUT/ab.jsonl" 2>/dev/null; } > "$OUT/all.jsonl"
+  python3 - "$OUT/all.jsonl" "$peer" <<'PY'
 import json, sys
-rows = [json.loads(l) for l in open(sys.argv[1]) if l.startswith("{")]
+rows, tag = [], ""
+for l in open(sys.argv[1]):
+    if l.startswith("== "): tag = l[3:].strip(); continue
+    if l.startswith("{"):
+        r = json.loads(l); r["tag"] = tag; rows.append(r)
 peer = json.load(open(sys.argv[2]))
 print("peer figures from", sys.argv[2])
 peer_one = peer["torch_gpu_one_window_ms"]; peer_lps = peer["B"] / (peer["torch_gpu_batch_ms"] / 1e3)
@@ -68,6 +72,6 @@ for r in rows:
     print(f'{a:5} {r["precision"]} {c["batch"]:5}  {r["ms_per_localization"]:9.3f}  {r["localizations_per_s"]:12.1f}  '
           f'{r["ms_per_audio_s_period50"]:8.3f}  {r["ms_per_audio_s_period1"]:8.2f}   '
           f'{s["correlation_ms"]:.4f}/{s["decomposition_ms"]:.4f}/{s["spectrum_ms"]:.4f}/{s["peaks_ms"]:.4f}   '
-          f'{r["localizations_per_s"]/pl:10.0f}  {po/r["ms_per_localization"]:8.0f}')
+          f'{r["localizations_per_s"]/pl:10.0f}  {po/r["ms_per_localization"]:8.0f}  {r["tag"]}')
 PY
 fi
