@@ -12,7 +12,7 @@ use crate::peaks::find_peaks;
 use crate::plan::Plan;
 use crate::real::{Real, C};
 use crate::subspace::{decompose, Decomposition, Workspace};
-use crate::{Error, Result};
+use crate::Result;
 use rayon::prelude::*;
 use std::sync::Arc;
 use std::time::Instant;
@@ -142,14 +142,7 @@ impl<T: Real> Backend<T> for CpuBackend<T> {
     }
 
     fn set_plan(&mut self, plan: Arc<Plan<T>>) -> Result<()> {
-        if plan.num_mics != self.plan.num_mics
-            || plan.num_bins() != self.plan.num_bins()
-            || plan.num_dirs != self.plan.num_dirs
-        {
-            return Err(Error::Mismatch(
-                "cpu backend: a new plan must keep mics, bins and directions".into(),
-            ));
-        }
+        super::check_replacement_plan("cpu backend", &self.plan, &plan)?;
         self.plan = plan;
         Ok(())
     }

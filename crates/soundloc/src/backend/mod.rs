@@ -117,6 +117,23 @@ pub fn check_batch<T: Real>(
     Ok(())
 }
 
+/// Check that a replacement plan keeps the shapes a backend was built for (mics, bins,
+/// directions): only its contents (K, weights) may change.
+pub fn check_replacement_plan<T: Real>(who: &str, old: &Plan<T>, new: &Plan<T>) -> Result<()> {
+    if new.num_mics != old.num_mics || new.num_bins() != old.num_bins() || new.num_dirs != old.num_dirs {
+        return Err(crate::Error::Mismatch(format!(
+            "{who}: a new plan must keep mics, bins and directions ({} × {} × {}, got {} × {} × {})",
+            old.num_mics,
+            old.num_bins(),
+            old.num_dirs,
+            new.num_mics,
+            new.num_bins(),
+            new.num_dirs
+        )));
+    }
+    Ok(())
+}
+
 /// A local maximum of the broadband spectrum.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Peak {

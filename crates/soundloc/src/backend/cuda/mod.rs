@@ -1119,14 +1119,7 @@ impl<T: Real> Backend<T> for CudaBackend<T> {
     }
 
     fn set_plan(&mut self, plan: Arc<Plan<T>>) -> Result<()> {
-        if plan.num_mics != self.plan.num_mics
-            || plan.num_bins() != self.plan.num_bins()
-            || plan.num_dirs != self.plan.num_dirs
-        {
-            return Err(Error::Mismatch(
-                "cuda backend: a new plan must keep mics, bins and directions".into(),
-            ));
-        }
+        super::check_replacement_plan("cuda backend", &self.plan, &plan)?;
         self.gpu.make_current()?;
         self.gpu.sync(Stream::Compute)?;
         let old = std::mem::replace(&mut self.plan, plan);
