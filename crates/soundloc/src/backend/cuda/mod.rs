@@ -510,8 +510,9 @@ impl<T: Real> CudaBackend<T> {
         Ok(())
     }
 
-    fn ensure(&mut self, which: Scratch, bytes: usize) -> Result<DevPtr> {
-        let slot = match which {
+    /// The device buffer behind a scratch slot.
+    fn slot(&mut self, which: Scratch) -> &mut Buf {
+        match which {
             Scratch::X => &mut self.d_x,
             Scratch::Win => &mut self.d_win,
             Scratch::R => &mut self.d_r,
@@ -525,33 +526,26 @@ impl<T: Real> CudaBackend<T> {
             Scratch::Db => &mut self.d_db,
             Scratch::Spec => &mut self.d_spec,
             Scratch::Out => &mut self.d_out,
-        };
-        if slot.bytes < bytes.max(16) {
-            let grow = (bytes.max(16) + bytes / 4).max(slot.bytes * 3 / 2);
-            let old = slot.ptr;
-            if old != 0 {
-                self.gpu.free(old);
-            }
-            let p = self.gpu.alloc(grow)?;
-            let slot = match which {
-                Scratch::X => &mut self.d_x,
-                Scratch::Win => &mut self.d_win,
-                Scratch::R => &mut self.d_r,
-                Scratch::E => &mut self.d_e,
-                Scratch::Jacobi => &mut self.d_scratch,
-                Scratch::Ppart => &mut self.d_ppart,
-                Scratch::Gain => &mut self.d_gain,
-                Scratch::Bw => &mut self.d_bw,
-                Scratch::Info => &mut self.d_info,
-                Scratch::Scale => &mut self.d_scale,
-                Scratch::Db => &mut self.d_db,
-                Scratch::Spec => &mut self.d_spec,
-                Scratch::Out => &mut self.d_out,
-            };
-            *slot = Buf { ptr: p, bytes: grow };
-            return Ok(p);
         }
-        Ok(slot.ptr)
+    }
+
+    fn ensure(&mut self, which: Scratch, bytes: usize) -> Result<DevPtr> {
+        let Buf {
+            ptr: old,
+            bytes: have,
+        } = *self.slot(which);
+        if have >= bytes.max(16) {
+            return Ok(old);
+        }
+        let grow = (bytes.max(16) + bytes / 4).max(have * 3 / 2);
+        if old != 0 {
+            self.gpu.free(old);
+            // Never leave a freed pointer in the slot if the allocation below fails.
+            *self.slot(which) = Buf { ptr: 0, bytes: 0 };
+        }
+        let p = self.gpu.alloc(grow)?;
+        *self.slot(which) = Buf { ptr: p, bytes: grow };
+        Ok(p)
     }
 
     fn ensure_pinned(&mut self, which: HostBuf, bytes: usize) -> Result<*mut u8> {
