@@ -24,6 +24,18 @@ fn tmp(name: &str) -> PathBuf {
     d.join(name)
 }
 
+/// `soundloc localize INPUT --tf <data>/tamago_rectf.zip EXTRA...`.
+fn localize_rectf(d: &Path, input: &Path, extra: &[&str]) -> Output {
+    bin()
+        .arg("localize")
+        .arg(input)
+        .arg("--tf")
+        .arg(d.join("tamago_rectf.zip"))
+        .args(extra)
+        .output()
+        .unwrap()
+}
+
 fn stderr(o: &Output) -> String {
     String::from_utf8_lossy(&o.stderr).into_owned()
 }
@@ -213,13 +225,7 @@ fn wrong_channel_count_for_the_tf() {
     };
     let w = tmp("four.wav");
     write_wav(&w, 4, 16000, 1.0, false);
-    let o = bin()
-        .arg("localize")
-        .arg(&w)
-        .arg("--tf")
-        .arg(d.join("tamago_rectf.zip"))
-        .output()
-        .unwrap();
+    let o = localize_rectf(&d, &w, &[]);
     assert_clean_failure(&o, &["4 channels", "8 microphones"]);
 }
 
@@ -230,13 +236,7 @@ fn sample_rate_mismatch() {
     };
     let w = tmp("rate.wav");
     write_wav(&w, 8, 48000, 1.0, false);
-    let o = bin()
-        .arg("localize")
-        .arg(&w)
-        .arg("--tf")
-        .arg(d.join("tamago_rectf.zip"))
-        .output()
-        .unwrap();
+    let o = localize_rectf(&d, &w, &[]);
     assert_clean_failure(&o, &["48000 Hz", "16000 Hz"]);
 }
 
@@ -247,23 +247,11 @@ fn empty_and_too_short_files() {
     };
     let empty = tmp("empty.wav");
     std::fs::write(&empty, b"").unwrap();
-    let o = bin()
-        .arg("localize")
-        .arg(&empty)
-        .arg("--tf")
-        .arg(d.join("tamago_rectf.zip"))
-        .output()
-        .unwrap();
+    let o = localize_rectf(&d, &empty, &[]);
     assert_clean_failure(&o, &["empty.wav"]);
     let short = tmp("short.wav");
     write_wav(&short, 8, 16000, 0.2, false);
-    let o = bin()
-        .arg("localize")
-        .arg(&short)
-        .arg("--tf")
-        .arg(d.join("tamago_rectf.zip"))
-        .output()
-        .unwrap();
+    let o = localize_rectf(&d, &short, &[]);
     assert_clean_failure(&o, &["needs at least"]);
 }
 
@@ -274,13 +262,7 @@ fn nan_samples() {
     };
     let w = tmp("nan.wav");
     write_wav(&w, 8, 16000, 1.0, true);
-    let o = bin()
-        .arg("localize")
-        .arg(&w)
-        .arg("--tf")
-        .arg(d.join("tamago_rectf.zip"))
-        .output()
-        .unwrap();
+    let o = localize_rectf(&d, &w, &[]);
     assert_clean_failure(&o, &["nan.wav", "NaN"]);
 }
 
