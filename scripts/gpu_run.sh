@@ -37,10 +37,12 @@ for s in $steps; do
         "$C/soundloc" bench --device cuda --algorithm gsvd --algorithm gevd --batch $b --repeats 10 --json
       done 2>&1 | tee "$OUT/bench.jsonl" ;;
     ab)
-      # A/B of tuning knobs on GSVD, batch 256: no factor form; other register caps.
-      for v in "SOUNDLOC_CUDA_FACTOR=0" "SOUNDLOC_CUDA_NVRTC_OPTS=-DSL_F32_MINB=2" "SOUNDLOC_CUDA_NVRTC_OPTS=-DSL_F32_MINB=3"; do
+      # A/B of tuning knobs, batch 256 (AB_VARIANTS overrides): the Jacobi kernel instead of
+      # the tridiagonal eigensolver; full instead of lower-triangle updates; register caps;
+      # 512-thread blocks.
+      for v in ${AB_VARIANTS:-SOUNDLOC_CUDA_DEC=jacobi SOUNDLOC_CUDA_NVRTC_OPTS=-DEH_FULL SOUNDLOC_CUDA_NVRTC_OPTS=-DEH_MINB=3 SOUNDLOC_CUDA_EIGH_THREADS=512}; do
         echo "== $v"
-        env "$v" "$C/soundloc" bench --device cuda --algorithm gsvd --batch 256 --repeats 10 --json
+        env "$v" "$C/soundloc" bench --device cuda --algorithm gsvd --algorithm gevd --batch ${AB_BATCH:-256} --repeats 10 --json
       done 2>&1 | tee "$OUT/ab.jsonl" ;;
     f64)
       "$C/soundloc" bench --device cuda --precision f64 --algorithm gsvd --algorithm gevd --batch 64 --repeats 5 --json 2>&1 | tee -a "$OUT/bench.jsonl" ;;

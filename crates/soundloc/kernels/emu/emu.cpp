@@ -18,6 +18,7 @@
 
 #include "../correlate.cu"
 #include "../decompose.cu"
+#include "../eigh.cu"
 #include "../peaks.cu"
 #include "../spectrum.cu"
 
@@ -105,7 +106,7 @@ const std::unordered_map<std::string, Binder>& registry() {
         REG(correlate_f32),    REG(correlate_f64),    REG(decompose_sn_f32), REG(decompose_sv_f32),
         REG(decompose_gn_f32), REG(decompose_gv_f32), REG(decompose_sn_f64), REG(decompose_sv_f64),
         REG(decompose_gn_f64), REG(decompose_gv_f64), REG(spectrum_f32),     REG(spectrum_f64),
-        REG(peaks_f32),        REG(peaks_f64),
+        REG(peaks_f32),        REG(peaks_f64),        REG(eigh_f32),         REG(eigh_f64),
     };
     return r;
 }

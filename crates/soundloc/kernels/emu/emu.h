@@ -68,6 +68,20 @@ inline T __shfl_xor_sync(unsigned, T v, int lane_mask) {
     return r;
 }
 
+// Bit l set when lane l's predicate is true (every lane of the warp calls it).
+inline unsigned __ballot_sync(unsigned, int pred) {
+    const int buf = (int)(emu_cur->wgen & 1);
+    uint64_t* slots = emu_warp_slots(buf);
+    slots[emu_cur->lane] = pred ? 1 : 0;
+    emu_warp_barrier();
+    unsigned r = 0;
+    for (int l = 0; l < 32; ++l)
+        if (slots[l]) r |= 1u << l;
+    return r;
+}
+
+inline int __ffs(int x) { return __builtin_ffs(x); }
+
 inline int atomicAdd(int* p, int v) {
     int old = *p;
     *p = old + v;

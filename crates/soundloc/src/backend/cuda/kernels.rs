@@ -19,14 +19,16 @@ use std::sync::Mutex;
 pub(crate) enum KernelId {
     Correlate,
     Decompose,
+    Eigh,
     Spectrum,
     Peaks,
 }
 
 impl KernelId {
-    pub(crate) const ALL: [KernelId; 4] = [
+    pub(crate) const ALL: [KernelId; 5] = [
         KernelId::Correlate,
         KernelId::Decompose,
+        KernelId::Eigh,
         KernelId::Spectrum,
         KernelId::Peaks,
     ];
@@ -35,6 +37,7 @@ impl KernelId {
         match self {
             KernelId::Correlate => include_str!("../../../kernels/correlate.cu"),
             KernelId::Decompose => include_str!("../../../kernels/decompose.cu"),
+            KernelId::Eigh => include_str!("../../../kernels/eigh.cu"),
             KernelId::Spectrum => include_str!("../../../kernels/spectrum.cu"),
             KernelId::Peaks => include_str!("../../../kernels/peaks.cu"),
         }
@@ -252,11 +255,25 @@ pub(crate) fn nvrtc_compile(source: &str, opts: &[String], cubin: bool) -> Resul
 
 fn options(arch: &str) -> Vec<String> {
     let mut o = vec![format!("--gpu-architecture={arch}"), "--std=c++17".to_string()];
+    let et = eigh_threads();
+    if et != 256 {
+        o.push(format!("-DEH_THREADS={et}"));
+    }
     // Developer hook for tuning runs (e.g. "-DSL_F32_MINB=3"); fixed for the process.
     if let Ok(extra) = std::env::var("SOUNDLOC_CUDA_NVRTC_OPTS") {
         o.extend(extra.split_whitespace().map(str::to_string));
     }
     o
+}
+
+/// Threads per block of the tridiagonal eigensolver (eigh.cu): 256, or 512 when
+/// `SOUNDLOC_CUDA_EIGH_THREADS=512` (a tuning hook, fixed for the process; the emulator
+/// libraries are built with 256).
+pub(crate) fn eigh_threads() -> usize {
+    match std::env::var("SOUNDLOC_CUDA_EIGH_THREADS").as_deref() {
+        Ok("512") => 512,
+        _ => 256,
+    }
 }
 
 /// Compile (or fetch from the process-wide cache) the module for a device of compute

@@ -6,8 +6,11 @@
 //!  host frames ─(pinned staging, copy stream)─► X [frame][bin][mic]
 //!  per sub-batch of windows, on the compute stream:
 //!   correlate  (window × bin) blocks   R = (1/W) Σ x xᴴ, HARK scaling          correlate.cu
-//!   decompose  one block per matrix    G = W R Wᴴ | W R W | W R | R, one-sided    decompose.cu
-//!                                      Jacobi in shared memory, top-Ns vectors
+//!   eigh       one block per matrix    H = R | W R Wᴴ | W R W | (W R)(W R)ᴴ in f64,  eigh.cu
+//!                                      Householder → tridiagonal, bisection, inverse
+//!                                      iteration, top-Ns vectors (squared denominator, M ≤ 64)
+//!   decompose  (otherwise)             G = W R Wᴴ | W R W | W R | R, one-sided    decompose.cu
+//!                                      Jacobi in shared memory (all vectors when unsquared)
 //!   spectrum   direction tiles         P̄ = Σ_k w_k g_k ‖a‖²/den, complement+refine  spectrum.cu
 //!   peaks      one block per window    dB, local maxima, sorted candidates        peaks.cu
 //!  ─► only the peak candidates (and the dB spectrum / bin weights when asked) come back.
@@ -27,7 +30,10 @@
 //! accumulated (on Aᴴ for GSVD) and all M vectors are kept. The small products that
 //! whiten R are fused into the Jacobi kernel's prologue (no cuBLAS round trip); the
 //! correlation is its own small kernel so that stage times stay separate.
-//! `docs/gpu.md` has the measurements.
+//! For the squared denominator with M ≤ 64 the signal vectors come instead from a
+//! Householder tridiagonalisation of the Hermitian H (eigh.cu): ~(16/3)·M³ flops instead
+//! of the Jacobi's ~10 sweeps × 8·M³, and H is formed and reduced in double precision, so
+//! GSVD's A Aᴴ does not square the f32 rounding. `docs/gpu.md` has the measurements.
 //!
 //! **Batching.** `process` splits its windows into sub-batches sized to fill the GPU a
 //! few times over; STFT frames go up through two pinned staging buffers on a copy stream
@@ -214,6 +220,11 @@ struct Layout {
     want_v: bool,
     ld: usize,
     dec_smem_mode: bool,
+    /// Whether the signal subspace comes from the tridiagonal eigensolver (eigh.cu)
+    /// instead of the Jacobi kernel.
+    eigh: bool,
+    eigh_threads: usize,
+    eigh_smem: usize,
     dec_threads: usize,
     dec_smem: usize,
     dec_scratch_per_mat: usize,
@@ -235,6 +246,7 @@ struct Layout {
 struct Funcs {
     correlate: Func,
     decompose: Func,
+    eigh: Func,
     spectrum: Func,
     peaks: Func,
 }
@@ -308,6 +320,7 @@ impl<T: Real> CudaBackend<T> {
             f: Funcs {
                 correlate: 0,
                 decompose: 0,
+                eigh: 0,
                 spectrum: 0,
                 peaks: 0,
             },
@@ -364,12 +377,14 @@ impl<T: Real> CudaBackend<T> {
         self.f = Funcs {
             correlate: self.gpu.function(&format!("correlate_{t}"))?,
             decompose: self.gpu.function(&dec)?,
+            eigh: self.gpu.function(&format!("eigh_{t}"))?,
             spectrum: self.gpu.function(&format!("spectrum_{t}"))?,
             peaks: self.gpu.function(&format!("peaks_{t}"))?,
         };
         for (f, s) in [
             (self.f.correlate, l.corr_smem),
             (self.f.decompose, l.dec_smem),
+            (self.f.eigh, l.eigh_smem),
             (
                 self.f.spectrum,
                 l.spec_tile
@@ -391,6 +406,7 @@ impl<T: Real> CudaBackend<T> {
         for (f, name, threads) in [
             (self.f.correlate, "correlate", 256),
             (self.f.decompose, "decompose", l.dec_threads),
+            (self.f.eigh, "eigh", l.eigh_threads),
             (self.f.spectrum, "spectrum", l.spec_dt * l.spec_wg),
             (self.f.peaks, "peaks", 256),
         ] {
@@ -589,6 +605,45 @@ impl<T: Real> CudaBackend<T> {
         (4 * self.gpu.sm_count()).div_ceil(xy.max(1)).clamp(1, l.nb)
     }
 
+    /// The Jacobi decomposition (decompose.cu) of this sub-batch's matrices.
+    fn launch_jacobi(&self, mat0: usize, nmat: usize, mode: &DecMode) -> Result<()> {
+        let l = &self.lay;
+        let vec_all = usize::from(!l.squared);
+        Args::new()
+            .p(self.d_r.ptr)
+            .p(self.d_x.ptr)
+            .p(self.d_win.ptr)
+            .p(self.d_scale.ptr)
+            .p(self.d_wcm.ptr)
+            .p(self.d_wrm.ptr)
+            .i(l.m)
+            .i(l.nb)
+            .i(l.ld)
+            .i(mode.ncf)
+            .i(mode.factor)
+            .i(mode.left)
+            .i(mode.right)
+            .i(l.ns)
+            .i(vec_all)
+            .i(MAX_SWEEPS as usize)
+            .i(usize::from(self.plan.config.eigenvalue_weight))
+            .i(l.valmode)
+            .p(self.d_weights.ptr)
+            .i(mat0)
+            .p(self.d_e.ptr)
+            .p(self.d_gain.ptr)
+            .p(self.d_bw.ptr)
+            .p(self.d_info.ptr)
+            .p(self.d_scratch.ptr)
+            .launch(
+                &*self.gpu,
+                self.f.decompose,
+                [nmat, 1, 1],
+                mode.threads,
+                l.dec_smem,
+            )
+    }
+
     #[allow(clippy::too_many_arguments)]
     fn launch_sub_batch(
         &mut self,
@@ -620,34 +675,26 @@ impl<T: Real> CudaBackend<T> {
             .p(self.d_scale.ptr)
             .launch(g, self.f.correlate, [nmat, 1, 1], 256, l.corr_smem)?;
         g.record(ev[1], Stream::Compute)?;
-        let vec_all = usize::from(!l.squared);
-        Args::new()
-            .p(self.d_r.ptr)
-            .p(self.d_x.ptr)
-            .p(self.d_win.ptr)
-            .p(self.d_scale.ptr)
-            .p(self.d_wcm.ptr)
-            .p(self.d_wrm.ptr)
-            .i(l.m)
-            .i(l.nb)
-            .i(l.ld)
-            .i(mode.ncf)
-            .i(mode.factor)
-            .i(mode.left)
-            .i(mode.right)
-            .i(l.ns)
-            .i(vec_all)
-            .i(MAX_SWEEPS as usize)
-            .i(usize::from(self.plan.config.eigenvalue_weight))
-            .i(l.valmode)
-            .p(self.d_weights.ptr)
-            .i(mat0)
-            .p(self.d_e.ptr)
-            .p(self.d_gain.ptr)
-            .p(self.d_bw.ptr)
-            .p(self.d_info.ptr)
-            .p(self.d_scratch.ptr)
-            .launch(g, self.f.decompose, [nmat, 1, 1], mode.threads, l.dec_smem)?;
+        if l.eigh {
+            Args::new()
+                .p(self.d_r.ptr)
+                .p(self.d_wcm.ptr)
+                .p(self.d_wrm.ptr)
+                .i(l.m)
+                .i(l.nb)
+                .i(l.valmode)
+                .i(l.ns)
+                .i(usize::from(self.plan.config.eigenvalue_weight))
+                .p(self.d_weights.ptr)
+                .i(mat0)
+                .p(self.d_e.ptr)
+                .p(self.d_gain.ptr)
+                .p(self.d_bw.ptr)
+                .p(self.d_info.ptr)
+                .launch(g, self.f.eigh, [nmat, 1, 1], l.eigh_threads, l.eigh_smem)?;
+        } else {
+            self.launch_jacobi(mat0, nmat, mode)?;
+        }
         g.record(ev[2], Stream::Compute)?;
         let n2den = if self.d_n2den.bytes > 0 {
             self.d_n2den.ptr
@@ -784,6 +831,9 @@ enum HostBuf {
     Bw,
 }
 
+/// Eigenvectors of the tridiagonal matrix solved at once by eigh.cu (its EH_VEC).
+const EIGH_VEC: usize = 8;
+
 fn layout<T: Real>(plan: &Plan<T>, gpu: &dyn Gpu) -> Result<Layout> {
     let (cs, ts) = (csize::<T>(), std::mem::size_of::<T>());
     let m = plan.num_mics;
@@ -821,6 +871,14 @@ fn layout<T: Real>(plan: &Plan<T>, gpu: &dyn Gpu) -> Result<Layout> {
     } else {
         (small, mats)
     };
+    // The tridiagonal eigensolver whenever only the signal vectors are needed and its
+    // register tiles cover M (SOUNDLOC_CUDA_DEC=jacobi keeps the Jacobi kernel, for A/B runs).
+    let eigh_threads = kernels::eigh_threads();
+    let eigh_smem = (m * (m | 1) + 3 * m) * 16 + (3 * m + ns + ns * m + EIGH_VEC * 5 * m) * 8 + 16;
+    let eigh = squared
+        && m <= 64
+        && eigh_smem <= optin
+        && std::env::var("SOUNDLOC_CUDA_DEC").map_or(true, |v| v != "jacobi");
     let groups = n / 2 * v.lpp as usize;
     let dec_threads = groups.div_ceil(32).clamp(1, 32) * 32;
     let corr_fc = ((SMEM_DEFAULT - 32 * ts) / (m * cs)).clamp(1, 32);
@@ -856,6 +914,9 @@ fn layout<T: Real>(plan: &Plan<T>, gpu: &dyn Gpu) -> Result<Layout> {
         want_v,
         ld,
         dec_smem_mode,
+        eigh,
+        eigh_threads,
+        eigh_smem,
         dec_threads,
         dec_smem,
         dec_scratch_per_mat,
@@ -1079,7 +1140,7 @@ impl<T: Real> Backend<T> for CudaBackend<T> {
             out.peaks.push(v);
         }
         if self.debug {
-            // Jacobi sweeps per matrix (SOUNDLOC_CUDA_DEBUG=1).
+            // Jacobi sweeps or bisection steps per matrix (SOUNDLOC_CUDA_DEBUG=1).
             let mut info = vec![0i32; nw * nb];
             // SAFETY: synchronous copy after the stream is idle.
             unsafe {
@@ -1094,8 +1155,13 @@ impl<T: Real> Backend<T> for CudaBackend<T> {
             let mean = info.iter().map(|&x| x as f64).sum::<f64>() / info.len() as f64;
             let _ = writeln!(
                 std::io::stderr(),
-                "soundloc cuda: {nw} windows in {nsb} sub-batches of {sb}, factor form {}; Jacobi sweeps min {} mean {mean:.2} max {}",
-                mode.factor,
+                "soundloc cuda: {nw} windows in {nsb} sub-batches of {sb}, {}; {} min {} mean {mean:.2} max {}",
+                if l.eigh {
+                    "tridiagonal eigensolver".to_string()
+                } else {
+                    format!("Jacobi, factor form {}", mode.factor)
+                },
+                if l.eigh { "bisection steps" } else { "sweeps" },
                 info.iter().min().unwrap_or(&0),
                 info.iter().max().unwrap_or(&0)
             );
