@@ -38,12 +38,16 @@ for s in $steps; do
       done 2>&1 | tee "$OUT/bench.jsonl" ;;
     ab)
       # A/B of tuning knobs, batch 256 (AB_VARIANTS overrides): the Jacobi kernel instead of
-      # the tridiagonal eigensolver; full instead of lower-triangle updates; register caps;
-      # 512-thread blocks.
-      for v in ${AB_VARIANTS:-SOUNDLOC_CUDA_DEC=jacobi SOUNDLOC_CUDA_NVRTC_OPTS=-DEH_FULL SOUNDLOC_CUDA_NVRTC_OPTS=-DEH_MINB=3 SOUNDLOC_CUDA_EIGH_THREADS=512}; do
+      # the tridiagonal eigensolver; bisection to full precision; 512-thread blocks.
+      for v in ${AB_VARIANTS:-SOUNDLOC_CUDA_DEC=jacobi SOUNDLOC_CUDA_NVRTC_OPTS=-DEH_MINB=3 SOUNDLOC_CUDA_NVRTC_OPTS=-DEH_BTOL=0.0 SOUNDLOC_CUDA_EIGH_THREADS=512}; do
         echo "== $v"
         env "$v" "$C/soundloc" bench --device cuda --algorithm gsvd --algorithm gevd --batch ${AB_BATCH:-256} --repeats 10 --json
       done 2>&1 | tee "$OUT/ab.jsonl" ;;
+    prof)
+      # Cycle counts per phase of the tridiagonal eigensolver (eigh.cu), one window and batched.
+      for b in 1 256; do
+        SOUNDLOC_CUDA_PROFILE=1 "$C/soundloc" bench --device cuda --algorithm gsvd --algorithm sevd --batch $b --repeats 3 --json 2>&1 | grep -E "eigh cycles" | sort | uniq -c | sort -rn | head -4
+      done 2>&1 | tee "$OUT/prof.txt" ;;
     f64)
       "$C/soundloc" bench --device cuda --precision f64 --algorithm gsvd --algorithm gevd --batch 64 --repeats 5 --json 2>&1 | tee -a "$OUT/bench.jsonl" ;;
     allalg)

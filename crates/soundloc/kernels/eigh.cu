@@ -21,9 +21,9 @@
 //
 // Threads: EH_THREADS (256 or 512) = EH_TY × 16; products use 4 (or 2) rows × 4 columns of
 // registers per thread, so M ≤ 64. Shared memory (dynamic, see `eigh_smem` on the host):
-// A (M × lda complex doubles, lda = M | 1: odd, so column reads are conflict-free), p and v
-// (M each), τ (M), d, e, e² (M each), λ (Ns), Z (Ns × M), inverse-iteration scratch
-// (EH_VEC × 5M), one int.
+// A (M × lda complex doubles, lda = M | 1: odd, so column reads are conflict-free), p (M),
+// v (2 × M), τ (M), d, e, e² (M each), λ (Ns), Z (Ns × M), inverse-iteration scratch
+// (EH_VEC × 5M), the back-transformation's T factors (EH_NBLK × EH_BW² complex), one int.
 //
 // Outputs as decompose.cu: E [blk][Ns][M] (rank order), gain[mat] = w_b·g,
 // bw[mat] = g (g = √val with eigw, else 1; val = λ_0, or σ_0 = √λ_0 for GSVD), info[mat]
@@ -37,7 +37,12 @@
 #define EH_TY (EH_THREADS / 16)
 #define EH_RT (EH_MAXN / EH_TY)    // rows per thread in the products
 #define EH_PARTS (EH_THREADS / 64)  // threads per row in the matrix-vector product
+#ifndef EH_BTOL
+#define EH_BTOL 1e-10  // bisection stops at this fraction of ‖T‖ (then inverse iteration)
+#endif
 #define EH_VEC 8                    // eigenvectors of T solved at once (lanes of warp 0)
+#define EH_BW 8                     // reflectors per block of the back-transformation
+#define EH_NBLK ((EH_MAXN - 1 + EH_BW - 1) / EH_BW)
 
 typedef cplx<double> zd;
 
@@ -48,6 +53,18 @@ __device__ __forceinline__ zd to_zd(cplx<T> a) {
 
 __device__ __forceinline__ double warp_sum_d(double v) { return group_sum<32>(v); }
 
+// 1/x to ~46 bits: the single-precision reciprocal and one Newton step (x scaled so that
+// 1e-30 ≤ |x| ≤ 1e30; a full double division is ~3× the latency on the device).
+__device__ __forceinline__ double rcp_fast(double x) {
+    const double y = (double)__frcp_rn((float)x);
+    return y * (2.0 - x * y);
+}
+
+// Entry i of reflector k's v (v(k+1) = 1, stored below it in column k of A, 0 above).
+__device__ __forceinline__ zd vget(const zd* A, int lda, int n, int k, int i) {
+    return i == k + 1 ? cx<double>(1.0, 0.0) : (i > k + 1 && i < n ? A[(size_t)k * lda + i] : czero<double>());
+}
+
 // Number of eigenvalues of T (diagonal d, squared off-diagonal e2) below x (Sturm count,
 // LDLᵀ form with LAPACK's pivmin guard).
 __device__ int sturm_count(const double* d, const double* e2, int n, double x, double pivmin) {
@@ -55,7 +72,7 @@ __device__ int sturm_count(const double* d, const double* e2, int n, double x, d
     if (fabs(q) < pivmin) q = -pivmin;
     int cnt = q < 0.0 ? 1 : 0;
     for (int i = 1; i < n; ++i) {
-        q = d[i] - x - e2[i - 1] / q;
+        q = d[i] - x - e2[i - 1] * rcp_fast(q);
         if (fabs(q) < pivmin) q = -pivmin;
         cnt += q < 0.0 ? 1 : 0;
     }
@@ -102,28 +119,78 @@ __device__ __forceinline__ void tile_store(zd* A, int lda, int n, const zd (&acc
         }
 }
 
+// a ← a − v_r conj(w_c) − w_r conj(v_c) (one entry of the Hermitian rank-2 update).
+__device__ __forceinline__ void rank2(zd& a, zd vr, zd wr, zd vc, zd wc) {
+    a.re -= vr.re * wc.re + vr.im * wc.im + wr.re * vc.re + wr.im * vc.im;
+    a.im -= vr.im * wc.re - vr.re * wc.im + wr.im * vc.re - wr.re * vc.im;
+}
+
+// Reflector k (LAPACK zlarfg) from x = A(k+1:n, k), by one warp: H_kᴴ x = β e_1 with β
+// real, H_k = I − τ v vᴴ, v(0) = 1; v(1:) is stored in A(k+2:n, k) and all of v in vout.
+__device__ void make_reflector(zd* A, int lda, int n, int k, zd* tau, double* ee, zd* vout, int lane) {
+    const int r0 = k + 1, m = n - r0;
+    const zd alpha = A[(size_t)k * lda + r0];
+    double s = 0.0;
+    for (int i = r0 + 1 + lane; i < n; i += 32) s += cnorm2(A[(size_t)k * lda + i]);
+    const double xn2 = warp_sum_d(s);
+    if (xn2 == 0.0 && alpha.im == 0.0) {
+        if (lane == 0) {
+            tau[k] = czero<double>();
+            ee[k] = alpha.re;
+        }
+        for (int i = lane; i < m; i += 32) vout[i] = cx<double>(i == 0 ? 1.0 : 0.0, 0.0);
+        return;
+    }
+    const double nrm = sqrt(alpha.re * alpha.re + alpha.im * alpha.im + xn2);
+    const double beta = alpha.re >= 0.0 ? -nrm : nrm;
+    // 1 / (α − β) = conj(α − β) / |α − β|²
+    const double dr = alpha.re - beta, di = alpha.im;
+    const double iden = 1.0 / (dr * dr + di * di);
+    const zd sc = cx<double>(dr * iden, -di * iden);
+    if (lane == 0) {
+        const double ib = 1.0 / beta;
+        tau[k] = cx<double>((beta - alpha.re) * ib, -alpha.im * ib);
+        ee[k] = beta;
+        vout[0] = cx<double>(1.0, 0.0);
+    }
+    for (int i = r0 + 1 + lane; i < n; i += 32) {
+        const zd x = A[(size_t)k * lda + i];
+        const zd v = cx<double>(x.re * sc.re - x.im * sc.im, x.re * sc.im + x.im * sc.re);
+        A[(size_t)k * lda + i] = v;  // kept for the back-transformation
+        vout[i - r0] = v;
+    }
+}
+
 template <typename T>
 __device__ void eigh_impl(const cplx<T>* __restrict__ R, const cplx<T>* __restrict__ Wcm,
                           const cplx<T>* __restrict__ Wrm, int M, int nb, int mode, int ns, int eigw,
                           const T* __restrict__ weights, int mat0, cplx<T>* __restrict__ E, T* __restrict__ gain,
-                          float* __restrict__ bw, int* __restrict__ info) {
+                          float* __restrict__ bw, int* __restrict__ info, long long* __restrict__ prof) {
     SL_DYN_SMEM(sm);
     const int n = M, lda = M | 1;
     const int tid = threadIdx.x, nt = blockDim.x;
     const int lane = tid & 31, warp = tid >> 5, nwarps = nt >> 5;
     const int mat = mat0 + blockIdx.x;
     const int b = mat % nb;
+    // Cycle counts at the phase boundaries (SOUNDLOC_CUDA_PROFILE=1 passes a buffer).
+#define EH_PROF(i)                                                          \
+    do {                                                                    \
+        if (prof != nullptr && tid == 0) prof[(size_t)mat * 8 + (i)] = clock64(); \
+    } while (0)
+    EH_PROF(0);
     zd* A = reinterpret_cast<zd*>(sm);
     zd* pv = A + (size_t)n * lda;
-    zd* vv = pv + n;
-    zd* tau = vv + n;
+    zd* vv = pv + n;  // two buffers of n
+    zd* tau = vv + 2 * n;
     double* dd = reinterpret_cast<double*>(tau + n);
     double* ee = dd + n;  // off-diagonal β_k (real, signed)
     double* e2 = ee + n;  // β_k²
     double* lam = e2 + n;
     double* zs = lam + ns;                    // Ns × n
     double* scr = zs + (size_t)ns * n;         // EH_VEC × 5n
-    int* steps = reinterpret_cast<int*>(scr + (size_t)EH_VEC * 5 * n);
+    // EH_NBLK × EH_BW² T factors (16-byte aligned)
+    zd* tf = reinterpret_cast<zd*>((reinterpret_cast<size_t>(scr + (size_t)EH_VEC * 5 * n) + 15) & ~(size_t)15);
+    int* steps = reinterpret_cast<int*>(tf + EH_NBLK * EH_BW * EH_BW);
     const cplx<T>* Rm = R + (size_t)blockIdx.x * M * M;    // column-major, R_ik = Rm[k*M + i]
     const cplx<T>* Wc = Wcm + (size_t)b * M * M;           // W_ik = Wc[k*M + i]
     const cplx<T>* Wr = Wrm + (size_t)b * M * M;           // W_kj = Wr[k*M + j]
@@ -173,146 +240,130 @@ __device__ void eigh_impl(const cplx<T>* __restrict__ R, const cplx<T>* __restri
         }
     }
     __syncthreads();
+    EH_PROF(1);
 
-    // ---- Householder reduction to tridiagonal form (lower) ----
+    // ---- Householder reduction to tridiagonal form (lower triangle only) ----
+    // Step k: p = τ A22 v, w = p − ½ τ̄ (vᴴp) v, A22 ← A22 − v wᴴ − w vᴴ (A22 = A(k+1:, k+1:)).
+    // Look-ahead: warp 0 updates A22's first column itself and at once forms the next
+    // reflector from it, while the other warps update the rest; one barrier fewer per step
+    // and the reflector's latency hidden. v is double-buffered for that reason.
+    if (warp == 0) make_reflector(A, lda, n, 0, tau, ee, vv, lane);
+    __syncthreads();
     for (int k = 0; k < n - 1; ++k) {
         const int m = n - k - 1;  // length of x = A(k+1 : n, k)
         const int r0 = k + 1;
-        if (warp == 0) {
-            // Reflector (LAPACK zlarfg): H_kᴴ x = β e_1, β real, v(0) = 1.
-            const zd alpha = A[(size_t)k * lda + r0];
-            double s = 0.0;
-            for (int i = r0 + 1 + lane; i < n; i += 32) s += cnorm2(A[(size_t)k * lda + i]);
-            const double xn2 = warp_sum_d(s);
-            if (xn2 == 0.0 && alpha.im == 0.0) {
-                if (lane == 0) {
-                    tau[k] = czero<double>();
-                    ee[k] = alpha.re;
-                }
-                for (int i = lane; i < m; i += 32) vv[i] = cx<double>(i == 0 ? 1.0 : 0.0, 0.0);
-            } else {
-                const double nrm = sqrt(alpha.re * alpha.re + alpha.im * alpha.im + xn2);
-                const double beta = alpha.re >= 0.0 ? -nrm : nrm;
-                // scale = 1 / (α − β)
-                const double dr = alpha.re - beta, di = alpha.im;
-                const double den = dr * dr + di * di;
-                const zd sc = cx<double>(dr / den, -di / den);
-                if (lane == 0) {
-                    tau[k] = cx<double>((beta - alpha.re) / beta, -alpha.im / beta);
-                    ee[k] = beta;
-                    vv[0] = cx<double>(1.0, 0.0);
-                }
-                for (int i = r0 + 1 + lane; i < n; i += 32) {
-                    const zd x = A[(size_t)k * lda + i];
-                    const zd v = cx<double>(x.re * sc.re - x.im * sc.im, x.re * sc.im + x.im * sc.re);
-                    A[(size_t)k * lda + i] = v;  // kept for the back-transformation
-                    vv[i - r0] = v;
-                }
-            }
-        }
-        __syncthreads();
+        const zd* v = vv + (k & 1) * n;
+        zd* vnext = vv + ((k + 1) & 1) * n;
         const zd tk = tau[k];
-        if (tk.re == 0.0 && tk.im == 0.0) continue;  // uniform: H_k = I
-        // p = τ A22 v (A22 = A(k+1:n, k+1:n)); EH_PARTS consecutive lanes share a row.
+        if (tk.re == 0.0 && tk.im == 0.0) {  // uniform: H_k = I, A22 unchanged
+            if (warp == 0 && k + 1 < n - 1) make_reflector(A, lda, n, k + 1, tau, ee, vnext, lane);
+            __syncthreads();
+            continue;
+        }
+        // p = τ A22 v; EH_PARTS consecutive lanes share a row (h_rc = conj(h_cr) above the
+        // diagonal: only the lower triangle is current).
         {
             const int r = tid / EH_PARTS, part = tid - r * EH_PARTS;
-            zd s = czero<double>();
-            if (r < m)
-                for (int c = part; c < m; c += EH_PARTS) {
-#ifndef EH_FULL
-                    // only the lower triangle is current: h_rc = conj(h_cr) above it
-                    const zd h = c <= r ? A[(size_t)(r0 + c) * lda + r0 + r] : cconj(A[(size_t)(r0 + r) * lda + r0 + c]);
-#else
-                    const zd h = A[(size_t)(r0 + c) * lda + r0 + r];
-#endif
-                    cmac(s, h, vv[c]);
+            zd s0 = czero<double>(), s1 = czero<double>();
+            if (r < m) {
+                int c = part;
+                for (; c + EH_PARTS < m; c += 2 * EH_PARTS) {
+                    const int c1 = c + EH_PARTS;
+                    const zd h0 = c <= r ? A[(size_t)(r0 + c) * lda + r0 + r] : cconj(A[(size_t)(r0 + r) * lda + r0 + c]);
+                    const zd h1 =
+                        c1 <= r ? A[(size_t)(r0 + c1) * lda + r0 + r] : cconj(A[(size_t)(r0 + r) * lda + r0 + c1]);
+                    cmac(s0, h0, v[c]);
+                    cmac(s1, h1, v[c1]);
                 }
+                if (c < m) {
+                    const zd h0 = c <= r ? A[(size_t)(r0 + c) * lda + r0 + r] : cconj(A[(size_t)(r0 + r) * lda + r0 + c]);
+                    cmac(s0, h0, v[c]);
+                }
+            }
+            zd s = cadd(s0, s1);
             s.re = group_sum<EH_PARTS>(s.re);
             s.im = group_sum<EH_PARTS>(s.im);
             if (r < m && part == 0) pv[r] = cx<double>(tk.re * s.re - tk.im * s.im, tk.re * s.im + tk.im * s.re);
         }
         __syncthreads();
-        // w = p − γ v with γ = ½ τ̄ (vᴴ p) (every warp forms γ itself: no barrier);
-        // A22 ← A22 − v wᴴ − w vᴴ.
+        // γ = ½ τ̄ (vᴴ p), formed by every warp itself (no barrier).
         zd g;
         {
             zd s = czero<double>();
-            for (int c = lane; c < m; c += 32) cmacc(s, vv[c], pv[c]);
+            for (int c = lane; c < m; c += 32) cmacc(s, v[c], pv[c]);
             s.re = warp_sum_d(s.re);
             s.im = warp_sum_d(s.im);
-            // ½ conj(τ) s
             g = cx<double>(0.5 * (tk.re * s.re + tk.im * s.im), 0.5 * (tk.re * s.im - tk.im * s.re));
         }
-#ifndef EH_FULL
-        // Lower triangle only, packed from the bottom-right corner: entry idx is (row, col) =
-        // (n−1−r', n−1−c') with c' = ⌊(√(8 idx + 1) − 1)/2⌋, r' = idx − c'(c'+1)/2 ≤ c', so
-        // the first m(m+1)/2 entries are exactly A22's lower triangle.
-        for (int idx = tid, tot = m * (m + 1) / 2; idx < tot; idx += nt) {
-            int cq = (int)((sqrtf(8.0f * (float)idx + 1.0f) - 1.0f) * 0.5f);
-            if ((cq + 1) * (cq + 2) / 2 <= idx) ++cq;
-            if (cq * (cq + 1) / 2 > idx) --cq;
-            const int r = m - 1 - (idx - cq * (cq + 1) / 2), c = m - 1 - cq;
-            const zd vr = vv[r], pr = pv[r], vc = vv[c], pc = pv[c];
-            const zd wr = cx<double>(pr.re - (g.re * vr.re - g.im * vr.im), pr.im - (g.re * vr.im + g.im * vr.re));
-            const zd wc = cx<double>(pc.re - (g.re * vc.re - g.im * vc.im), pc.im - (g.re * vc.im + g.im * vc.re));
-            zd a = A[(size_t)(r0 + c) * lda + r0 + r];
-            a.re -= vr.re * wc.re + vr.im * wc.im + wr.re * vc.re + wr.im * vc.im;
-            a.im -= vr.im * wc.re - vr.re * wc.im + wr.im * vc.re - wr.re * vc.im;
-            A[(size_t)(r0 + c) * lda + r0 + r] = a;
-        }
-#else
-        {
-            const int r = tid & 63;
-            if (r < m) {
-                const zd vr = vv[r], pr = pv[r];
-                const zd wr = cx<double>(pr.re - (g.re * vr.re - g.im * vr.im), pr.im - (g.re * vr.im + g.im * vr.re));
-                for (int c = tid >> 6; c < m; c += nt >> 6) {
-                    const zd vc = vv[c], pc = pv[c];
+        if (warp == 0) {
+            // A22's first column (rows r ≥ 0), then the next reflector from it.
+            const zd v0 = v[0], p0 = pv[0];
+            const zd w0 = cx<double>(p0.re - (g.re * v0.re - g.im * v0.im), p0.im - (g.re * v0.im + g.im * v0.re));
+            for (int r = lane; r < m; r += 32) {
+                const zd vr = v[r], pr = pv[r];
+                const zd wr =
+                    cx<double>(pr.re - (g.re * vr.re - g.im * vr.im), pr.im - (g.re * vr.im + g.im * vr.re));
+                rank2(A[(size_t)r0 * lda + r0 + r], vr, wr, v0, w0);
+            }
+            __syncwarp();
+            if (k + 1 < n - 1) make_reflector(A, lda, n, k + 1, tau, ee, vnext, lane);
+        } else {
+            // The rest of A22's lower triangle: lane p takes rows p and m−1−p (balanced
+            // lengths), warp q = 1, 2, … the columns c ≡ q (mod nwarps − 1), c ≥ 1; the
+            // row values stay in registers, the column values are broadcasts.
+            const int nq = nwarps - 1;
+#pragma unroll
+            for (int h = 0; h < 2; ++h) {
+                const int r = h == 0 ? lane : m - 1 - lane;
+                if (h == 0 ? 2 * lane > m - 1 : 2 * lane >= m - 1) continue;
+                const zd vr = v[r], pr = pv[r];
+                const zd wr =
+                    cx<double>(pr.re - (g.re * vr.re - g.im * vr.im), pr.im - (g.re * vr.im + g.im * vr.re));
+                for (int c = warp; c <= r; c += nq) {
+                    const zd vc = v[c], pc = pv[c];
                     const zd wc =
                         cx<double>(pc.re - (g.re * vc.re - g.im * vc.im), pc.im - (g.re * vc.im + g.im * vc.re));
-                    zd a = A[(size_t)(r0 + c) * lda + r0 + r];
-                    // a −= v_r conj(w_c) + w_r conj(v_c)
-                    a.re -= vr.re * wc.re + vr.im * wc.im + wr.re * vc.re + wr.im * vc.im;
-                    a.im -= vr.im * wc.re - vr.re * wc.im + wr.im * vc.re - wr.re * vc.im;
-                    A[(size_t)(r0 + c) * lda + r0 + r] = a;
+                    rank2(A[(size_t)(r0 + c) * lda + r0 + r], vr, wr, vc, wc);
                 }
             }
         }
-#endif
         __syncthreads();
     }
-    for (int i = tid; i < n; i += nt) dd[i] = A[(size_t)i * lda + i].re;
-    __syncthreads();
-
-    // ---- the top Ns eigenvalues of T (one warp each, 32-point multisection) ----
-    // Gershgorin bounds, widened; pivmin as LAPACK (safe minimum × max(1, max e²)).
-    double glo = 1e308, ghi = -1e308, emax2 = 0.0;
+    // T is scaled to ‖T‖ ≈ 1 (Gershgorin) for what follows, so that one guard `tiny`
+    // serves every matrix and reciprocals can start from single precision.
+    double tn = 0.0;
     for (int i = lane; i < n; i += 32) {
         const double el = i > 0 ? fabs(ee[i - 1]) : 0.0, er = i < n - 1 ? fabs(ee[i]) : 0.0;
-        glo = fmin(glo, dd[i] - el - er);
-        ghi = fmax(ghi, dd[i] + el + er);
-        if (i < n - 1) emax2 = fmax(emax2, ee[i] * ee[i]);
+        tn = fmax(tn, fabs(A[(size_t)i * lda + i].re) + el + er);
     }
 #pragma unroll
-    for (int off = 1; off < 32; off <<= 1) {
-        glo = fmin(glo, __shfl_xor_sync(0xffffffffu, glo, off));
-        ghi = fmax(ghi, __shfl_xor_sync(0xffffffffu, ghi, off));
-        emax2 = fmax(emax2, __shfl_xor_sync(0xffffffffu, emax2, off));
+    for (int off = 1; off < 32; off <<= 1) tn = fmax(tn, __shfl_xor_sync(0xffffffffu, tn, off));
+    const double tscale = tn > 0.0 ? 1.0 / tn : 0.0;
+    __syncthreads();  // every warp has its norm before ee is rescaled
+    for (int i = tid; i < n; i += nt) {
+        dd[i] = A[(size_t)i * lda + i].re * tscale;
+        if (i < n - 1) {
+            ee[i] *= tscale;
+            e2[i] = ee[i] * ee[i];
+        }
     }
-    const double bnorm = fmax(fabs(glo), fabs(ghi));
-    const double eps = 2.220446049250313e-16;
-    const double pivmin = 2.2250738585072014e-308 * fmax(1.0, emax2);
-    glo -= 2.0 * eps * bnorm * n + 2.0 * pivmin;
-    ghi += 2.0 * eps * bnorm * n + 2.0 * pivmin;
-    for (int i = tid; i < n - 1; i += nt) e2[i] = ee[i] * ee[i];
     __syncthreads();
-    for (int r = warp; r < ns; r += nwarps) {
+    EH_PROF(2);
+
+    // ---- the top Ns eigenvalues of T (one warp each, 32-point multisection) ----
+    const double eps = 2.220446049250313e-16;
+    const double tiny = 1e-30;  // pivot guard, relative to ‖T‖ = 1 (LAPACK's pivmin role)
+    const double glo = -1.0 - 4.0 * n * eps, ghi = 1.0 + 4.0 * n * eps;  // Gershgorin
+    for (int r = warp; r < ns && tn > 0.0; r += nwarps) {
         const int want = n - 1 - r;  // ascending index of λ_r
         double lo = glo, hi = ghi;
         int it = 0;
-        while (hi - lo > 4.0 * eps * bnorm + 4.0 * pivmin && it < 64) {
+        // To EH_BTOL·‖T‖ only: inverse iteration below converges from there, and λ_0 is
+        // then taken from the Rayleigh quotient of its vector.
+        const double btol = fmax(EH_BTOL, 4.0 * eps);
+        while (hi - lo > btol && it < 64) {
             const double x = lo + (hi - lo) * (double)(lane + 1) / 33.0;
-            const int cnt = sturm_count(dd, e2, n, x, pivmin);
+            const int cnt = sturm_count(dd, e2, n, x, tiny);
             // first lane whose point has more than `want` values below it
             const unsigned bal = __ballot_sync(0xffffffffu, cnt > want);
             const int first = bal ? __ffs((int)bal) - 1 : 32;
@@ -328,61 +379,63 @@ __device__ void eigh_impl(const cplx<T>* __restrict__ R, const cplx<T>* __restri
         }
     }
     __syncthreads();
+    EH_PROF(3);
 
     // ---- eigenvectors of T: inverse iteration, EH_VEC at a time on warp 0 ----
     if (warp == 0) {
         for (int r0v = 0; r0v < ns; r0v += EH_VEC) {
             const int r = r0v + lane;
             if (lane < EH_VEC && r < ns) {
-                double* u0 = scr + (size_t)lane * 5 * n;  // U diagonal
+                double* u0 = scr + (size_t)lane * 5 * n;  // 1 / U diagonal
                 double* u1 = u0 + n;                       // U first superdiagonal
                 double* u2 = u1 + n;                       // U second superdiagonal
-                double* ml = u2 + n;                       // multipliers (negative: a swap)
-                double* y = ml + n;
+                double* ml = u2 + n;                       // multipliers
+                double* sw = ml + n;                       // 1: rows k, k+1 swapped
                 double* z = zs + (size_t)r * n;
-                const double tiny = fmax(eps * bnorm, pivmin);
-                if (bnorm == 0.0) {
+                if (tn == 0.0) {
                     for (int i = 0; i < n; ++i) z[i] = i == r ? 1.0 : 0.0;
                 } else {
                     const double lm = lam[r];
+                    const double piv_min = 4.0 * eps;  // |pivot| floor (‖T‖ = 1)
                     // P L U = T − λ I with partial pivoting; row k's pending entries (p0, p1).
                     double p0 = dd[0] - lm, p1 = n > 1 ? ee[0] : 0.0;
                     for (int kk = 0; kk < n - 1; ++kk) {
                         const double sub = ee[kk];                         // T(k+1, k)
                         const double dn = dd[kk + 1] - lm;                 // T(k+1, k+1)
                         const double sup = kk + 1 < n - 1 ? ee[kk + 1] : 0.0;  // T(k+1, k+2)
-                        if (fabs(p0) >= fabs(sub)) {
-                            const double piv = fabs(p0) < tiny ? (p0 < 0.0 ? -tiny : tiny) : p0;
-                            const double mu = sub / piv;
-                            u0[kk] = piv;
+                        if (fabs(p0) >= fabs(sub) || fabs(sub) < piv_min) {
+                            const double ip = rcp_fast(fabs(p0) < piv_min ? (p0 < 0.0 ? -piv_min : piv_min) : p0);
+                            const double mu = sub * ip;
+                            u0[kk] = ip;
                             u1[kk] = p1;
                             u2[kk] = 0.0;
                             ml[kk] = mu;
-                            y[kk] = 0.0;  // no swap
+                            sw[kk] = 0.0;
                             p0 = dn - mu * p1;
                             p1 = sup;
                         } else {
-                            const double mu = p0 / sub;
-                            u0[kk] = sub;
+                            const double is = rcp_fast(sub);
+                            const double mu = p0 * is;
+                            u0[kk] = is;
                             u1[kk] = dn;
                             u2[kk] = sup;
                             ml[kk] = mu;
-                            y[kk] = 1.0;  // swap
+                            sw[kk] = 1.0;
                             p0 = p1 - mu * dn;
                             p1 = -mu * sup;
                         }
                     }
-                    u0[n - 1] = fabs(p0) < tiny ? (p0 < 0.0 ? -tiny : tiny) : p0;
-                    // y holds the pivot flags (1: rows swapped); z the right-hand side.
+                    u0[n - 1] = rcp_fast(fabs(p0) < piv_min ? (p0 < 0.0 ? -piv_min : piv_min) : p0);
                     for (int i = 0; i < n; ++i) {
                         // a fixed, non-special start vector (dstein uses random numbers)
                         const unsigned h = (unsigned)(i * 2654435761u) ^ (unsigned)(r * 40503u + 12345u);
                         z[i] = 0.5 + (double)(h % 1024u) / 1024.0;
                     }
-                    for (int iter = 0; iter < 3; ++iter) {
-                        // forward: the row operations of the factorisation
-                        for (int kk = 0; kk < n - 1; ++kk) {
-                            if (y[kk] != 0.0) {
+                    // Two solves: each multiplies the wanted component by ≥ 1 / EH_BTOL
+                    // against the others (growth ≤ 1 / (4ε) per solve: no rescaling needed).
+                    for (int iter = 0; iter < 2; ++iter) {
+                        for (int kk = 0; kk < n - 1; ++kk) {  // the factorisation's row operations
+                            if (sw[kk] != 0.0) {
                                 const double t = z[kk];
                                 z[kk] = z[kk + 1];
                                 z[kk + 1] = t - ml[kk] * z[kk + 1];
@@ -390,15 +443,10 @@ __device__ void eigh_impl(const cplx<T>* __restrict__ R, const cplx<T>* __restri
                                 z[kk + 1] -= ml[kk] * z[kk];
                             }
                         }
-                        // backward: U z = rhs
-                        z[n - 1] /= u0[n - 1];
-                        if (n > 1) z[n - 2] = (z[n - 2] - u1[n - 2] * z[n - 1]) / u0[n - 2];
+                        z[n - 1] *= u0[n - 1];  // U z = rhs
+                        if (n > 1) z[n - 2] = (z[n - 2] - u1[n - 2] * z[n - 1]) * u0[n - 2];
                         for (int kk = n - 3; kk >= 0; --kk)
-                            z[kk] = (z[kk] - u1[kk] * z[kk + 1] - u2[kk] * z[kk + 2]) / u0[kk];
-                        double mx = 0.0;
-                        for (int i = 0; i < n; ++i) mx = fmax(mx, fabs(z[i]));
-                        const double inv = mx > 0.0 ? 1.0 / mx : 1.0;
-                        for (int i = 0; i < n; ++i) z[i] *= inv;
+                            z[kk] = (z[kk] - u1[kk] * z[kk + 1] - u2[kk] * z[kk + 2]) * u0[kk];
                     }
                 }
             }
@@ -426,10 +474,57 @@ __device__ void eigh_impl(const cplx<T>* __restrict__ R, const cplx<T>* __restri
             for (int i = lane; i < n; i += 32) z[i] *= inv;
             __syncwarp();
         }
+        // λ_0 = z_0ᵀ T z_0 (error O(‖T‖ δ²) for a vector error δ).
+        if (ns > 0 && tn > 0.0) {
+            double s = 0.0;
+            for (int i = lane; i < n; i += 32) {
+                double tz = dd[i] * zs[i];
+                if (i > 0) tz += ee[i - 1] * zs[i - 1];
+                if (i < n - 1) tz += ee[i] * zs[i + 1];
+                s += zs[i] * tz;
+            }
+            s = warp_sum_d(s);
+            if (lane == 0) lam[0] = s;  // of the scaled T
+        }
+    } else {
+        // Meanwhile the other warps build the compact-WY factors of the reflectors (LAPACK's
+        // zlarft, forward, columnwise): H_{k0} ⋯ H_{k0+b−1} = I − V T Vᴴ with
+        // T_jj = τ_j, T(0:j, j) = −τ_j T(0:j, 0:j) V(:, 0:j)ᴴ v_j.
+        const int nref = n - 1, nblk = (nref + EH_BW - 1) / EH_BW;
+        for (int bk = warp - 1; bk < nblk; bk += nwarps - 1) {
+            const int k0 = bk * EH_BW, bsz = min(EH_BW, nref - k0);
+            zd* Tb = tf + bk * EH_BW * EH_BW;  // T(i, j) = Tb[j·EH_BW + i]
+            for (int j = 0; j < bsz; ++j) {
+                zd c[EH_BW];
+#pragma unroll
+                for (int i = 0; i < EH_BW; ++i) {
+                    zd sdot = czero<double>();
+                    if (i < j)
+                        for (int row = lane; row < n; row += 32)
+                            cmacc(sdot, vget(A, lda, n, k0 + i, row), vget(A, lda, n, k0 + j, row));
+                    sdot.re = warp_sum_d(sdot.re);
+                    sdot.im = warp_sum_d(sdot.im);
+                    c[i] = sdot;
+                }
+                const zd tj = tau[k0 + j];
+                if (lane < EH_BW && lane <= j) {
+                    const int i = lane;
+                    zd t = czero<double>();
+#pragma unroll
+                    for (int l = 0; l < EH_BW; ++l)
+                        if (l >= i && l < j) cmac(t, Tb[l * EH_BW + i], c[l]);
+                    // −τ_j t (diagonal: τ_j)
+                    Tb[j * EH_BW + i] = i == j ? tj : cx<double>(-(tj.re * t.re - tj.im * t.im), -(tj.re * t.im + tj.im * t.re));
+                }
+                __syncwarp();
+            }
+        }
     }
     __syncthreads();
+    EH_PROF(4);
 
-    // ---- e_r = Q z_r = H_0 (H_1 (⋯ H_{n−2} z_r)) (one warp per vector), rank order ----
+    // ---- e_r = Q z_r = B_0 (B_1 (⋯ z_r)), B = I − V T Vᴴ per block of EH_BW reflectors
+    // (one warp per vector; each block: EH_BW independent dot products, T, an update) ----
     for (int r = warp; r < ns; r += nwarps) {
         const double* z = zs + (size_t)r * n;
         zd u[2];
@@ -438,24 +533,38 @@ __device__ void eigh_impl(const cplx<T>* __restrict__ R, const cplx<T>* __restri
             const int i = lane + 32 * h;
             u[h] = cx<double>(i < n ? z[i] : 0.0, 0.0);
         }
-        for (int k = n - 2; k >= 0; --k) {
-            const zd tk = tau[k];
-            if (tk.re == 0.0 && tk.im == 0.0) continue;
-            zd v[2];
-            zd s = czero<double>();
+        const int nref = n - 1, nblk = (nref + EH_BW - 1) / EH_BW;
+        for (int bk = nblk - 1; bk >= 0; --bk) {
+            const int k0 = bk * EH_BW, bsz = min(EH_BW, nref - k0);
+            const zd* Tb = tf + bk * EH_BW * EH_BW;
+            zd y[EH_BW];
 #pragma unroll
-            for (int h = 0; h < 2; ++h) {
-                const int i = lane + 32 * h;
-                v[h] = i == k + 1 ? cx<double>(1.0, 0.0) : (i > k + 1 && i < n ? A[(size_t)k * lda + i] : czero<double>());
-                cmacc(s, v[h], u[h]);
+            for (int j = 0; j < EH_BW; ++j) {
+                zd sdot = czero<double>();
+#pragma unroll
+                for (int h = 0; h < 2; ++h)
+                    if (j < bsz) cmacc(sdot, vget(A, lda, n, k0 + j, lane + 32 * h), u[h]);
+                y[j] = sdot;
             }
-            s.re = warp_sum_d(s.re);
-            s.im = warp_sum_d(s.im);
-            const zd f = cx<double>(tk.re * s.re - tk.im * s.im, tk.re * s.im + tk.im * s.re);  // τ vᴴu
 #pragma unroll
-            for (int h = 0; h < 2; ++h) {
-                u[h].re -= v[h].re * f.re - v[h].im * f.im;
-                u[h].im -= v[h].re * f.im + v[h].im * f.re;
+            for (int j = 0; j < EH_BW; ++j) {
+                y[j].re = warp_sum_d(y[j].re);
+                y[j].im = warp_sum_d(y[j].im);
+            }
+            // u −= V (T y)
+#pragma unroll
+            for (int i = 0; i < EH_BW; ++i) {
+                zd t = czero<double>();
+#pragma unroll
+                for (int j = 0; j < EH_BW; ++j)
+                    if (j >= i && j < bsz) cmac(t, Tb[j * EH_BW + i], y[j]);
+#pragma unroll
+                for (int h = 0; h < 2; ++h) {
+                    if (i >= bsz) continue;
+                    const zd vi = vget(A, lda, n, k0 + i, lane + 32 * h);
+                    u[h].re -= vi.re * t.re - vi.im * t.im;
+                    u[h].im -= vi.re * t.im + vi.im * t.re;
+                }
             }
         }
         cplx<T>* dst = E + ((size_t)blockIdx.x * ns + r) * M;
@@ -465,9 +574,10 @@ __device__ void eigh_impl(const cplx<T>* __restrict__ R, const cplx<T>* __restri
             if (i < n) dst[i] = cx<T>((T)u[h].re, (T)u[h].im);
         }
     }
+    EH_PROF(5);
     if (tid == 0) {
         // λ_0 of H: the largest value itself (Hermitian cases) or σ_0² (GSVD).
-        const double l0 = fmax(lam[0], 0.0);
+        const double l0 = tn > 0.0 ? fmax(lam[0] * tn, 0.0) : 0.0;
         const double val = mode == 3 ? sqrt(l0) : l0;
         const double g = eigw ? sqrt(val) : 1.0;
         gain[mat] = weights[b] * (T)g;
@@ -479,8 +589,8 @@ __device__ void eigh_impl(const cplx<T>* __restrict__ R, const cplx<T>* __restri
 #define SL_EIGH(NAME, T)                                                                                    \
     extern "C" __global__ void __launch_bounds__(EH_THREADS, EH_MINB)                                      \
         NAME(const cplx<T>* R, const cplx<T>* Wcm, const cplx<T>* Wrm, int M, int nb, int mode, int ns,      \
-             int eigw, const T* weights, int mat0, cplx<T>* E, T* gain, float* bw, int* info) {               \
-        eigh_impl<T>(R, Wcm, Wrm, M, nb, mode, ns, eigw, weights, mat0, E, gain, bw, info);                 \
+             int eigw, const T* weights, int mat0, cplx<T>* E, T* gain, float* bw, int* info, long long* prof) { \
+        eigh_impl<T>(R, Wcm, Wrm, M, nb, mode, ns, eigw, weights, mat0, E, gain, bw, info, prof);           \
     }
 
 #ifndef EH_MINB

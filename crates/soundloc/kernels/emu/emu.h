@@ -82,6 +82,10 @@ inline unsigned __ballot_sync(unsigned, int pred) {
 
 inline int __ffs(int x) { return __builtin_ffs(x); }
 
+inline long long clock64() { return 0; }
+
+inline float __frcp_rn(float x) { return 1.0f / x; }
+
 inline int atomicAdd(int* p, int v) {
     int old = *p;
     *p = old + v;

@@ -283,6 +283,9 @@ pub struct CudaBackend<T: Real> {
     d_gain: Buf,
     d_bw: Buf,
     d_info: Buf,
+    /// Phase cycle counts of eigh.cu, [matrix][8] (SOUNDLOC_CUDA_PROFILE=1 only).
+    d_prof: Buf,
+    profile: bool,
     d_scale: Buf,
     d_db: Buf,
     d_spec: Buf,
@@ -347,6 +350,8 @@ impl<T: Real> CudaBackend<T> {
             d_gain: Buf::default(),
             d_bw: Buf::default(),
             d_info: Buf::default(),
+            d_prof: Buf::default(),
+            profile: std::env::var("SOUNDLOC_CUDA_PROFILE").is_ok_and(|v| v == "1"),
             d_scale: Buf::default(),
             d_db: Buf::default(),
             d_spec: Buf::default(),
@@ -538,6 +543,7 @@ impl<T: Real> CudaBackend<T> {
             Scratch::Gain => &mut self.d_gain,
             Scratch::Bw => &mut self.d_bw,
             Scratch::Info => &mut self.d_info,
+            Scratch::Prof => &mut self.d_prof,
             Scratch::Scale => &mut self.d_scale,
             Scratch::Db => &mut self.d_db,
             Scratch::Spec => &mut self.d_spec,
@@ -603,6 +609,36 @@ impl<T: Real> CudaBackend<T> {
         let l = &self.lay;
         let xy = l.d.div_ceil(l.spec_dt) * nwb.div_ceil(l.spec_wg.min(nwb).max(1));
         (4 * self.gpu.sm_count()).div_ceil(xy.max(1)).clamp(1, l.nb)
+    }
+
+    /// Mean cycles per phase of eigh.cu over the last batch's matrices, on stderr
+    /// (SOUNDLOC_CUDA_PROFILE=1; a tuning aid).
+    fn print_profile(&mut self, nmat: usize) -> Result<()> {
+        let mut t = vec![0i64; nmat * 8];
+        // SAFETY: synchronous copy of the profile buffer after the stream is idle.
+        unsafe {
+            self.gpu.dtoh(
+                t.as_mut_ptr() as *mut u8,
+                self.d_prof.ptr,
+                nmat * 64,
+                Stream::Compute,
+            )?
+        };
+        self.gpu.sync(Stream::Compute)?;
+        let names = [
+            "form H",
+            "tridiagonal",
+            "bisection",
+            "inverse iteration",
+            "back-transform",
+        ];
+        let mut line = format!("soundloc cuda: eigh cycles per matrix ({nmat} matrices):");
+        for (p, name) in names.iter().enumerate() {
+            let mean = t.chunks(8).map(|c| (c[p + 1] - c[p]) as f64).sum::<f64>() / nmat.max(1) as f64;
+            line.push_str(&format!(" {name} {mean:.0}"));
+        }
+        let _ = writeln!(std::io::stderr(), "{line}");
+        Ok(())
     }
 
     /// The Jacobi decomposition (decompose.cu) of this sub-batch's matrices.
@@ -691,6 +727,7 @@ impl<T: Real> CudaBackend<T> {
                 .p(self.d_gain.ptr)
                 .p(self.d_bw.ptr)
                 .p(self.d_info.ptr)
+                .p(if self.profile { self.d_prof.ptr } else { 0 })
                 .launch(g, self.f.eigh, [nmat, 1, 1], l.eigh_threads, l.eigh_smem)?;
         } else {
             self.launch_jacobi(mat0, nmat, mode)?;
@@ -815,6 +852,7 @@ enum Scratch {
     Gain,
     Bw,
     Info,
+    Prof,
     Scale,
     Db,
     Spec,
@@ -833,6 +871,8 @@ enum HostBuf {
 
 /// Eigenvectors of the tridiagonal matrix solved at once by eigh.cu (its EH_VEC).
 const EIGH_VEC: usize = 8;
+/// Complex entries of eigh.cu's compact-WY factors (EH_NBLK × EH_BW², M ≤ 64).
+const EIGH_TF: usize = 8 * 64;
 
 fn layout<T: Real>(plan: &Plan<T>, gpu: &dyn Gpu) -> Result<Layout> {
     let (cs, ts) = (csize::<T>(), std::mem::size_of::<T>());
@@ -874,7 +914,7 @@ fn layout<T: Real>(plan: &Plan<T>, gpu: &dyn Gpu) -> Result<Layout> {
     // The tridiagonal eigensolver whenever only the signal vectors are needed and its
     // register tiles cover M (SOUNDLOC_CUDA_DEC=jacobi keeps the Jacobi kernel, for A/B runs).
     let eigh_threads = kernels::eigh_threads();
-    let eigh_smem = (m * (m | 1) + 3 * m) * 16 + (3 * m + ns + ns * m + EIGH_VEC * 5 * m) * 8 + 16;
+    let eigh_smem = (m * (m | 1) + 4 * m + EIGH_TF) * 16 + (3 * m + ns + ns * m + EIGH_VEC * 5 * m) * 8 + 32;
     let eigh = squared
         && m <= 64
         && eigh_smem <= optin
@@ -986,6 +1026,9 @@ impl<T: Real> Backend<T> for CudaBackend<T> {
         self.ensure(Scratch::Gain, nw * nb * ts)?;
         self.ensure(Scratch::Bw, nw * nb * 4)?;
         self.ensure(Scratch::Info, nw * nb * 4)?;
+        if self.profile && l.eigh {
+            self.ensure(Scratch::Prof, nw * nb * 64)?;
+        }
         self.ensure(Scratch::Scale, nwb_max * nb * ts)?;
         self.ensure(Scratch::Db, nw * d * 8)?;
         if want_spectrum {
@@ -1166,6 +1209,9 @@ impl<T: Real> Backend<T> for CudaBackend<T> {
                 info.iter().max().unwrap_or(&0)
             );
         }
+        if self.profile && l.eigh {
+            self.print_profile(nw * nb)?;
+        }
         if want_spectrum {
             // SAFETY: filled by the downloads above.
             unsafe {
@@ -1250,6 +1296,7 @@ impl<T: Real> Drop for CudaBackend<T> {
             self.d_gain.ptr,
             self.d_bw.ptr,
             self.d_info.ptr,
+            self.d_prof.ptr,
             self.d_scale.ptr,
             self.d_db.ptr,
             self.d_spec.ptr,
