@@ -23,7 +23,7 @@
 // registers per thread, so M ≤ 64. Shared memory (dynamic, see `eigh_smem` on the host):
 // A (M × lda complex doubles, lda = M | 1: odd, so column reads are conflict-free), p (M),
 // v (2 × M), τ (M), d, e, e² (M each), λ (Ns), Z (Ns × M), inverse-iteration scratch
-// (EH_VEC × 5M), the back-transformation's T factors (EH_NBLK × EH_BW² complex), one int.
+// (min(Ns, EH_VEC) × 5M), 1 + 32 ints.
 //
 // Outputs as decompose.cu: E [blk][Ns][M] (rank order), gain[mat] = w_b·g,
 // bw[mat] = g (g = √val with eigw, else 1; val = λ_0, or σ_0 = √λ_0 for GSVD), info[mat]
@@ -41,8 +41,6 @@
 #define EH_BTOL 1e-10  // bisection stops at this fraction of ‖T‖ (then inverse iteration)
 #endif
 #define EH_VEC 8                    // eigenvectors of T solved at once (lanes of warp 0)
-#define EH_BW 8                     // reflectors per block of the back-transformation
-#define EH_NBLK ((EH_MAXN - 1 + EH_BW - 1) / EH_BW)
 
 typedef cplx<double> zd;
 
@@ -58,11 +56,6 @@ __device__ __forceinline__ double warp_sum_d(double v) { return group_sum<32>(v)
 __device__ __forceinline__ double rcp_fast(double x) {
     const double y = (double)__frcp_rn((float)x);
     return y * (2.0 - x * y);
-}
-
-// Entry i of reflector k's v (v(k+1) = 1, stored below it in column k of A, 0 above).
-__device__ __forceinline__ zd vget(const zd* A, int lda, int n, int k, int i) {
-    return i == k + 1 ? cx<double>(1.0, 0.0) : (i > k + 1 && i < n ? A[(size_t)k * lda + i] : czero<double>());
 }
 
 // Number of eigenvalues of T (diagonal d, squared off-diagonal e2) below x (Sturm count,
@@ -161,41 +154,20 @@ __device__ void make_reflector(zd* A, int lda, int n, int k, zd* tau, double* ee
     }
 }
 
+// H = W R Wᴴ | W R W | (W R)(W R)ᴴ (mode 1 | 2 | 3) in double, one block per matrix, into
+// Hg [blk][M][M] (column-major). A kernel of its own: its register tiles would otherwise
+// cap the eigensolver's occupancy.
 template <typename T>
-__device__ void eigh_impl(const cplx<T>* __restrict__ R, const cplx<T>* __restrict__ Wcm,
-                          const cplx<T>* __restrict__ Wrm, int M, int nb, int mode, int ns, int eigw,
-                          const T* __restrict__ weights, int mat0, cplx<T>* __restrict__ E, T* __restrict__ gain,
-                          float* __restrict__ bw, int* __restrict__ info, long long* __restrict__ prof) {
+__device__ void form_h_impl(const cplx<T>* __restrict__ R, const cplx<T>* __restrict__ Wcm,
+                            const cplx<T>* __restrict__ Wrm, int M, int nb, int mode, int mat0, zd* __restrict__ Hg) {
     SL_DYN_SMEM(sm);
     const int n = M, lda = M | 1;
     const int tid = threadIdx.x, nt = blockDim.x;
-    const int lane = tid & 31, warp = tid >> 5, nwarps = nt >> 5;
-    const int mat = mat0 + blockIdx.x;
-    const int b = mat % nb;
-    // Cycle counts at the phase boundaries (SOUNDLOC_CUDA_PROFILE=1 passes a buffer).
-#define EH_PROF(i)                                                          \
-    do {                                                                    \
-        if (prof != nullptr && tid == 0) prof[(size_t)mat * 8 + (i)] = clock64(); \
-    } while (0)
-    EH_PROF(0);
+    const int b = (mat0 + blockIdx.x) % nb;
     zd* A = reinterpret_cast<zd*>(sm);
-    zd* pv = A + (size_t)n * lda;
-    zd* vv = pv + n;  // two buffers of n
-    zd* tau = vv + 2 * n;
-    double* dd = reinterpret_cast<double*>(tau + n);
-    double* ee = dd + n;  // off-diagonal β_k (real, signed)
-    double* e2 = ee + n;  // β_k²
-    double* lam = e2 + n;
-    double* zs = lam + ns;                    // Ns × n
-    double* scr = zs + (size_t)ns * n;         // EH_VEC × 5n
-    // EH_NBLK × EH_BW² T factors (16-byte aligned)
-    zd* tf = reinterpret_cast<zd*>((reinterpret_cast<size_t>(scr + (size_t)EH_VEC * 5 * n) + 15) & ~(size_t)15);
-    int* steps = reinterpret_cast<int*>(tf + EH_NBLK * EH_BW * EH_BW);
-    const cplx<T>* Rm = R + (size_t)blockIdx.x * M * M;    // column-major, R_ik = Rm[k*M + i]
-    const cplx<T>* Wc = Wcm + (size_t)b * M * M;           // W_ik = Wc[k*M + i]
-    const cplx<T>* Wr = Wrm + (size_t)b * M * M;           // W_kj = Wr[k*M + j]
-
-    // ---- H in A ----
+    const cplx<T>* Rm = R + (size_t)blockIdx.x * M * M;  // column-major, R_ik = Rm[k*M + i]
+    const cplx<T>* Wc = Wcm + (size_t)b * M * M;         // W_ik = Wc[k*M + i]
+    const cplx<T>* Wr = Wrm + (size_t)b * M * M;         // W_kj = Wr[k*M + j]
     for (int idx = tid; idx < n * n; idx += nt) {
         const int j = idx / n, i = idx - j * n;
         A[(size_t)j * lda + i] = to_zd(Rm[idx]);
@@ -227,6 +199,48 @@ __device__ void eigh_impl(const cplx<T>* __restrict__ R, const cplx<T>* __restri
         tile_store(A, lda, n, acc);
         __syncthreads();
     }
+    for (int idx = tid; idx < n * n; idx += nt) {
+        const int j = idx / n, i = idx - j * n;
+        Hg[(size_t)blockIdx.x * n * n + idx] = A[(size_t)j * lda + i];
+    }
+}
+
+template <typename T>
+__device__ void eigh_impl(const cplx<T>* __restrict__ R, const zd* __restrict__ Hg, int M, int nb, int mode, int ns, int eigw,
+                          const T* __restrict__ weights, int mat0, cplx<T>* __restrict__ E, T* __restrict__ gain,
+                          float* __restrict__ bw, int* __restrict__ info, long long* __restrict__ prof) {
+    SL_DYN_SMEM(sm);
+    const int n = M, lda = M | 1;
+    const int tid = threadIdx.x, nt = blockDim.x;
+    const int lane = tid & 31, warp = tid >> 5, nwarps = nt >> 5;
+    const int mat = mat0 + blockIdx.x;
+    const int b = mat % nb;
+    // Cycle counts at the phase boundaries (SOUNDLOC_CUDA_PROFILE=1 passes a buffer).
+#define EH_PROF(i)                                                          \
+    do {                                                                    \
+        if (prof != nullptr && tid == 0) prof[(size_t)mat * 8 + (i)] = clock64(); \
+    } while (0)
+    EH_PROF(0);
+    zd* A = reinterpret_cast<zd*>(sm);
+    zd* pv = A + (size_t)n * lda;
+    zd* vv = pv + n;  // two buffers of n
+    zd* tau = vv + 2 * n;
+    double* dd = reinterpret_cast<double*>(tau + n);
+    double* ee = dd + n;  // off-diagonal β_k (real, signed)
+    double* e2 = ee + n;  // β_k²
+    double* lam = e2 + n;
+    double* zs = lam + ns;                    // Ns × n
+    double* scr = zs + (size_t)ns * n;         // EH_VEC × 5n
+    int* steps = reinterpret_cast<int*>(scr + (size_t)min(ns, EH_VEC) * 5 * n);
+    int* bfirst = steps + 1;  // per warp, multisection
+    const cplx<T>* Rm = R + (size_t)blockIdx.x * M * M;    // column-major, R_ik = Rm[k*M + i]
+
+    // ---- H in A: R itself (mode 0) or the product form_h wrote ----
+    for (int idx = tid; idx < n * n; idx += nt) {
+        const int j = idx / n, i = idx - j * n;
+        A[(size_t)j * lda + i] = mode == 0 ? to_zd(Rm[idx]) : Hg[(size_t)blockIdx.x * n * n + idx];
+    }
+    __syncthreads();
     // Exact Hermitian symmetry (the products round differently above and below).
     for (int idx = tid; idx < n * n; idx += nt) {
         const int j = idx / n, i = idx - j * n;
@@ -350,32 +364,52 @@ __device__ void eigh_impl(const cplx<T>* __restrict__ R, const cplx<T>* __restri
     __syncthreads();
     EH_PROF(2);
 
-    // ---- the top Ns eigenvalues of T (one warp each, 32-point multisection) ----
+    // ---- the top Ns eigenvalues of T: multisection, the block's warps shared among the
+    // values of a chunk (wpe warps per value: 32·wpe points per round) ----
     const double eps = 2.220446049250313e-16;
     const double tiny = 1e-30;  // pivot guard, relative to ‖T‖ = 1 (LAPACK's pivmin role)
     const double glo = -1.0 - 4.0 * n * eps, ghi = 1.0 + 4.0 * n * eps;  // Gershgorin
-    for (int r = warp; r < ns && tn > 0.0; r += nwarps) {
+    // To EH_BTOL·‖T‖ only: inverse iteration below converges from there, and λ_0 is then
+    // taken from the Rayleigh quotient of its vector.
+    const double btol = fmax(EH_BTOL, 4.0 * eps);
+    for (int r0e = 0; r0e < ns; r0e += nwarps) {  // uniform over the block
+        const int cnt_e = min(ns - r0e, nwarps);
+        const int wpe = nwarps / cnt_e;
+        const int npts = 32 * wpe;
+        int rounds = 0;  // the same in every thread: each round divides the width by npts + 1
+        for (double w = ghi - glo; w > btol && rounds < 64; w /= (double)(npts + 1)) ++rounds;
+        const int e = warp / wpe, sub = warp - e * wpe;
+        const bool act = e < cnt_e && tn > 0.0;
+        const int r = r0e + e;
         const int want = n - 1 - r;  // ascending index of λ_r
         double lo = glo, hi = ghi;
-        int it = 0;
-        // To EH_BTOL·‖T‖ only: inverse iteration below converges from there, and λ_0 is
-        // then taken from the Rayleigh quotient of its vector.
-        const double btol = fmax(EH_BTOL, 4.0 * eps);
-        while (hi - lo > btol && it < 64) {
-            const double x = lo + (hi - lo) * (double)(lane + 1) / 33.0;
-            const int cnt = sturm_count(dd, e2, n, x, tiny);
-            // first lane whose point has more than `want` values below it
-            const unsigned bal = __ballot_sync(0xffffffffu, cnt > want);
-            const int first = bal ? __ffs((int)bal) - 1 : 32;
-            const double nlo = first == 0 ? lo : lo + (hi - lo) * (double)first / 33.0;
-            const double nhi = first == 32 ? hi : lo + (hi - lo) * (double)(first + 1) / 33.0;
-            lo = nlo;
-            hi = fmax(nhi, nlo);
-            ++it;
+        for (int it = 0; it < rounds; ++it) {
+            int first = 32;
+            if (act) {
+                const double x = lo + (hi - lo) * (double)(sub * 32 + lane + 1) / (double)(npts + 1);
+                const int cnt = sturm_count(dd, e2, n, x, tiny);
+                // first point of this warp with more than `want` values below it
+                const unsigned bal = __ballot_sync(0xffffffffu, cnt > want);
+                first = bal ? __ffs((int)bal) - 1 : 32;
+            }
+            if (lane == 0) bfirst[warp] = first;
+            __syncthreads();
+            if (act) {
+                int gp = npts;
+                for (int q = wpe - 1; q >= 0; --q) {
+                    const int f = bfirst[e * wpe + q];
+                    if (f < 32) gp = q * 32 + f;
+                }
+                const double nlo = gp == 0 ? lo : lo + (hi - lo) * (double)gp / (double)(npts + 1);
+                const double nhi = gp == npts ? hi : lo + (hi - lo) * (double)(gp + 1) / (double)(npts + 1);
+                lo = nlo;
+                hi = fmax(nhi, nlo);
+            }
+            __syncthreads();
         }
-        if (lane == 0) {
+        if (act && sub == 0 && lane == 0) {
             lam[r] = 0.5 * (lo + hi);
-            if (r == 0) steps[0] = it;
+            if (r == 0) steps[0] = rounds;
         }
     }
     __syncthreads();
@@ -486,45 +520,11 @@ __device__ void eigh_impl(const cplx<T>* __restrict__ R, const cplx<T>* __restri
             s = warp_sum_d(s);
             if (lane == 0) lam[0] = s;  // of the scaled T
         }
-    } else {
-        // Meanwhile the other warps build the compact-WY factors of the reflectors (LAPACK's
-        // zlarft, forward, columnwise): H_{k0} ⋯ H_{k0+b−1} = I − V T Vᴴ with
-        // T_jj = τ_j, T(0:j, j) = −τ_j T(0:j, 0:j) V(:, 0:j)ᴴ v_j.
-        const int nref = n - 1, nblk = (nref + EH_BW - 1) / EH_BW;
-        for (int bk = warp - 1; bk < nblk; bk += nwarps - 1) {
-            const int k0 = bk * EH_BW, bsz = min(EH_BW, nref - k0);
-            zd* Tb = tf + bk * EH_BW * EH_BW;  // T(i, j) = Tb[j·EH_BW + i]
-            for (int j = 0; j < bsz; ++j) {
-                zd c[EH_BW];
-#pragma unroll
-                for (int i = 0; i < EH_BW; ++i) {
-                    zd sdot = czero<double>();
-                    if (i < j)
-                        for (int row = lane; row < n; row += 32)
-                            cmacc(sdot, vget(A, lda, n, k0 + i, row), vget(A, lda, n, k0 + j, row));
-                    sdot.re = warp_sum_d(sdot.re);
-                    sdot.im = warp_sum_d(sdot.im);
-                    c[i] = sdot;
-                }
-                const zd tj = tau[k0 + j];
-                if (lane < EH_BW && lane <= j) {
-                    const int i = lane;
-                    zd t = czero<double>();
-#pragma unroll
-                    for (int l = 0; l < EH_BW; ++l)
-                        if (l >= i && l < j) cmac(t, Tb[l * EH_BW + i], c[l]);
-                    // −τ_j t (diagonal: τ_j)
-                    Tb[j * EH_BW + i] = i == j ? tj : cx<double>(-(tj.re * t.re - tj.im * t.im), -(tj.re * t.im + tj.im * t.re));
-                }
-                __syncwarp();
-            }
-        }
     }
     __syncthreads();
     EH_PROF(4);
 
-    // ---- e_r = Q z_r = B_0 (B_1 (⋯ z_r)), B = I − V T Vᴴ per block of EH_BW reflectors
-    // (one warp per vector; each block: EH_BW independent dot products, T, an update) ----
+    // ---- e_r = Q z_r = H_0 (H_1 (⋯ H_{n−2} z_r)) (one warp per vector), rank order ----
     for (int r = warp; r < ns; r += nwarps) {
         const double* z = zs + (size_t)r * n;
         zd u[2];
@@ -533,38 +533,24 @@ __device__ void eigh_impl(const cplx<T>* __restrict__ R, const cplx<T>* __restri
             const int i = lane + 32 * h;
             u[h] = cx<double>(i < n ? z[i] : 0.0, 0.0);
         }
-        const int nref = n - 1, nblk = (nref + EH_BW - 1) / EH_BW;
-        for (int bk = nblk - 1; bk >= 0; --bk) {
-            const int k0 = bk * EH_BW, bsz = min(EH_BW, nref - k0);
-            const zd* Tb = tf + bk * EH_BW * EH_BW;
-            zd y[EH_BW];
+        for (int k = n - 2; k >= 0; --k) {
+            const zd tk = tau[k];
+            if (tk.re == 0.0 && tk.im == 0.0) continue;
+            zd v[2];
+            zd s = czero<double>();
 #pragma unroll
-            for (int j = 0; j < EH_BW; ++j) {
-                zd sdot = czero<double>();
-#pragma unroll
-                for (int h = 0; h < 2; ++h)
-                    if (j < bsz) cmacc(sdot, vget(A, lda, n, k0 + j, lane + 32 * h), u[h]);
-                y[j] = sdot;
+            for (int h = 0; h < 2; ++h) {
+                const int i = lane + 32 * h;
+                v[h] = i == k + 1 ? cx<double>(1.0, 0.0) : (i > k + 1 && i < n ? A[(size_t)k * lda + i] : czero<double>());
+                cmacc(s, v[h], u[h]);
             }
+            s.re = warp_sum_d(s.re);
+            s.im = warp_sum_d(s.im);
+            const zd f = cx<double>(tk.re * s.re - tk.im * s.im, tk.re * s.im + tk.im * s.re);  // τ vᴴu
 #pragma unroll
-            for (int j = 0; j < EH_BW; ++j) {
-                y[j].re = warp_sum_d(y[j].re);
-                y[j].im = warp_sum_d(y[j].im);
-            }
-            // u −= V (T y)
-#pragma unroll
-            for (int i = 0; i < EH_BW; ++i) {
-                zd t = czero<double>();
-#pragma unroll
-                for (int j = 0; j < EH_BW; ++j)
-                    if (j >= i && j < bsz) cmac(t, Tb[j * EH_BW + i], y[j]);
-#pragma unroll
-                for (int h = 0; h < 2; ++h) {
-                    if (i >= bsz) continue;
-                    const zd vi = vget(A, lda, n, k0 + i, lane + 32 * h);
-                    u[h].re -= vi.re * t.re - vi.im * t.im;
-                    u[h].im -= vi.re * t.im + vi.im * t.re;
-                }
+            for (int h = 0; h < 2; ++h) {
+                u[h].re -= v[h].re * f.re - v[h].im * f.im;
+                u[h].im -= v[h].re * f.im + v[h].im * f.re;
             }
         }
         cplx<T>* dst = E + ((size_t)blockIdx.x * ns + r) * M;
@@ -586,19 +572,28 @@ __device__ void eigh_impl(const cplx<T>* __restrict__ R, const cplx<T>* __restri
     }
 }
 
-#define SL_EIGH(NAME, T)                                                                                    \
-    extern "C" __global__ void __launch_bounds__(EH_THREADS, EH_MINB)                                      \
-        NAME(const cplx<T>* R, const cplx<T>* Wcm, const cplx<T>* Wrm, int M, int nb, int mode, int ns,      \
-             int eigw, const T* weights, int mat0, cplx<T>* E, T* gain, float* bw, int* info, long long* prof) { \
-        eigh_impl<T>(R, Wcm, Wrm, M, nb, mode, ns, eigw, weights, mat0, E, gain, bw, info, prof);           \
+#define SL_EIGH(NAME, FORM, T)                                                                                 \
+    extern "C" __global__ void __launch_bounds__(EH_THREADS, EH_FORM_MINB)                                    \
+        FORM(const cplx<T>* R, const cplx<T>* Wcm, const cplx<T>* Wrm, int M, int nb, int mode, int mat0, zd* Hg) { \
+        form_h_impl<T>(R, Wcm, Wrm, M, nb, mode, mat0, Hg);                                                    \
+    }                                                                                                          \
+    extern "C" __global__ void __launch_bounds__(EH_THREADS, EH_MINB)                                         \
+        NAME(const cplx<T>* R, const zd* Hg, int M, int nb, int mode, int ns, int eigw, const T* weights,        \
+             int mat0, cplx<T>* E, T* gain, float* bw, int* info, long long* prof) {                           \
+        eigh_impl<T>(R, Hg, M, nb, mode, ns, eigw, weights, mat0, E, gain, bw, info, prof);                    \
     }
 
+// Three eigensolver blocks of 256 threads per multiprocessor (85 registers; its shared
+// memory, ~70 KB at M = 60, allows three too); the products take two.
 #ifndef EH_MINB
-#define EH_MINB (EH_THREADS <= 256 ? 2 : 1)
+#define EH_MINB (EH_THREADS <= 256 ? 3 : 1)
+#endif
+#ifndef EH_FORM_MINB
+#define EH_FORM_MINB (EH_THREADS <= 256 ? 2 : 1)
 #endif
 #ifndef SL_NO_F32
-SL_EIGH(eigh_f32, float)
+SL_EIGH(eigh_f32, form_h_f32, float)
 #endif
 #ifndef SL_NO_F64
-SL_EIGH(eigh_f64, double)
+SL_EIGH(eigh_f64, form_h_f64, double)
 #endif

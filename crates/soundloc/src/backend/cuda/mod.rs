@@ -225,6 +225,7 @@ struct Layout {
     eigh: bool,
     eigh_threads: usize,
     eigh_smem: usize,
+    form_h_smem: usize,
     dec_threads: usize,
     dec_smem: usize,
     dec_scratch_per_mat: usize,
@@ -247,6 +248,7 @@ struct Funcs {
     correlate: Func,
     decompose: Func,
     eigh: Func,
+    form_h: Func,
     spectrum: Func,
     peaks: Func,
 }
@@ -286,6 +288,8 @@ pub struct CudaBackend<T: Real> {
     /// Phase cycle counts of eigh.cu, [matrix][8] (SOUNDLOC_CUDA_PROFILE=1 only).
     d_prof: Buf,
     profile: bool,
+    /// H = W R Wᴴ etc. in f64 from form_h for eigh (Hermitian cases other than SEVD).
+    d_h: Buf,
     d_scale: Buf,
     d_db: Buf,
     d_spec: Buf,
@@ -324,6 +328,7 @@ impl<T: Real> CudaBackend<T> {
                 correlate: 0,
                 decompose: 0,
                 eigh: 0,
+                form_h: 0,
                 spectrum: 0,
                 peaks: 0,
             },
@@ -351,6 +356,7 @@ impl<T: Real> CudaBackend<T> {
             d_bw: Buf::default(),
             d_info: Buf::default(),
             d_prof: Buf::default(),
+            d_h: Buf::default(),
             profile: std::env::var("SOUNDLOC_CUDA_PROFILE").is_ok_and(|v| v == "1"),
             d_scale: Buf::default(),
             d_db: Buf::default(),
@@ -383,6 +389,7 @@ impl<T: Real> CudaBackend<T> {
             correlate: self.gpu.function(&format!("correlate_{t}"))?,
             decompose: self.gpu.function(&dec)?,
             eigh: self.gpu.function(&format!("eigh_{t}"))?,
+            form_h: self.gpu.function(&format!("form_h_{t}"))?,
             spectrum: self.gpu.function(&format!("spectrum_{t}"))?,
             peaks: self.gpu.function(&format!("peaks_{t}"))?,
         };
@@ -390,6 +397,7 @@ impl<T: Real> CudaBackend<T> {
             (self.f.correlate, l.corr_smem),
             (self.f.decompose, l.dec_smem),
             (self.f.eigh, l.eigh_smem),
+            (self.f.form_h, l.form_h_smem),
             (
                 self.f.spectrum,
                 l.spec_tile
@@ -412,6 +420,7 @@ impl<T: Real> CudaBackend<T> {
             (self.f.correlate, "correlate", 256),
             (self.f.decompose, "decompose", l.dec_threads),
             (self.f.eigh, "eigh", l.eigh_threads),
+            (self.f.form_h, "form_h", l.eigh_threads),
             (self.f.spectrum, "spectrum", l.spec_dt * l.spec_wg),
             (self.f.peaks, "peaks", 256),
         ] {
@@ -516,11 +525,18 @@ impl<T: Real> CudaBackend<T> {
         let l = &self.lay;
         let (cs, ts) = (csize::<T>(), std::mem::size_of::<T>());
         let sms = self.gpu.sm_count().max(1);
-        // About 32 matrices per multiprocessor per sub-batch: several waves of the Jacobi
-        // kernel, so that the tail of one wave does not dominate.
+        // About 32 matrices per multiprocessor per sub-batch: several waves of the
+        // decomposition kernel, so that the tail of one wave does not dominate.
         let sub = (32 * sms).div_ceil(l.nb).clamp(1, 256);
-        let per_sub_window =
-            l.nb * l.m * l.m * cs + l.nb * l.ne * l.m * cs + l.nb * l.dec_scratch_per_mat + l.nb * l.d * ts;
+        let h_per_mat = if l.eigh && l.valmode != 0 {
+            l.m * l.m * 16
+        } else {
+            0
+        };
+        let per_sub_window = l.nb * l.m * l.m * cs
+            + l.nb * l.ne * l.m * cs
+            + l.nb * (l.dec_scratch_per_mat + h_per_mat)
+            + l.nb * l.d * ts;
         let (free, _) = self.gpu.mem_info()?;
         let budget = free / 4;
         self.sub_batch = sub.min((budget / per_sub_window.max(1)).max(1));
@@ -544,6 +560,7 @@ impl<T: Real> CudaBackend<T> {
             Scratch::Bw => &mut self.d_bw,
             Scratch::Info => &mut self.d_info,
             Scratch::Prof => &mut self.d_prof,
+            Scratch::H => &mut self.d_h,
             Scratch::Scale => &mut self.d_scale,
             Scratch::Db => &mut self.d_db,
             Scratch::Spec => &mut self.d_spec,
@@ -712,10 +729,21 @@ impl<T: Real> CudaBackend<T> {
             .launch(g, self.f.correlate, [nmat, 1, 1], 256, l.corr_smem)?;
         g.record(ev[1], Stream::Compute)?;
         if l.eigh {
+            if l.valmode != 0 {
+                Args::new()
+                    .p(self.d_r.ptr)
+                    .p(self.d_wcm.ptr)
+                    .p(self.d_wrm.ptr)
+                    .i(l.m)
+                    .i(l.nb)
+                    .i(l.valmode)
+                    .i(mat0)
+                    .p(self.d_h.ptr)
+                    .launch(g, self.f.form_h, [nmat, 1, 1], l.eigh_threads, l.form_h_smem)?;
+            }
             Args::new()
                 .p(self.d_r.ptr)
-                .p(self.d_wcm.ptr)
-                .p(self.d_wrm.ptr)
+                .p(self.d_h.ptr)
                 .i(l.m)
                 .i(l.nb)
                 .i(l.valmode)
@@ -853,6 +881,7 @@ enum Scratch {
     Bw,
     Info,
     Prof,
+    H,
     Scale,
     Db,
     Spec,
@@ -871,8 +900,6 @@ enum HostBuf {
 
 /// Eigenvectors of the tridiagonal matrix solved at once by eigh.cu (its EH_VEC).
 const EIGH_VEC: usize = 8;
-/// Complex entries of eigh.cu's compact-WY factors (EH_NBLK × EH_BW², M ≤ 64).
-const EIGH_TF: usize = 8 * 64;
 
 fn layout<T: Real>(plan: &Plan<T>, gpu: &dyn Gpu) -> Result<Layout> {
     let (cs, ts) = (csize::<T>(), std::mem::size_of::<T>());
@@ -914,7 +941,9 @@ fn layout<T: Real>(plan: &Plan<T>, gpu: &dyn Gpu) -> Result<Layout> {
     // The tridiagonal eigensolver whenever only the signal vectors are needed and its
     // register tiles cover M (SOUNDLOC_CUDA_DEC=jacobi keeps the Jacobi kernel, for A/B runs).
     let eigh_threads = kernels::eigh_threads();
-    let eigh_smem = (m * (m | 1) + 4 * m + EIGH_TF) * 16 + (3 * m + ns + ns * m + EIGH_VEC * 5 * m) * 8 + 32;
+    let eigh_smem =
+        (m * (m | 1) + 4 * m) * 16 + (3 * m + ns + ns * m + ns.min(EIGH_VEC) * 5 * m) * 8 + 33 * 4;
+    let form_h_smem = m * (m | 1) * 16;
     let eigh = squared
         && m <= 64
         && eigh_smem <= optin
@@ -957,6 +986,7 @@ fn layout<T: Real>(plan: &Plan<T>, gpu: &dyn Gpu) -> Result<Layout> {
         eigh,
         eigh_threads,
         eigh_smem,
+        form_h_smem,
         dec_threads,
         dec_smem,
         dec_scratch_per_mat,
@@ -1028,6 +1058,9 @@ impl<T: Real> Backend<T> for CudaBackend<T> {
         self.ensure(Scratch::Info, nw * nb * 4)?;
         if self.profile && l.eigh {
             self.ensure(Scratch::Prof, nw * nb * 64)?;
+        }
+        if l.eigh && l.valmode != 0 {
+            self.ensure(Scratch::H, nwb_max * nb * m * m * 16)?;
         }
         self.ensure(Scratch::Scale, nwb_max * nb * ts)?;
         self.ensure(Scratch::Db, nw * d * 8)?;
@@ -1297,6 +1330,7 @@ impl<T: Real> Drop for CudaBackend<T> {
             self.d_bw.ptr,
             self.d_info.ptr,
             self.d_prof.ptr,
+            self.d_h.ptr,
             self.d_scale.ptr,
             self.d_db.ptr,
             self.d_spec.ptr,
