@@ -7,10 +7,15 @@
 //   H = (W R)(W R)ᴴ             mode 3  (GSVD: the left singular vectors of A = K⁻¹R are
 //                                        the eigenvectors of A Aᴴ, σ = √λ)
 //   H = Q T Qᴴ,  Q = H_0 H_1 ⋯ H_{n−2},  H_k = I − τ_k v_k v_kᴴ  (LAPACK's zhetd2, lower),
-//   λ_0 ≥ … ≥ λ_{Ns−1} of the real symmetric tridiagonal T by multisection of Sturm
-//   counts (32 points per step, one warp per value), z_r by inverse iteration with
-//   partial pivoting (LAPACK's dlagtf/dstein idea; the Ns vectors are then
-//   orthonormalised, which also separates clustered values), e_r = Q z_r.
+//   T scaled to ‖T‖ ≈ 1; λ_0 ≥ … ≥ λ_{Ns−1} to EH_BTOL by multisection of Sturm counts
+//   (the block's warps shared among the values, 32 points per warp and round); z_r by
+//   inverse iteration with partial pivoting (LAPACK's dlagtf/dstein idea, two solves; the
+//   Ns vectors are then orthonormalised, which also separates clustered values); λ_0 from
+//   the Rayleigh quotient z_0ᵀ T z_0; e_r = Q z_r.
+//
+// Two kernels: form_h (modes 1–3) writes H to global memory, eigh reads it (or R in
+// mode 0) and does the rest; apart, the products' register tiles do not cap the
+// eigensolver's occupancy (80 registers, three blocks per multiprocessor at M = 60).
 //
 // This is all the squared MUSIC denominator needs (the noise projector is I − E_s E_sᴴ,
 // spectrum.cu). Arithmetic: (16/3)·M³ real flops for the reduction and at most 2·8·M³ for
@@ -19,15 +24,15 @@
 // double keeps A Aᴴ's squared condition number harmless: the rounding of H is 1e-16·‖H‖,
 // below the f32 rounding of the inputs it is formed from.
 //
-// Threads: EH_THREADS (256 or 512) = EH_TY × 16; products use 4 (or 2) rows × 4 columns of
-// registers per thread, so M ≤ 64. Shared memory (dynamic, see `eigh_smem` on the host):
-// A (M × lda complex doubles, lda = M | 1: odd, so column reads are conflict-free), p (M),
-// v (2 × M), τ (M), d, e, e² (M each), λ (Ns), Z (Ns × M), inverse-iteration scratch
-// (min(Ns, EH_VEC) × 5M), 1 + 32 ints.
+// Threads: EH_THREADS (256, or 512 for tuning) = EH_TY × 16; the products use 4 (or 2)
+// rows × 4 columns of registers per thread, so M ≤ 64. Shared memory (dynamic, see
+// `eigh_smem` / `form_h_smem` on the host): A (M × lda complex doubles, lda = M | 1: odd,
+// so column reads are conflict-free), p (M), v (2 × M), τ (M), d, e, e² (M each), λ (Ns),
+// Z (Ns × M), inverse-iteration scratch (min(Ns, EH_VEC) × 5M), 1 + 32 ints.
 //
 // Outputs as decompose.cu: E [blk][Ns][M] (rank order), gain[mat] = w_b·g,
 // bw[mat] = g (g = √val with eigw, else 1; val = λ_0, or σ_0 = √λ_0 for GSVD), info[mat]
-// = bisection steps of λ_0 (diagnostics).
+// = multisection rounds (diagnostics).
 #include "common.cuh"
 
 #ifndef EH_THREADS

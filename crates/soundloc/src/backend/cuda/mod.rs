@@ -1216,7 +1216,7 @@ impl<T: Real> Backend<T> for CudaBackend<T> {
             out.peaks.push(v);
         }
         if self.debug {
-            // Jacobi sweeps or bisection steps per matrix (SOUNDLOC_CUDA_DEBUG=1).
+            // Jacobi sweeps or multisection rounds per matrix (SOUNDLOC_CUDA_DEBUG=1).
             let mut info = vec![0i32; nw * nb];
             // SAFETY: synchronous copy after the stream is idle.
             unsafe {
@@ -1237,7 +1237,7 @@ impl<T: Real> Backend<T> for CudaBackend<T> {
                 } else {
                     format!("Jacobi, factor form {}", mode.factor)
                 },
-                if l.eigh { "bisection steps" } else { "sweeps" },
+                if l.eigh { "multisection rounds" } else { "sweeps" },
                 info.iter().min().unwrap_or(&0),
                 info.iter().max().unwrap_or(&0)
             );
