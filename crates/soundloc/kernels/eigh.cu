@@ -117,6 +117,11 @@ __device__ __forceinline__ void tile_store(zd* A, int lda, int n, const zd (&acc
         }
 }
 
+// w = p − γ v (one entry of the reduction's w).
+__device__ __forceinline__ zd w_of(zd p, zd g, zd v) {
+    return cx<double>(p.re - (g.re * v.re - g.im * v.im), p.im - (g.re * v.im + g.im * v.re));
+}
+
 // a ← a − v_r conj(w_c) − w_r conj(v_c) (one entry of the Hermitian rank-2 update).
 __device__ __forceinline__ void rank2(zd& a, zd vr, zd wr, zd vc, zd wc) {
     a.re -= vr.re * wc.re + vr.im * wc.im + wr.re * vc.re + wr.im * vc.im;
@@ -317,11 +322,11 @@ __device__ void eigh_impl(const cplx<T>* __restrict__ R, const zd* __restrict__ 
         if (warp == 0) {
             // A22's first column (rows r ≥ 0), then the next reflector from it.
             const zd v0 = v[0], p0 = pv[0];
-            const zd w0 = cx<double>(p0.re - (g.re * v0.re - g.im * v0.im), p0.im - (g.re * v0.im + g.im * v0.re));
+            const zd w0 = w_of(p0, g, v0);
             for (int r = lane; r < m; r += 32) {
                 const zd vr = v[r], pr = pv[r];
                 const zd wr =
-                    cx<double>(pr.re - (g.re * vr.re - g.im * vr.im), pr.im - (g.re * vr.im + g.im * vr.re));
+                    w_of(pr, g, vr);
                 rank2(A[(size_t)r0 * lda + r0 + r], vr, wr, v0, w0);
             }
             __syncwarp();
@@ -337,11 +342,11 @@ __device__ void eigh_impl(const cplx<T>* __restrict__ R, const zd* __restrict__ 
                 if (h == 0 ? 2 * lane > m - 1 : 2 * lane >= m - 1) continue;
                 const zd vr = v[r], pr = pv[r];
                 const zd wr =
-                    cx<double>(pr.re - (g.re * vr.re - g.im * vr.im), pr.im - (g.re * vr.im + g.im * vr.re));
+                    w_of(pr, g, vr);
                 for (int c = warp; c <= r; c += nq) {
                     const zd vc = v[c], pc = pv[c];
                     const zd wc =
-                        cx<double>(pc.re - (g.re * vc.re - g.im * vc.im), pc.im - (g.re * vc.im + g.im * vc.re));
+                        w_of(pc, g, vc);
                     rank2(A[(size_t)(r0 + c) * lda + r0 + r], vr, wr, vc, wc);
                 }
             }

@@ -658,6 +658,46 @@ impl<T: Real> CudaBackend<T> {
         Ok(())
     }
 
+    /// The tridiagonal eigensolver (eigh.cu) of this sub-batch's matrices: form_h for the
+    /// whitened cases, then eigh.
+    fn launch_eigh(&self, mat0: usize, nmat: usize) -> Result<()> {
+        let l = &self.lay;
+        if l.valmode != 0 {
+            Args::new()
+                .p(self.d_r.ptr)
+                .p(self.d_wcm.ptr)
+                .p(self.d_wrm.ptr)
+                .i(l.m)
+                .i(l.nb)
+                .i(l.valmode)
+                .i(mat0)
+                .p(self.d_h.ptr)
+                .launch(
+                    &*self.gpu,
+                    self.f.form_h,
+                    [nmat, 1, 1],
+                    l.eigh_threads,
+                    l.form_h_smem,
+                )?;
+        }
+        Args::new()
+            .p(self.d_r.ptr)
+            .p(self.d_h.ptr)
+            .i(l.m)
+            .i(l.nb)
+            .i(l.valmode)
+            .i(l.ns)
+            .i(usize::from(self.plan.config.eigenvalue_weight))
+            .p(self.d_weights.ptr)
+            .i(mat0)
+            .p(self.d_e.ptr)
+            .p(self.d_gain.ptr)
+            .p(self.d_bw.ptr)
+            .p(self.d_info.ptr)
+            .p(if self.profile { self.d_prof.ptr } else { 0 })
+            .launch(&*self.gpu, self.f.eigh, [nmat, 1, 1], l.eigh_threads, l.eigh_smem)
+    }
+
     /// The Jacobi decomposition (decompose.cu) of this sub-batch's matrices.
     fn launch_jacobi(&self, mat0: usize, nmat: usize, mode: &DecMode) -> Result<()> {
         let l = &self.lay;
@@ -729,34 +769,7 @@ impl<T: Real> CudaBackend<T> {
             .launch(g, self.f.correlate, [nmat, 1, 1], 256, l.corr_smem)?;
         g.record(ev[1], Stream::Compute)?;
         if l.eigh {
-            if l.valmode != 0 {
-                Args::new()
-                    .p(self.d_r.ptr)
-                    .p(self.d_wcm.ptr)
-                    .p(self.d_wrm.ptr)
-                    .i(l.m)
-                    .i(l.nb)
-                    .i(l.valmode)
-                    .i(mat0)
-                    .p(self.d_h.ptr)
-                    .launch(g, self.f.form_h, [nmat, 1, 1], l.eigh_threads, l.form_h_smem)?;
-            }
-            Args::new()
-                .p(self.d_r.ptr)
-                .p(self.d_h.ptr)
-                .i(l.m)
-                .i(l.nb)
-                .i(l.valmode)
-                .i(l.ns)
-                .i(usize::from(self.plan.config.eigenvalue_weight))
-                .p(self.d_weights.ptr)
-                .i(mat0)
-                .p(self.d_e.ptr)
-                .p(self.d_gain.ptr)
-                .p(self.d_bw.ptr)
-                .p(self.d_info.ptr)
-                .p(if self.profile { self.d_prof.ptr } else { 0 })
-                .launch(g, self.f.eigh, [nmat, 1, 1], l.eigh_threads, l.eigh_smem)?;
+            self.launch_eigh(mat0, nmat)?;
         } else {
             self.launch_jacobi(mat0, nmat, mode)?;
         }
