@@ -25,15 +25,20 @@ fn tmp(name: &str) -> PathBuf {
 }
 
 /// `soundloc localize INPUT --tf <data>/tamago_rectf.zip EXTRA...`.
-fn localize_rectf(d: &Path, input: &Path, extra: &[&str]) -> Output {
+/// `soundloc localize INPUT --tf d/TF EXTRA…`.
+fn localize_tf(d: &Path, input: &Path, tf: &str, extra: &[&str]) -> Output {
     bin()
         .arg("localize")
         .arg(input)
         .arg("--tf")
-        .arg(d.join("tamago_rectf.zip"))
+        .arg(d.join(tf))
         .args(extra)
         .output()
         .unwrap()
+}
+
+fn localize_rectf(d: &Path, input: &Path, extra: &[&str]) -> Output {
+    localize_tf(d, input, "tamago_rectf.zip", extra)
 }
 
 fn stderr(o: &Output) -> String {
@@ -97,22 +102,9 @@ fn jinsei_with_measured_tf_finds_one_dominant_talker() {
     let Some(d) = data() else {
         return skipped("jinsei_with_measured_tf_finds_one_dominant_talker");
     };
-    let o = bin()
-        .args([
-            "localize",
-            "--num-sources",
-            "1",
-            "--period",
-            "10",
-            "-q",
-            "--device",
-            "cpu",
-        ])
-        .arg(d.join("jinsei.wav"))
-        .arg("--tf")
-        .arg(d.join("tamago_rectf.zip"))
-        .output()
-        .unwrap();
+    let jinsei = d.join("jinsei.wav");
+    let base = ["--num-sources", "1", "--period", "10", "-q", "--device", "cpu"];
+    let o = localize_rectf(&d, &jinsei, &base);
     assert!(o.status.success(), "{}", stderr(&o));
     let text = String::from_utf8(o.stdout).unwrap();
     let az: Vec<f64> = text
@@ -134,24 +126,12 @@ fn jinsei_with_measured_tf_finds_one_dominant_talker() {
     }
     // The talker is in front of the array (between -10° and 30°), with the geometric TF too.
     assert!((-10.0..=30.0).contains(&mean), "mean azimuth {mean}");
-    let o = bin()
-        .args([
-            "localize",
-            "--num-sources",
-            "1",
-            "--period",
-            "10",
-            "-q",
-            "--device",
-            "cpu",
-            "--format",
-            "csv",
-        ])
-        .arg(d.join("jinsei.wav"))
-        .arg("--tf")
-        .arg(d.join("tamago_geotf.zip"))
-        .output()
-        .unwrap();
+    let o = localize_tf(
+        &d,
+        &jinsei,
+        "tamago_geotf.zip",
+        &[&base[..], &["--format", "csv"]].concat(),
+    );
     assert!(o.status.success(), "{}", stderr(&o));
     let text = String::from_utf8(o.stdout).unwrap();
     let mut lines = text.lines();

@@ -64,6 +64,13 @@ fn data(test: &str) -> Option<PathBuf> {
     }
 }
 
+/// Every line fragment of `want` appears in `text`.
+fn assert_mentions(text: &str, want: &[&str]) {
+    for w in want {
+        assert!(text.contains(w), "missing {w:?}:\n{text}");
+    }
+}
+
 fn json(out: &str) -> serde_json::Value {
     serde_json::from_str(out.trim()).unwrap_or_else(|e| panic!("not JSON ({e}):\n{out}"))
 }
@@ -107,14 +114,15 @@ fn tf_make_then_inspect_round_trip() {
     ]);
     assert!(out.contains("8 mics, 72 directions"), "{out}");
     let text = ok(&["tf", "inspect", s(&zip)]);
-    for want in [
-        "microphones      8",
-        "directions       72 (ring)",
-        "nfft             512",
-        "bins             0..257",
-    ] {
-        assert!(text.contains(want), "missing {want:?}:\n{text}");
-    }
+    assert_mentions(
+        &text,
+        &[
+            "microphones      8",
+            "directions       72 (ring)",
+            "nfft             512",
+            "bins             0..257",
+        ],
+    );
     let j = json(&ok(&["tf", "inspect", "--json", s(&zip)]));
     assert_eq!(
         (j["num_mics"].as_u64(), j["num_dirs"].as_u64()),
@@ -266,14 +274,15 @@ fn noisecm_make_text_and_zip_load_back() {
 
     // Inspect both.
     let text = ok(&["noisecm", "inspect", s(&re)]);
-    for want in [
-        "microphones      4",
-        "nfft             512",
-        "bins             257",
-        "not pos. def.    0 bin",
-    ] {
-        assert!(text.contains(want), "missing {want:?}:\n{text}");
-    }
+    assert_mentions(
+        &text,
+        &[
+            "microphones      4",
+            "nfft             512",
+            "bins             257",
+            "not pos. def.    0 bin",
+        ],
+    );
     let j = json(&ok(&["noisecm", "inspect", "--json", s(&zip)]));
     assert_eq!(
         (j["num_mics"].as_u64(), j["num_bins"].as_u64()),

@@ -161,13 +161,12 @@ fn plans(
     )
 }
 
-/// A scene with two talkers, a rotor close to the array and sensor noise.
+/// A scene with two talkers, a rotor close to the array and sensor noise: its audio, the
+/// free-field TFs of the grid and K from the rotor-only recording.
 struct SceneData {
-    geometry: Geometry,
-    grid: Grid,
     audio: Vec<Vec<f32>>,
-    noise: Vec<Vec<f32>>,
-    fs: u32,
+    tf: TransferFunctions,
+    k: NoiseMatrices,
 }
 
 fn scene(geometry: Geometry, grid: Grid, seed: u64) -> SceneData {
@@ -190,12 +189,34 @@ fn scene(geometry: Geometry, grid: Grid, seed: u64) -> SceneData {
     talkers.validate(&geometry, fs).expect("scene");
     let audio = render(&talkers, &geometry, fs, 1.2, seed).channels;
     let noise = render(&noise_only, &geometry, fs, 1.0, seed + 1).channels;
-    SceneData {
-        geometry,
-        grid,
-        audio,
-        noise,
+    // The STFT and band of every configuration below (their defaults).
+    let base = scene_config(Algorithm::Sevd, 50, 10);
+    let tf = free_field(
+        &geometry,
+        &grid,
+        base.nfft,
         fs,
+        base.bin_range(),
+        DEFAULT_SPEED_OF_SOUND_M_S,
+    )
+    .unwrap();
+    let k = estimate_noise(&base, fs, &noise, None).expect("noise");
+    SceneData { audio, tf, k }
+}
+
+impl SceneData {
+    /// parity_case on this scene with K, then the scene assertions (check_scene).
+    fn check(&self, mode: &Mode, label: &str, config: &LocalizeConfig, gpu_batch: usize) {
+        let r = parity_case(
+            mode,
+            label,
+            config,
+            &self.tf,
+            Some(&self.k),
+            &self.audio,
+            gpu_batch,
+        );
+        check_scene(label, r);
     }
 }
 
@@ -317,29 +338,9 @@ fn scene_ring_array_every_algorithm() {
         return;
     };
     let sd = scene(Geometry::circle(8, 0.0365, 0.0), Grid::ring(5.0, 0.0, 1.0), 7);
-    let base = scene_config(Algorithm::Sevd, 50, 10);
-    let tf = free_field(
-        &sd.geometry,
-        &sd.grid,
-        base.nfft,
-        sd.fs,
-        base.bin_range(),
-        DEFAULT_SPEED_OF_SOUND_M_S,
-    )
-    .unwrap();
-    let k = estimate_noise(&base, sd.fs, &sd.noise, None).expect("noise");
     for alg in Algorithm::ALL {
         let cfg = scene_config(alg, 50, 10);
-        let r = parity_case(
-            &mode,
-            &format!("ring8 {}", alg.name()),
-            &cfg,
-            &tf,
-            Some(&k),
-            &sd.audio,
-            4,
-        );
-        check_scene(alg.name(), r);
+        sd.check(&mode, &format!("ring8 {}", alg.name()), &cfg, 4);
     }
     // Unsquared denominator (all noise vectors), and other window types / PERIOD 1.
     for alg in [Algorithm::Sevd, Algorithm::Gsvd, Algorithm::Gevd] {
@@ -347,61 +348,25 @@ fn scene_ring_array_every_algorithm() {
             denominator: Denominator::Unsquared,
             ..scene_config(alg, 50, 10)
         };
-        let r = parity_case(
-            &mode,
-            &format!("ring8 {} unsquared", alg.name()),
-            &cfg,
-            &tf,
-            Some(&k),
-            &sd.audio,
-            4,
-        );
-        check_scene(&format!("{} unsquared", alg.name()), r);
+        sd.check(&mode, &format!("ring8 {} unsquared", alg.name()), &cfg, 4);
     }
     // Fewer frames than microphones (rank-deficient R; the Jacobi kernel uses its factor form).
     for alg in Algorithm::ALL {
         let cfg = scene_config(alg, 6, 9);
-        let r = parity_case(
-            &mode,
-            &format!("ring8 {} W6 (W < M)", alg.name()),
-            &cfg,
-            &tf,
-            Some(&k),
-            &sd.audio,
-            5,
-        );
-        check_scene(&format!("{} W6", alg.name()), r);
+        sd.check(&mode, &format!("ring8 {} W6 (W < M)", alg.name()), &cfg, 5);
     }
     let cfg = LocalizeConfig {
         window_type: WindowType::Past,
         eigenvalue_weight: false,
         ..scene_config(Algorithm::Gevd, 30, 1)
     };
-    let r = parity_case(
-        &mode,
-        "ring8 gevd past W30 P1 no-eigw",
-        &cfg,
-        &tf,
-        Some(&k),
-        &sd.audio,
-        64,
-    );
-    check_scene("gevd past", r);
+    sd.check(&mode, "ring8 gevd past W30 P1 no-eigw", &cfg, 64);
     let cfg = LocalizeConfig {
         window_type: WindowType::Middle,
         max_peaks: 0,
         ..scene_config(Algorithm::Sevd, 25, 7)
     };
-    let r = parity_case(
-        &mode,
-        "ring8 sevd middle W25 P7 all peaks",
-        &cfg,
-        &tf,
-        Some(&k),
-        &sd.audio,
-        3,
-    );
-    check_scene("sevd middle all peaks", r);
+    sd.check(&mode, "ring8 sevd middle W25 P7 all peaks", &cfg, 3);
 }
 
 #[test]
@@ -411,29 +376,9 @@ fn scene_sphere_array_60_mics() {
     };
     let (mics, dirs) = if mode.is_emulator() { (16, 200) } else { (60, 2522) };
     let sd = scene(Geometry::sphere(mics, 0.1), Grid::sphere(dirs, 1.0), 11);
-    let base = scene_config(Algorithm::Gsvd, 50, 25);
-    let tf = free_field(
-        &sd.geometry,
-        &sd.grid,
-        base.nfft,
-        sd.fs,
-        base.bin_range(),
-        DEFAULT_SPEED_OF_SOUND_M_S,
-    )
-    .unwrap();
-    let k = estimate_noise(&base, sd.fs, &sd.noise, None).expect("noise");
     for alg in Algorithm::ALL {
         let cfg = scene_config(alg, 50, 25);
-        let r = parity_case(
-            &mode,
-            &format!("sphere{mics} {}", alg.name()),
-            &cfg,
-            &tf,
-            Some(&k),
-            &sd.audio,
-            8,
-        );
-        check_scene(alg.name(), r);
+        sd.check(&mode, &format!("sphere{mics} {}", alg.name()), &cfg, 8);
     }
 }
 
