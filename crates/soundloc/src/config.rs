@@ -98,6 +98,17 @@ pub enum Denominator {
     Unsquared,
 }
 
+/// Compute precision: single (as HARK; default) or double (the reference).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "kebab-case")]
+pub enum Precision {
+    /// f32.
+    #[default]
+    F32,
+    /// f64.
+    F64,
+}
+
 /// Everything that defines a localization run. Defaults are HARK LocalizeMUSIC's.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]

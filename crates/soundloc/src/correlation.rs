@@ -17,31 +17,105 @@ use crate::backend::{Spectra, WindowSpec};
 use crate::config::WindowType;
 use crate::real::{Real, C};
 
-/// The windows of a signal of `num_frames` frames, in result order.
+/// The windows of a signal of `num_frames` frames, in result order (a
+/// [`WindowScheduler`] run to the end of the signal).
 pub fn schedule(num_frames: usize, window: usize, period: usize, window_type: WindowType) -> Vec<WindowSpec> {
+    let mut s = WindowScheduler::new(window, period, window_type);
     let mut out = Vec::new();
-    if window == 0 || period == 0 {
-        return out;
+    s.due(num_frames, &mut out);
+    out
+}
+
+/// Streaming window schedule: answers "which windows are complete once `n` frames have
+/// arrived?" without knowing where the signal ends. Windows come out in result order, each
+/// exactly once; a window is complete when its last frame has arrived. Result frames c run
+/// 0, PERIOD, 2·PERIOD, …; the frames of c follow WINDOW_TYPE (module docs).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct WindowScheduler {
+    window: usize,
+    period: usize,
+    window_type: WindowType,
+    /// The next result frame c to consider.
+    next_c: usize,
+}
+
+impl WindowScheduler {
+    /// A schedule starting at result frame 0.
+    pub fn new(window: usize, period: usize, window_type: WindowType) -> Self {
+        WindowScheduler {
+            window,
+            period,
+            window_type,
+            next_c: 0,
+        }
     }
-    let mut c = 0usize;
-    while c < num_frames {
-        let (start, fire) = match window_type {
-            WindowType::Future => (Some(c), true),
-            WindowType::Middle => (c.checked_sub(window / 2 + window % 2 - 1), true),
-            WindowType::Past => ((c + 1).checked_sub(window), c != 0 || period == 1),
-        };
-        if let (Some(start), true) = (start, fire) {
-            if start + window <= num_frames {
+
+    /// The first frame of result frame c's window, or None when c produces no window.
+    fn start_of(&self, c: usize) -> Option<usize> {
+        let w = self.window;
+        match self.window_type {
+            WindowType::Future => Some(c),
+            WindowType::Middle => c.checked_sub(w / 2 + w % 2 - 1),
+            WindowType::Past => (c != 0 || self.period == 1)
+                .then(|| (c + 1).checked_sub(w))
+                .flatten(),
+        }
+    }
+
+    /// Append to `out` every window not yet returned that lies entirely inside frames
+    /// `0..num_frames`.
+    pub fn due(&mut self, num_frames: usize, out: &mut Vec<WindowSpec>) {
+        if self.window == 0 || self.period == 0 {
+            return;
+        }
+        while self.next_c < num_frames {
+            let c = self.next_c;
+            if let Some(start) = self.start_of(c) {
+                if start + self.window > num_frames {
+                    return;
+                }
                 out.push(WindowSpec {
                     frame: c,
                     start,
-                    len: window,
+                    len: self.window,
                 });
             }
+            self.next_c += self.period;
         }
-        c += period;
     }
-    out
+
+    /// The first frame of the next window to complete. Result frames that produce no
+    /// window are skipped.
+    pub fn next_start(&self) -> usize {
+        let mut c = self.next_c;
+        loop {
+            if let Some(start) = self.start_of(c) {
+                return start;
+            }
+            c += self.period.max(1);
+        }
+    }
+
+    /// The last frame of the next window to complete (the frame whose arrival completes
+    /// it).
+    pub fn next_last_frame(&self) -> usize {
+        self.next_start() + self.window.max(1) - 1
+    }
+
+    /// Frames between a result frame c and the last frame of its window: W − 1 for
+    /// FUTURE, ⌊W/2⌋ for MIDDLE, 0 for PAST (causal).
+    pub fn latency_frames(&self) -> usize {
+        match self.window_type {
+            WindowType::Future => self.window.saturating_sub(1),
+            WindowType::Middle => self.window / 2,
+            WindowType::Past => 0,
+        }
+    }
+
+    /// Start again at result frame 0.
+    pub fn reset(&mut self) {
+        self.next_c = 0;
+    }
 }
 
 /// R = (1/W) Σ x xᴴ over frames `w.start .. w.start + w.len` of used bin `bin`, row-major
@@ -119,6 +193,34 @@ mod tests {
         let w3 = schedule(300, 3, 1, WindowType::Middle);
         // W = 3: [c-1, c+1].
         assert_eq!((w3[0].frame, w3[0].start), (1, 0));
+    }
+
+    #[test]
+    fn streaming_schedule_equals_the_whole_signal_schedule() {
+        for wt in [WindowType::Future, WindowType::Middle, WindowType::Past] {
+            for (w, p) in [(50, 50), (50, 1), (3, 2), (1, 1), (7, 10)] {
+                let whole = schedule(400, w, p, wt);
+                let mut s = WindowScheduler::new(w, p, wt);
+                let mut got = Vec::new();
+                for n in 0..400 {
+                    s.due(n, &mut got);
+                    let before = got.len();
+                    // The next window needs frame `last`, i.e. more than n frames.
+                    let last = s.next_last_frame();
+                    assert!(last >= n, "{wt:?} {w} {p}");
+                    s.due(n + 1, &mut got);
+                    assert_eq!(got.len() > before, last == n, "{wt:?} {w} {p}");
+                    for x in &got[before..] {
+                        assert_eq!(
+                            x.start + x.len,
+                            n + 1,
+                            "{wt:?} {w} {p}: completes at its last frame"
+                        );
+                    }
+                }
+                assert_eq!(got, whole, "{wt:?} {w} {p}");
+            }
+        }
     }
 
     #[test]

@@ -266,7 +266,7 @@ pub fn localize_scene<T: crate::Real>(
 ) -> Result<crate::engine::Localization> {
     let tf = scene.transfer_functions(config)?;
     let noise = if config.algorithm.uses_noise() {
-        Some(crate::engine::estimate_noise(
+        Some(crate::noise::estimate(
             config,
             audio.sample_rate_hz,
             &audio.channels,
@@ -275,6 +275,7 @@ pub fn localize_scene<T: crate::Real>(
     } else {
         None
     };
-    let mut engine = crate::engine::Engine::<T>::new(config, &tf, noise.as_ref(), device)?;
-    engine.localize_samples(audio.sample_rate_hz, &audio.channels, true, &mut |_, _| {})
+    let mut engine = crate::engine::Engine::<T>::with_fixed_noise(config, &tf, noise.as_ref(), device, true)?;
+    engine.check_input(audio.sample_rate_hz, audio.num_channels())?;
+    engine.localize(&audio.channels)
 }

@@ -1,22 +1,42 @@
-//! The only orchestration: plan once, STFT, schedule windows, feed batches to a backend,
-//! turn peaks into results.
+//! The only orchestration: a stateful, causal stream engine. Batch localization is one use
+//! of it (push the whole recording, then flush).
 //!
 //! ```text
-//! Audio ─► Stft ─► Spectra ─► correlation::schedule ─► Backend::process (batches)
-//!        ─► BatchOutput (peaks, dB spectrum) ─► LocalizationResult per window
+//! push(block) ─► StftStream (sample ring) ─► FrameRing ─► WindowScheduler (due windows)
+//!     ─► NoisePolicy (which K; hold while K is not known) ─► Backend::process (batches)
+//!     ─► peaks ─► results ─► SourceTracker ─► IntervalExtender ─► Output
 //! ```
+//!
+//! Contract (after rubato's): [`Engine::push`] takes blocks of any length and appends
+//! every result whose window completed to the caller's [`Output`]; [`Engine::flush`] ends
+//! the input and releases what was held; [`Engine::reset`] starts a new stream with the
+//! same plan and backend. Results do not depend on how the input is cut into blocks: the
+//! frames, the windows, the K estimates and (on the CPU) every value are those of the whole
+//! recording, bit for bit. [`Engine::latency_frames`] says how many frames after a result's
+//! frame c its window completes; [`Engine::samples_needed_next`] how many more samples
+//! complete the next window.
+//!
+//! Memory stays bounded on any stream: the sample ring holds less than one frame plus
+//! what a noise range still needs, the frame ring the frames of windows not yet run (and
+//! the frames of a preceding-frames K); a large block is processed in pieces of
+//! [`CHUNK_FRAMES`] frames.
 
-use crate::array::TransferFunctions;
-use crate::backend::{cpu::CpuBackend, Backend, BatchOutput, DeviceChoice, Spectra, StageTimes, WindowSpec};
-use crate::config::LocalizeConfig;
-use crate::correlation::schedule;
+use crate::backend::{cpu::CpuBackend, Backend, BatchOutput, DeviceChoice, StageTimes, WindowSpec};
+use crate::correlation::WindowScheduler;
+use crate::input::{Block, ChannelMap};
+use crate::noise::policy::{InitialNoise, KSource, NoisePolicy, NoiseUpdate};
 use crate::noise::NoiseMatrices;
 use crate::plan::Plan;
 use crate::real::Real;
 use crate::result::{LocalizationResult, Source};
-use crate::stft::Stft;
+use crate::stft::{FrameRing, Stft, StftStream};
+use crate::tracking::{IntervalExtender, IntervalExtenderConfig, SourceTracker, TrackerConfig};
 use crate::{Error, Result};
+use std::collections::VecDeque;
 use std::sync::Arc;
+
+/// Frames of input processed per step inside one [`Engine::push`].
+pub const CHUNK_FRAMES: usize = 4096;
 
 /// The broadband spectrum of every result, dB, `[result][dir]`.
 #[derive(Debug, Clone, PartialEq)]
@@ -35,17 +55,85 @@ pub struct SpectrumTable {
     pub bin_weight: Vec<f32>,
 }
 
-/// Everything one localization run produces.
+impl SpectrumTable {
+    fn empty(num_dirs: usize, num_bins: usize) -> Self {
+        SpectrumTable {
+            frames: Vec::new(),
+            times_s: Vec::new(),
+            num_dirs,
+            db: Vec::new(),
+            num_bins,
+            bin_weight: Vec::new(),
+        }
+    }
+
+    /// Append another table's rows.
+    pub fn append(&mut self, other: SpectrumTable) {
+        self.frames.extend(other.frames);
+        self.times_s.extend(other.times_s);
+        self.db.extend(other.db);
+        self.bin_weight.extend(other.bin_weight);
+    }
+}
+
+/// What `push` and `flush` append to: results in time order, spectrum rows (one per
+/// window, in window order, when the engine was asked for spectra) and notes for the user
+/// (a noise range cut at the end of the input, an unused segment).
+#[derive(Debug, Clone, Default)]
+pub struct Output {
+    /// Results, in increasing frame order.
+    pub results: Vec<LocalizationResult>,
+    /// Spectrum rows, when asked for.
+    pub spectrum: Option<SpectrumTable>,
+    /// Things the user should know.
+    pub notes: Vec<String>,
+}
+
+impl Output {
+    /// Take everything out, leaving it empty.
+    pub fn take(&mut self) -> Output {
+        std::mem::take(self)
+    }
+}
+
+/// Everything one batch localization produces.
 #[derive(Debug, Clone)]
 pub struct Localization {
     /// One result per correlation window, in time order.
     pub results: Vec<LocalizationResult>,
     /// The spectrum, when asked for.
     pub spectrum: Option<SpectrumTable>,
+    /// Notes for the user.
+    pub notes: Vec<String>,
     /// The device that computed it.
     pub device: String,
     /// Time per stage in ms.
     pub stage_times: StageTimes,
+}
+
+/// Tracking options: HARK's SourceTracker and SourceIntervalExtender.
+#[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize, serde::Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct TrackingSpec {
+    /// SourceTracker parameters.
+    pub tracker: TrackerConfig,
+    /// SourceIntervalExtender PREROLL_LENGTH in frames (0 = off; delays results by it).
+    pub preroll: usize,
+}
+
+/// How a stream is run (beside the plan): noise policy, tracking, channel map, spectra.
+#[derive(Debug, Clone, PartialEq)]
+pub struct StreamOptions {
+    /// The K the stream starts with.
+    pub initial_noise: InitialNoise,
+    /// Online K updates.
+    pub noise_update: NoiseUpdate,
+    /// Tracking (None = off).
+    pub tracking: Option<TrackingSpec>,
+    /// Input channels → microphones.
+    pub channels: ChannelMap,
+    /// Produce spectrum rows.
+    pub want_spectrum: bool,
 }
 
 /// Build the backend for a device choice. `Auto` uses CUDA when a usable GPU and the
@@ -64,34 +152,99 @@ pub fn make_backend<T: Real>(plan: Arc<Plan<T>>, device: DeviceChoice) -> Result
     }
 }
 
-/// A localization engine: a plan, its STFT, and a backend.
+/// The stream engine for one array (see the [module docs](self)).
 pub struct Engine<T: Real> {
     plan: Arc<Plan<T>>,
-    stft: Stft<T>,
     backend: Box<dyn Backend<T>>,
+    stft: StftStream<T>,
+    ring: FrameRing<T>,
+    scheduler: WindowScheduler,
+    /// Windows complete but not yet run (held while K is not known), absolute starts.
+    pending: VecDeque<WindowSpec>,
+    noise: NoisePolicy,
+    /// The K the plan holds now (None: a placeholder until the initial K is known).
+    current: Option<KSource>,
+    options: StreamOptions,
+    tracker: Option<SourceTracker>,
+    extender: Option<IntervalExtender>,
+    /// Input channel of each microphone, once the first block told the channel count.
+    map: Option<(usize, Vec<usize>)>,
+    windows_run: usize,
+    finished: bool,
+    batch: BatchOutput,
+    /// Absolute input sample of local sample 0 (moves forward at a gap, see
+    /// [`Engine::skip`]).
+    origin: u64,
 }
 
 impl<T: Real> Engine<T> {
-    /// Plan and pick a device.
-    pub fn new(
-        config: &LocalizeConfig,
-        tf: &TransferFunctions,
+    /// An engine for `plan` (built with the initial K when it is given up front) on
+    /// `backend`.
+    pub fn new(plan: Arc<Plan<T>>, backend: Box<dyn Backend<T>>, options: StreamOptions) -> Result<Self> {
+        let c = &plan.config;
+        if options.channels.mics != plan.num_mics {
+            return Err(Error::Mismatch(format!(
+                "channel map gives {} microphones, the plan has {}",
+                options.channels.mics, plan.num_mics
+            )));
+        }
+        if let Some(t) = &options.tracking {
+            t.tracker.validate()?;
+        }
+        let stft = Stft::new(c.nfft, c.hop, c.window_function, plan.bins.clone())?;
+        let noise = NoisePolicy::new(
+            c,
+            plan.num_mics,
+            options.initial_noise.clone(),
+            options.noise_update.clone(),
+        )?;
+        let current = noise.initial().map(|_| KSource::Initial);
+        Ok(Engine {
+            stft: StftStream::new(stft, plan.num_mics),
+            ring: FrameRing::new(plan.num_bins(), plan.num_mics),
+            scheduler: WindowScheduler::new(c.window, c.period, c.window_type),
+            pending: VecDeque::new(),
+            noise,
+            current,
+            tracker: options.tracking.map(|t| SourceTracker::new(t.tracker)),
+            extender: options.tracking.filter(|t| t.preroll > 0).map(|t| {
+                IntervalExtender::new(IntervalExtenderConfig {
+                    preroll_length: t.preroll,
+                })
+            }),
+            options,
+            map: None,
+            windows_run: 0,
+            finished: false,
+            batch: BatchOutput::default(),
+            origin: 0,
+            plan,
+            backend,
+        })
+    }
+
+    /// An engine with a fixed K (None = identity), no tracking and every input channel a
+    /// microphone: what batch runs over known matrices need.
+    pub fn with_fixed_noise(
+        config: &crate::config::LocalizeConfig,
+        tf: &crate::array::TransferFunctions,
         noise: Option<&NoiseMatrices>,
         device: DeviceChoice,
+        want_spectrum: bool,
     ) -> Result<Self> {
         let plan = Arc::new(Plan::<T>::new(config, tf, noise)?);
         let backend = make_backend(plan.clone(), device)?;
-        Self::with_backend(plan, backend)
+        let options = StreamOptions {
+            initial_noise: InitialNoise::Given(noise.cloned()),
+            noise_update: NoiseUpdate::Fixed,
+            tracking: None,
+            channels: ChannelMap::identity(plan.num_mics),
+            want_spectrum,
+        };
+        Engine::new(plan, backend, options)
     }
 
-    /// Use a given plan and backend.
-    pub fn with_backend(plan: Arc<Plan<T>>, backend: Box<dyn Backend<T>>) -> Result<Self> {
-        let c = &plan.config;
-        let stft = Stft::new(c.nfft, c.hop, c.window_function, plan.bins.clone())?;
-        Ok(Engine { plan, stft, backend })
-    }
-
-    /// The plan.
+    /// The plan (holding the K in use now).
     pub fn plan(&self) -> &Plan<T> {
         &self.plan
     }
@@ -101,192 +254,319 @@ impl<T: Real> Engine<T> {
         self.backend.device_name()
     }
 
-    /// The backend (for benchmarks).
-    pub fn backend_mut(&mut self) -> &mut dyn Backend<T> {
-        &mut *self.backend
+    /// Stage times since the start (or the last reset).
+    pub fn stage_times(&self) -> StageTimes {
+        self.backend.stage_times()
     }
 
-    /// Replace the noise matrix K (online updates, iGSVD / iGEVD).
+    /// Frames between a result's frame c and the last frame of its window: W − 1 for
+    /// FUTURE, ⌊W/2⌋ for MIDDLE, 0 for PAST. A result is out once the N samples of that
+    /// last frame have arrived (plus, at the start of a stream whose K comes from a time
+    /// range of it, until the range has arrived).
+    pub fn latency_frames(&self) -> usize {
+        self.scheduler.latency_frames()
+    }
+
+    /// Samples per channel still needed before the next window completes (≥ 1).
+    pub fn samples_needed_next(&self) -> usize {
+        let c = &self.plan.config;
+        let need = self.scheduler.next_last_frame() * c.hop + c.nfft;
+        need.saturating_sub(self.stft.samples_received()).max(1)
+    }
+
+    /// Samples per channel received since the start (or the last reset).
+    pub fn samples_received(&self) -> usize {
+        self.stft.samples_received()
+    }
+
+    /// Time of local STFT frame `frame` in seconds (its first sample): frame·hop/fs after
+    /// the start of the stream (plus the samples before and in gaps).
+    pub fn frame_time(&self, frame: usize) -> f64 {
+        (self.origin as f64 + (frame * self.plan.config.hop) as f64) / self.plan.config.sample_rate_hz as f64
+    }
+
+    /// The frame number reported for local frame `frame`: frames counted from the start of
+    /// the stream (after a gap, from its first sample, ⌊origin/hop⌋ + frame).
+    fn report_frame(&self, frame: usize) -> usize {
+        (self.origin / self.plan.config.hop as u64) as usize + frame
+    }
+
+    /// A gap in the input: `samples` samples per channel were lost (a live source that
+    /// fell behind dropped them). The stream goes on after the gap as if it started there:
+    /// windows that would span the gap are skipped (the count is in the note), result
+    /// times stay true (`time_s` counts the lost samples), the tracker and the K in use
+    /// are kept; a noise estimate still arriving is finished with what it had.
+    pub fn skip(&mut self, samples: u64, out: &mut Output) -> Result<()> {
+        let received = self.stft.samples_received() as u64;
+        let fs = self.plan.config.sample_rate_hz as f64;
+        let held = self.pending.len();
+        out.notes
+            .extend(self.noise.on_gap(received as usize, self.ring.end())?);
+        let at = (self.origin + received) as f64 / fs;
+        self.origin += received + samples;
+        self.stft.reset();
+        self.ring.reset();
+        self.scheduler.reset();
+        self.pending.clear();
+        out.notes.push(format!(
+            "input gap: {:.3} s of audio lost at {at:.3} s (the input came faster than it was localized); \
+             windows across it skipped{}",
+            samples as f64 / fs,
+            if held > 0 {
+                format!(", {held} held windows dropped")
+            } else {
+                String::new()
+            }
+        ));
+        Ok(())
+    }
+
+    /// Check an input's format before streaming it: its sample rate and channel count.
+    pub fn check_input(&self, sample_rate_hz: u32, channels: usize) -> Result<()> {
+        if sample_rate_hz != self.plan.config.sample_rate_hz {
+            return Err(Error::Mismatch(format!(
+                "sampled at {} Hz, but the transfer functions are for {} Hz",
+                sample_rate_hz, self.plan.config.sample_rate_hz
+            )));
+        }
+        self.options.channels.resolve(channels).map(|_| ())
+    }
+
+    /// Replace the initial noise matrix K now (an update from outside the stream, e.g. a
+    /// noise estimate of the caller's own); it is used from the next window on, until an
+    /// online update picks another, and kept across [`reset`](Self::reset).
     pub fn set_noise(&mut self, noise: &NoiseMatrices) -> Result<()> {
+        self.install(noise)?;
+        self.noise.set_initial(noise.clone());
+        self.current = Some(KSource::Initial);
+        Ok(())
+    }
+
+    fn install(&mut self, noise: &NoiseMatrices) -> Result<()> {
         let plan = Arc::new(self.plan.with_noise(noise)?);
         self.backend.set_plan(plan.clone())?;
         self.plan = plan;
         Ok(())
     }
 
-    /// STFT of planar samples after checking them against the plan.
-    pub fn spectra(&self, sample_rate_hz: u32, channels: &[Vec<f32>]) -> Result<Spectra<T>> {
-        self.check_samples(sample_rate_hz, channels)?;
-        self.stft.process(channels)
+    /// Push a block of any length; results of windows it completes are appended to `out`.
+    pub fn push(&mut self, block: Block<'_>, out: &mut Output) -> Result<()> {
+        if self.finished {
+            return Err(Error::Config(
+                "push after flush: call reset to start a new stream".into(),
+            ));
+        }
+        let len = block.samples()?;
+        let n_in = block.channels();
+        let idx = match &self.map {
+            Some((n, idx)) if *n == n_in => idx.clone(),
+            Some((n, _)) => {
+                return Err(Error::Mismatch(format!(
+                    "audio block has {n_in} channels, earlier blocks had {n}"
+                )))
+            }
+            None => {
+                let idx = self.options.channels.resolve(n_in)?;
+                self.map = Some((n_in, idx.clone()));
+                idx
+            }
+        };
+        let step = CHUNK_FRAMES * self.plan.config.hop;
+        let mut pos = 0;
+        while pos < len {
+            let n = step.min(len - pos);
+            let first = self.stft.samples_received();
+            self.stft.append(n, |c, v| {
+                let before = v.len();
+                block.extend_channel(idx[c], pos..pos + n, v);
+                debug_assert_eq!(v.len(), before + n);
+            });
+            let (buf_start, buf) = self.stft.buffered();
+            for (c, ch) in buf.iter().enumerate() {
+                let tail = &ch[first - buf_start..];
+                if let Some(i) = tail.iter().position(|v| !v.is_finite()) {
+                    let what = if tail[i].is_nan() { "NaN" } else { "infinite" };
+                    return Err(Error::numerical(
+                        "audio",
+                        format!(
+                            "sample {} of input channel {} is {what} (0-based)",
+                            first + i,
+                            idx[c]
+                        ),
+                    ));
+                }
+            }
+            let notes = self.noise.observe_samples(buf_start, buf, first + n)?;
+            out.notes.extend(notes);
+            self.advance(out)?;
+            pos += n;
+        }
+        Ok(())
     }
 
-    /// Check channel count, sample rate and length against the plan.
-    fn check_samples(&self, sample_rate_hz: u32, channels: &[Vec<f32>]) -> Result<()> {
-        let c = &self.plan.config;
-        if channels.len() != self.plan.num_mics {
-            return Err(Error::Mismatch(format!(
-                "the audio has {} channels but the transfer functions have {} microphones \
-                 (select channels with --channels)",
-                channels.len(),
-                self.plan.num_mics
-            )));
+    /// End of input: release held windows (finishing a noise range that ran past the end)
+    /// and the tracker's delayed results. An error when the whole stream gave no window.
+    /// Call [`reset`](Self::reset) before pushing again.
+    pub fn flush(&mut self, out: &mut Output) -> Result<()> {
+        if self.finished {
+            return Ok(());
         }
-        if sample_rate_hz != c.sample_rate_hz {
-            return Err(Error::Mismatch(format!(
-                "the audio is sampled at {} Hz but the analysis (and transfer functions) at {} Hz",
-                sample_rate_hz, c.sample_rate_hz
-            )));
+        self.finished = true;
+        let notes = self.noise.finish(self.stft.samples_received(), self.ring.end())?;
+        out.notes.extend(notes);
+        self.run_pending(out)?;
+        if let Some(e) = &mut self.extender {
+            out.results.extend(e.finish());
         }
-        let len = channels.first().map_or(0, |c| c.len());
-        let need = c.nfft + (c.window.max(1) - 1) * c.hop;
-        if len < need {
+        if self.windows_run == 0 {
+            let c = &self.plan.config;
+            let len = self.stft.samples_received();
+            let need = c.nfft + (c.window.max(1) - 1) * c.hop;
+            let fs = c.sample_rate_hz as f64;
             return Err(Error::TooShort(format!(
-                "the audio has {} samples ({:.3} s); one correlation window of {} frames needs at least {} ({:.3} s)",
-                len,
-                len as f64 / sample_rate_hz as f64,
+                "the audio has {len} samples ({:.3} s); one correlation window of {} frames needs at least {need} ({:.3} s)",
+                len as f64 / fs,
                 c.window,
-                need,
-                need as f64 / sample_rate_hz as f64
+                need as f64 / fs
             )));
         }
         Ok(())
     }
 
-    /// Localize planar samples: one result per correlation window. The STFT is computed
-    /// per group of windows (only the frames they cover), so memory stays bounded on long
-    /// recordings.
-    pub fn localize_samples(
-        &mut self,
-        sample_rate_hz: u32,
-        channels: &[Vec<f32>],
-        want_spectrum: bool,
-        progress: &mut dyn FnMut(usize, usize),
-    ) -> Result<Localization> {
-        self.check_samples(sample_rate_hz, channels)?;
-        let c = self.plan.config.clone();
-        let len = channels.first().map_or(0, |c| c.len());
-        let windows = schedule(self.stft.num_frames(len), c.window, c.period, c.window_type);
-        // Groups of windows spanning about GROUP_FRAMES frames (at least one batch).
-        const GROUP_FRAMES: usize = 4096;
-        let per_group = (GROUP_FRAMES / c.period.max(1))
-            .max(self.backend.max_windows_per_batch())
-            .max(1);
-        self.backend.reset_stage_times();
-        let mut all: Option<Localization> = None;
-        let total = windows.len();
-        for (g, group) in windows.chunks(per_group).enumerate() {
-            let f0 = group.iter().map(|w| w.start).min().unwrap_or(0);
-            let f1 = group.iter().map(|w| w.start + w.len).max().unwrap_or(0);
-            let spectra = self.stft.process_frames(channels, f0..f1)?;
-            let local: Vec<WindowSpec> = group
-                .iter()
-                .map(|w| WindowSpec {
-                    start: w.start - f0,
-                    ..*w
-                })
-                .collect();
-            let done = g * per_group;
-            let part = self.localize_windows(&spectra, &local, want_spectrum, &mut |d, _| {
-                progress(done + d, total)
-            })?;
-            match all.as_mut() {
-                None => all = Some(part),
-                Some(a) => {
-                    a.results.extend(part.results);
-                    if let (Some(t), Some(p)) = (a.spectrum.as_mut(), part.spectrum) {
-                        t.frames.extend(p.frames);
-                        t.times_s.extend(p.times_s);
-                        t.db.extend(p.db);
-                        t.bin_weight.extend(p.bin_weight);
-                    }
-                    a.stage_times = part.stage_times;
-                }
-            }
+    /// Start a new stream: samples, frames, windows, noise estimates and tracks are
+    /// forgotten; the plan, the backend and the initial K stay.
+    pub fn reset(&mut self) -> Result<()> {
+        self.stft.reset();
+        self.ring.reset();
+        self.scheduler.reset();
+        self.pending.clear();
+        self.noise.reset(&self.plan.config.clone())?;
+        if let Some(t) = &mut self.tracker {
+            t.reset();
         }
-        all.ok_or_else(|| {
-            Error::TooShort(format!(
-                "{len} samples give no complete correlation window of {} frames",
-                c.window
-            ))
-        })
+        if let Some(e) = &mut self.extender {
+            e.reset();
+        }
+        self.map = None;
+        self.windows_run = 0;
+        self.finished = false;
+        self.origin = 0;
+        self.backend.reset_stage_times();
+        if self.noise.initial().is_some() && self.current != Some(KSource::Initial) {
+            let (k, _) = self.noise.matrices(&KSource::Initial, &self.ring, 0)?;
+            self.install(&k)?;
+            self.current = Some(KSource::Initial);
+        } else if self.noise.initial().is_none() {
+            self.current = None;
+        }
+        Ok(())
     }
 
-    /// Localize precomputed spectra (frame 0 of `spectra` is STFT frame 0).
-    pub fn localize_spectra(
-        &mut self,
-        spectra: &Spectra<T>,
-        want_spectrum: bool,
-        progress: &mut dyn FnMut(usize, usize),
-    ) -> Result<Localization> {
-        let c = self.plan.config.clone();
-        let windows = schedule(spectra.num_frames, c.window, c.period, c.window_type);
-        if windows.is_empty() {
-            return Err(Error::TooShort(format!(
-                "{} frames give no complete correlation window of {} frames",
-                spectra.num_frames, c.window
-            )));
-        }
-        self.backend.reset_stage_times();
-        self.localize_windows(spectra, &windows, want_spectrum, progress)
-    }
-
-    /// Localize an explicit list of windows over `spectra` (e.g. one at a time between
-    /// online noise updates). Stage times accumulate across calls.
-    pub fn localize_windows(
-        &mut self,
-        spectra: &Spectra<T>,
-        windows: &[WindowSpec],
-        want_spectrum: bool,
-        progress: &mut dyn FnMut(usize, usize),
-    ) -> Result<Localization> {
-        let batch = self.backend.max_windows_per_batch().max(1);
-        let mut results = Vec::with_capacity(windows.len());
-        let mut table = want_spectrum.then(|| SpectrumTable {
-            frames: Vec::new(),
-            times_s: Vec::new(),
-            num_dirs: self.plan.num_dirs,
-            db: Vec::new(),
-            num_bins: self.plan.num_bins(),
-            bin_weight: Vec::new(),
+    /// Transform the complete frames, run the due windows, drop what is no longer needed.
+    fn advance(&mut self, out: &mut Output) -> Result<()> {
+        let before = self.ring.end();
+        self.stft
+            .frames_into(&mut self.ring, self.noise.keep_samples_from());
+        let after = self.ring.end();
+        self.noise.observe_frames(&self.ring, before..after)?;
+        let mut due = Vec::new();
+        self.scheduler.due(after, &mut due);
+        self.pending.extend(due);
+        self.run_pending(out)?;
+        let next = self.pending.front().map_or(self.scheduler.next_start(), |w| {
+            w.start.min(self.scheduler.next_start())
         });
-        let mut out = BatchOutput::default();
-        for (i, chunk) in windows.chunks(batch).enumerate() {
-            self.backend.process(spectra, chunk, want_spectrum, &mut out)?;
-            for (w, peaks) in chunk.iter().zip(&out.peaks) {
-                results.push(self.result(w, peaks));
+        self.ring.drop_before(self.noise.keep_frames_from(next));
+        Ok(())
+    }
+
+    /// Run pending windows in batches that share a K, switching K between them.
+    fn run_pending(&mut self, out: &mut Output) -> Result<()> {
+        let batch = self.backend.max_windows_per_batch().max(1);
+        while let Some(&w) = self.pending.front() {
+            let Some(src) = self.noise.choose(&w) else {
+                return Ok(()); // K not known yet: hold
+            };
+            if self.current.as_ref() != Some(&src) {
+                let (k, what) = self.noise.matrices(&src, &self.ring, w.frame)?;
+                self.install(&k)
+                    .map_err(|e| Error::Mismatch(format!("{what}: {e}")))?;
+                self.current = Some(src.clone());
             }
-            if let Some(t) = table.as_mut() {
-                t.db.extend_from_slice(&out.spectrum_db);
-                t.bin_weight.extend_from_slice(&out.bin_weight);
-                for w in chunk {
-                    t.frames.push(w.frame);
-                    t.times_s.push(self.frame_time(w.frame));
+            let mut chunk = vec![w];
+            self.pending.pop_front();
+            while chunk.len() < batch {
+                match self.pending.front() {
+                    Some(&next) if self.noise.choose(&next).as_ref() == Some(&src) => {
+                        chunk.push(next);
+                        self.pending.pop_front();
+                    }
+                    _ => break,
                 }
             }
-            progress((i * batch + chunk.len()).min(windows.len()), windows.len());
+            self.run_windows(&chunk, out)?;
         }
+        Ok(())
+    }
+
+    fn run_windows(&mut self, windows: &[WindowSpec], out: &mut Output) -> Result<()> {
+        let first = self.ring.first();
+        let local: Vec<WindowSpec> = windows
+            .iter()
+            .map(|w| WindowSpec {
+                start: w.start - first,
+                ..*w
+            })
+            .collect();
+        let want = self.options.want_spectrum;
+        self.backend
+            .process(self.ring.spectra(), &local, want, &mut self.batch)?;
+        self.windows_run += windows.len();
+        for (w, peaks) in windows.iter().zip(&self.batch.peaks) {
+            let mut r = LocalizationResult {
+                frame: self.report_frame(w.frame),
+                time_s: self.frame_time(w.frame),
+                sources: peaks
+                    .iter()
+                    .map(|p| source(&self.plan.grid, p.dir, p.power_db))
+                    .collect(),
+            };
+            if let Some(t) = &mut self.tracker {
+                r = t.update(&r);
+            }
+            match &mut self.extender {
+                Some(e) => out.results.extend(e.push(r)),
+                None => out.results.push(r),
+            }
+        }
+        if want {
+            let (nd, nb) = (self.plan.num_dirs, self.plan.num_bins());
+            let t = out.spectrum.get_or_insert_with(|| SpectrumTable::empty(nd, nb));
+            t.db.extend_from_slice(&self.batch.spectrum_db);
+            t.bin_weight.extend_from_slice(&self.batch.bin_weight);
+            for w in windows {
+                t.frames.push(self.report_frame(w.frame));
+                t.times_s.push(self.frame_time(w.frame));
+            }
+        }
+        Ok(())
+    }
+
+    /// Batch: push planar channels whole, then flush.
+    pub fn localize(&mut self, channels: &[Vec<f32>]) -> Result<Localization> {
+        let mut out = Output::default();
+        if self.options.want_spectrum {
+            out.spectrum = Some(SpectrumTable::empty(self.plan.num_dirs, self.plan.num_bins()));
+        }
+        self.push(Block::Planar(channels), &mut out)?;
+        self.flush(&mut out)?;
         Ok(Localization {
-            results,
-            spectrum: table,
+            results: out.results,
+            spectrum: out.spectrum,
+            notes: out.notes,
             device: self.backend.device_name(),
             stage_times: self.backend.stage_times(),
         })
-    }
-
-    /// Time of STFT frame `frame` in seconds (its first sample).
-    pub fn frame_time(&self, frame: usize) -> f64 {
-        frame as f64 * self.plan.config.hop as f64 / self.plan.config.sample_rate_hz as f64
-    }
-
-    fn result(&self, w: &WindowSpec, peaks: &[crate::backend::Peak]) -> LocalizationResult {
-        LocalizationResult {
-            frame: w.frame,
-            time_s: self.frame_time(w.frame),
-            sources: peaks
-                .iter()
-                .map(|p| source(&self.plan.grid, p.dir, p.power_db))
-                .collect(),
-        }
     }
 }
 
@@ -302,93 +582,5 @@ pub fn source(grid: &crate::array::Grid, dir: usize, power_db: f64) -> Source {
         y,
         z,
         power_db,
-    }
-}
-
-/// Estimate K from planar samples: x xᴴ averaged over the complete STFT frames that start
-/// inside `range_s` (seconds; None = all), for the config's used bins, in f64.
-pub fn estimate_noise(
-    config: &LocalizeConfig,
-    sample_rate_hz: u32,
-    channels: &[Vec<f32>],
-    range_s: Option<(f64, f64)>,
-) -> Result<NoiseMatrices> {
-    if sample_rate_hz != config.sample_rate_hz {
-        return Err(Error::Mismatch(format!(
-            "the noise audio is sampled at {} Hz but the analysis runs at {} Hz",
-            sample_rate_hz, config.sample_rate_hz
-        )));
-    }
-    let bins = config.bin_range();
-    let stft = Stft::<f64>::new(config.nfft, config.hop, config.window_function, bins.clone())?;
-    let len = channels.first().map_or(0, |c| c.len());
-    let (s0, s1) = match range_s {
-        None => (0usize, len),
-        Some((a, b)) => {
-            if !(a.is_finite() && b.is_finite()) || a < 0.0 || b <= a {
-                return Err(Error::Config(format!(
-                    "noise range {a}:{b} s: need 0 <= start < end"
-                )));
-            }
-            let fs = sample_rate_hz as f64;
-            let s0 = (a * fs).round() as usize;
-            let s1 = ((b * fs).round() as usize).min(len);
-            if s0 >= len {
-                return Err(Error::TooShort(format!(
-                    "noise range {a}:{b} s starts after the end of the audio ({:.3} s)",
-                    len as f64 / fs
-                )));
-            }
-            (s0, s1)
-        }
-    };
-    let part: Vec<Vec<f32>> = channels.iter().map(|c| c[s0..s1].to_vec()).collect();
-    let nf = stft.num_frames(s1 - s0);
-    if nf == 0 {
-        return Err(Error::TooShort(format!(
-            "the noise segment has {} samples, fewer than one {}-sample frame",
-            s1 - s0,
-            config.nfft
-        )));
-    }
-    let spectra = stft.process(&part)?;
-    NoiseMatrices::from_spectra(&spectra, bins.start, 0..nf)
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::array::{freefield::free_field, Geometry, Grid};
-    use rand::{Rng, SeedableRng};
-
-    #[test]
-    fn chunked_stft_equals_whole_file_stft_on_a_long_recording() {
-        // 45 s of 8-channel noise: > 4096 frames, so several STFT groups.
-        let config = LocalizeConfig::default();
-        let tf = free_field(
-            &Geometry::circle(8, 0.0365, 0.0),
-            &Grid::ring(5.0, 0.0, 1.0),
-            512,
-            16000,
-            config.bin_range(),
-            343.0,
-        )
-        .unwrap();
-        let mut rng = rand::rngs::StdRng::seed_from_u64(3);
-        let n = 45 * 16000;
-        let channels: Vec<Vec<f32>> = (0..8)
-            .map(|_| (0..n).map(|_| rng.gen_range(-1000.0..1000.0)).collect())
-            .collect();
-        let mut e = Engine::<f32>::new(&config, &tf, None, DeviceChoice::Cpu).unwrap();
-        let chunked = e
-            .localize_samples(16000, &channels, true, &mut |_, _| {})
-            .unwrap();
-        let whole_spectra = e.spectra(16000, &channels).unwrap();
-        assert!(whole_spectra.num_frames > 4096);
-        let whole = e.localize_spectra(&whole_spectra, true, &mut |_, _| {}).unwrap();
-        assert!(chunked.results == whole.results, "results differ");
-        // Bit-identical: the CPU backend sums bins in a fixed order.
-        assert!(chunked.spectrum.unwrap().db == whole.spectrum.unwrap().db);
-        assert_eq!(whole.results.len(), (whole_spectra.num_frames - 50) / 50 + 1);
     }
 }

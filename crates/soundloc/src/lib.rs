@@ -8,10 +8,10 @@
 //!
 //! | stage | module | in → out |
 //! |---|---|---|
-//! | audio in | [`audio`] | WAV/FLAC → `Audio` (channels × samples, raw PCM values) |
-//! | STFT | [`stft`] | samples → `Spectra` `[frame][bin][mic]` (used bins only) |
-//! | correlation windows | [`correlation`] | frames → R_k per window (1/W Σ x xᴴ), scaled |
-//! | noise | [`noise`] | noise audio / time range / file → K_k per bin |
+//! | audio in | [`audio`], [`input`] | WAV/FLAC/raw PCM → blocks of samples (raw PCM values) |
+//! | STFT | [`stft`] | samples → frames `[frame][bin][mic]` (used bins only), streaming |
+//! | correlation windows | [`correlation`] | frames → due windows; R_k per window (1/W Σ x xᴴ), scaled |
+//! | noise | [`noise`] | noise audio / time range / file / online policy → K_k per bin |
 //! | subspace | [`subspace`] | R_k (and K_k) → signal/noise subspace (SEVD, GEVD, GEVD-HARK, GSVD) |
 //! | spectrum | [`music`] | subspace × transfer functions → P̄(d), dB |
 //! | peaks | [`peaks`] | spectrum → local maxima, top NUM_SOURCE |
@@ -21,7 +21,11 @@
 //! Beside it: the array description in [`array`](mod@array) (geometry, direction grid, transfer
 //! functions), file formats in [`formats`], a scene simulator in [`sim`], and the compute
 //! backends in [`backend`] (CPU and CUDA behind one batch interface). [`engine`] is the
-//! only orchestration: it plans once ([`plan`]), then feeds batches of windows to a backend.
+//! only orchestration, a stream engine: it plans once ([`plan`]), takes blocks of samples
+//! of any length, and feeds batches of due windows to a backend; a batch run is one push
+//! of the whole recording and a flush. [`localizer`] is the public face: a plain, serde
+//! [`LocalizerSpec`] holding every option becomes a [`Localizer`] (precision and device
+//! resolved once) that the CLI, the Python binding and the server all use.
 //!
 //! ## Conventions
 //! - SI units inside: metres, seconds, Hz. Degrees only at I/O; names carry units
@@ -43,9 +47,10 @@ pub mod demo;
 pub mod engine;
 pub mod error;
 pub mod formats;
+pub mod input;
+pub mod localizer;
 pub mod music;
 pub mod noise;
-pub mod online;
 pub mod output;
 pub mod peaks;
 pub mod plan;
@@ -56,7 +61,11 @@ pub mod stft;
 pub mod subspace;
 pub mod tracking;
 
-pub use config::{Algorithm, LocalizeConfig, WindowFunction, WindowType};
+pub use config::{Algorithm, LocalizeConfig, Precision, WindowFunction, WindowType};
+pub use engine::{Localization, Output, SpectrumTable, TrackingSpec};
 pub use error::{Error, Result};
+pub use input::{Block, ChannelMap};
+pub use localizer::{ArraySpec, Localizer, LocalizerSpec, NoiseSource};
+pub use noise::policy::NoiseUpdate;
 pub use real::Real;
 pub use result::{LocalizationResult, Source};

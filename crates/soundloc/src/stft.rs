@@ -118,42 +118,210 @@ impl<T: Real> Stft<T> {
                 self.num_frames(len)
             )));
         }
-        let nf = frames.len();
-        let first = frames.start;
-        let nb = self.bins.len();
-        let mut out = Spectra::zeros(nf, nb, m);
-        let frame_len = nb * m;
-        out.data
-            .par_chunks_mut(frame_len.max(1))
-            .enumerate()
-            .for_each_init(
-                || {
-                    (
-                        self.fft.make_input_vec(),
-                        self.fft.make_output_vec(),
-                        self.fft.make_scratch_vec(),
-                    )
-                },
-                |(inp, spec, scratch), (f, dst)| {
-                    let off = (first + f) * self.hop;
-                    for (mic, ch) in channels.iter().enumerate() {
-                        for (i, v) in inp.iter_mut().enumerate() {
-                            *v = T::of_f64(ch[off + i] as f64) * self.window[i];
-                        }
-                        // Lengths come from this plan's own buffers: cannot fail.
-                        let _ = self.fft.process_with_scratch(inp, spec, scratch);
-                        for (b, k) in self.bins.clone().enumerate() {
-                            dst[b * m + mic] = spec[k];
-                        }
-                    }
-                },
-            );
+        let mut out = Spectra::zeros(frames.len(), self.bins.len(), m);
+        self.transform(channels, frames.start * self.hop, &mut out.data);
         Ok(out)
+    }
+
+    /// Transform consecutive frames into `dst` (`[frame][bin][mic]`, as many frames as it
+    /// holds): frame f starts at sample `first_sample + f·hop` of every channel, which must
+    /// hold the frame's N samples. Frames are independent, so the values do not depend on
+    /// how a signal is cut into calls.
+    fn transform(&self, channels: &[Vec<f32>], first_sample: usize, dst: &mut [C<T>]) {
+        let m = channels.len();
+        let frame_len = self.bins.len() * m;
+        dst.par_chunks_mut(frame_len.max(1)).enumerate().for_each_init(
+            || {
+                (
+                    self.fft.make_input_vec(),
+                    self.fft.make_output_vec(),
+                    self.fft.make_scratch_vec(),
+                )
+            },
+            |(inp, spec, scratch), (f, dst)| {
+                let off = first_sample + f * self.hop;
+                for (mic, ch) in channels.iter().enumerate() {
+                    for (i, v) in inp.iter_mut().enumerate() {
+                        *v = T::of_f64(ch[off + i] as f64) * self.window[i];
+                    }
+                    // Lengths come from this plan's own buffers: cannot fail.
+                    let _ = self.fft.process_with_scratch(inp, spec, scratch);
+                    for (b, k) in self.bins.clone().enumerate() {
+                        dst[b * m + mic] = spec[k];
+                    }
+                }
+            },
+        );
+    }
+
+    /// FFT length N in samples.
+    pub fn nfft(&self) -> usize {
+        self.nfft
+    }
+
+    /// Frame advance in samples.
+    pub fn hop(&self) -> usize {
+        self.hop
     }
 
     /// The kept bins.
     pub fn bins(&self) -> Range<usize> {
         self.bins.clone()
+    }
+}
+
+/// The streaming STFT: a sample ring per channel in front of a [`Stft`]. Samples arrive
+/// in blocks of any length; every frame whose N samples have arrived is transformed once,
+/// into a [`FrameRing`], and samples no later frame needs are dropped. Frame f covers
+/// samples [f·hop, f·hop + N) counted from the first sample pushed, so the frames equal
+/// [`Stft::process`] of the whole signal bit for bit.
+pub struct StftStream<T: Real> {
+    stft: Stft<T>,
+    /// Planar samples; `buf[c][0]` is absolute sample `buf_start`.
+    buf: Vec<Vec<f32>>,
+    buf_start: usize,
+    /// Samples received per channel.
+    received: usize,
+    /// Next frame to transform.
+    next_frame: usize,
+}
+
+impl<T: Real> StftStream<T> {
+    /// A stream over `num_channels` channels.
+    pub fn new(stft: Stft<T>, num_channels: usize) -> Self {
+        StftStream {
+            stft,
+            buf: vec![Vec::new(); num_channels],
+            buf_start: 0,
+            received: 0,
+            next_frame: 0,
+        }
+    }
+
+    /// The STFT.
+    pub fn stft(&self) -> &Stft<T> {
+        &self.stft
+    }
+
+    /// Samples received per channel since the start (or the last reset).
+    pub fn samples_received(&self) -> usize {
+        self.received
+    }
+
+    /// Frames transformed so far.
+    pub fn frames_done(&self) -> usize {
+        self.next_frame
+    }
+
+    /// Append samples: `take(c)` gives channel c's new samples (all the same length).
+    pub fn append(&mut self, n: usize, mut take: impl FnMut(usize, &mut Vec<f32>)) {
+        for (c, b) in self.buf.iter_mut().enumerate() {
+            let before = b.len();
+            take(c, b);
+            debug_assert_eq!(b.len(), before + n);
+        }
+        self.received += n;
+    }
+
+    /// The buffered samples of every channel with the absolute index of the first, for
+    /// stages that read samples (the noise estimate over a time range).
+    pub fn buffered(&self) -> (usize, &[Vec<f32>]) {
+        (self.buf_start, &self.buf)
+    }
+
+    /// Transform every complete frame into `ring`, then drop the samples no later frame
+    /// needs except those at or after `keep_from` (an absolute sample index). Returns the
+    /// number of new frames.
+    pub fn frames_into(&mut self, ring: &mut FrameRing<T>, keep_from: usize) -> usize {
+        let hop = self.stft.hop;
+        let total = self.stft.num_frames(self.received);
+        let new = total.saturating_sub(self.next_frame);
+        if new > 0 {
+            let dst = ring.grow(new);
+            self.stft
+                .transform(&self.buf, self.next_frame * hop - self.buf_start, dst);
+            self.next_frame = total;
+        }
+        let drop_to = (self.next_frame * hop).min(keep_from).min(self.received);
+        if drop_to > self.buf_start {
+            let k = drop_to - self.buf_start;
+            for b in &mut self.buf {
+                b.drain(..k);
+            }
+            self.buf_start = drop_to;
+        }
+        new
+    }
+
+    /// Forget every sample and frame: the next sample pushed is sample 0 again.
+    pub fn reset(&mut self) {
+        for b in &mut self.buf {
+            b.clear();
+        }
+        self.buf_start = 0;
+        self.received = 0;
+        self.next_frame = 0;
+    }
+}
+
+/// The most recent STFT frames of a stream, `[frame][bin][mic]`: absolute frames
+/// `first .. first + spectra.num_frames`. Frames are appended at the end and dropped
+/// from the front once no window or noise estimate needs them.
+#[derive(Debug, Clone)]
+pub struct FrameRing<T: Real> {
+    first: usize,
+    spectra: Spectra<T>,
+}
+
+impl<T: Real> FrameRing<T> {
+    /// An empty ring for frames of `num_bins` × `num_mics`.
+    pub fn new(num_bins: usize, num_mics: usize) -> Self {
+        FrameRing {
+            first: 0,
+            spectra: Spectra::zeros(0, num_bins, num_mics),
+        }
+    }
+
+    /// Absolute index of the first frame held.
+    pub fn first(&self) -> usize {
+        self.first
+    }
+
+    /// One past the absolute index of the last frame held (= frames received).
+    pub fn end(&self) -> usize {
+        self.first + self.spectra.num_frames
+    }
+
+    /// The frames held (frame 0 of it is absolute frame [`first`](Self::first)).
+    pub fn spectra(&self) -> &Spectra<T> {
+        &self.spectra
+    }
+
+    /// Append `n` zeroed frames and return them for filling.
+    pub(crate) fn grow(&mut self, n: usize) -> &mut [C<T>] {
+        let fl = self.spectra.num_bins * self.spectra.num_mics;
+        let old = self.spectra.data.len();
+        self.spectra.data.resize(old + n * fl, czero());
+        self.spectra.num_frames += n;
+        &mut self.spectra.data[old..]
+    }
+
+    /// Drop the frames before absolute frame `frame`.
+    pub fn drop_before(&mut self, frame: usize) {
+        let k = frame.min(self.end()).saturating_sub(self.first);
+        if k > 0 {
+            let fl = self.spectra.num_bins * self.spectra.num_mics;
+            self.spectra.data.drain(..k * fl);
+            self.spectra.num_frames -= k;
+            self.first += k;
+        }
+    }
+
+    /// Forget every frame; the next frame is frame 0.
+    pub fn reset(&mut self) {
+        self.spectra.data.clear();
+        self.spectra.num_frames = 0;
+        self.first = 0;
     }
 }
 
@@ -197,6 +365,33 @@ mod tests {
         assert!(z.im.to_f64().abs() < 1.0);
         let other = s.frame_bin(0, 30 - 16)[0];
         assert!(other.norm().to_f64() < 1.0);
+    }
+
+    #[test]
+    fn streamed_frames_equal_the_whole_signal_in_any_block_sizes() {
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand::rngs::StdRng::seed_from_u64(7);
+        let len = 9000;
+        let x: Vec<Vec<f32>> = (0..3)
+            .map(|_| (0..len).map(|_| rng.gen_range(-1000.0f32..1000.0)).collect())
+            .collect();
+        let mk = || Stft::<f32>::new(512, 160, WindowFunction::Conj, 16..89).unwrap();
+        let whole = mk().process(&x).unwrap();
+        let mut stream = StftStream::new(mk(), 3);
+        let mut ring = FrameRing::new(73, 3);
+        let mut got = Vec::new();
+        let mut pos = 0;
+        while pos < len {
+            let n = rng.gen_range(1..700).min(len - pos);
+            stream.append(n, |c, b| b.extend_from_slice(&x[c][pos..pos + n]));
+            pos += n;
+            stream.frames_into(&mut ring, usize::MAX);
+            // Keep only the newest frames: the ring drops from the front.
+            got.extend_from_slice(&ring.spectra().data);
+            ring.drop_before(ring.end());
+        }
+        assert_eq!(stream.frames_done(), whole.num_frames);
+        assert!(got == whole.data, "streamed frames differ");
     }
 
     #[test]

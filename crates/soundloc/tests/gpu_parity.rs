@@ -17,7 +17,7 @@ use soundloc::backend::{cuda, Backend, BatchOutput, Spectra, WindowSpec};
 use soundloc::bench::{inputs, BenchConfig};
 use soundloc::config::{Algorithm, Denominator, LocalizeConfig, WindowType};
 use soundloc::correlation::schedule;
-use soundloc::engine::estimate_noise;
+use soundloc::noise::estimate as estimate_noise;
 use soundloc::noise::NoiseMatrices;
 use soundloc::plan::Plan;
 use soundloc::sim::{position_from_az_el, render, Scene, SceneSource, Signal};

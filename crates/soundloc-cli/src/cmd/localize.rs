@@ -1,23 +1,22 @@
 //! `soundloc localize`: localize sound sources in a recording.
 
+use super::input::{spawn_reader, InputArgs, Msg};
+use super::sinks::Sinks;
 use super::{AlgorithmArg, DeviceArg, PrecisionArg};
 use anyhow::{anyhow, bail, Context};
 use clap::ValueEnum;
-use soundloc::array::freefield::{free_field, DEFAULT_SPEED_OF_SOUND_M_S};
+use soundloc::array::freefield::DEFAULT_SPEED_OF_SOUND_M_S;
 use soundloc::array::grid::GridSpec;
-use soundloc::array::{Geometry, TransferFunctions};
-use soundloc::audio::{read_audio, Audio};
+use soundloc::array::Geometry;
 use soundloc::config::{Denominator, SpectrumWeight};
-use soundloc::engine::{estimate_noise, Engine, Localization};
-use soundloc::noise::NoiseMatrices;
-use soundloc::online::{localize_online, NoiseUpdate};
-use soundloc::output::plot::{plot_spectrum, SpectrumPlot};
-use soundloc::output::{atomic::write_atomically, csv::CsvWriter, jsonl::JsonlWriter, npy::write_npy_f32};
-use soundloc::tracking::{IntervalExtenderConfig, SourceTracker, TrackerConfig};
-use soundloc::{Algorithm, LocalizationResult, LocalizeConfig, WindowFunction, WindowType};
-use std::io::Write;
-use std::path::{Path, PathBuf};
+use soundloc::tracking::TrackerConfig;
+use soundloc::{
+    Algorithm, ArraySpec, Block, LocalizeConfig, Localizer, LocalizerSpec, NoiseSource, NoiseUpdate, Output,
+    TrackingSpec, WindowFunction, WindowType,
+};
+use std::path::PathBuf;
 use std::process::ExitCode;
+use std::time::Instant;
 
 #[derive(ValueEnum, Clone, Copy, Debug)]
 pub enum FormatArg {
@@ -126,8 +125,8 @@ pub struct AnalysisArgs {
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
-    /// Input recording (WAV 16/24/32-bit int or 32-bit float, or FLAC).
-    pub input: PathBuf,
+    #[command(flatten)]
+    pub input: InputArgs,
     /// HARK transfer-function zip or old HGTF (*_loc.dat).
     #[arg(long, conflicts_with = "geometry")]
     pub tf: Option<PathBuf>,
@@ -309,362 +308,209 @@ pub fn parse_range(s: &str) -> anyhow::Result<(f64, f64)> {
     Ok((a, b))
 }
 
-fn note(quiet: bool, msg: &str) {
+pub fn note(quiet: bool, msg: &str) {
     if !quiet {
         eprintln!("soundloc: {msg}");
     }
 }
 
-/// Load the TFs from --tf or --geometry/--grid, apply --channels.
-fn transfer_functions(a: &Args, config: &LocalizeConfig) -> anyhow::Result<TransferFunctions> {
-    let tf = match (&a.tf, &a.geometry) {
-        (Some(p), _) => TransferFunctions::load(p)?,
-        (None, Some(g)) => {
-            let geometry = Geometry::load(g)?;
-            let spec: GridSpec = a.grid.parse()?;
-            let grid = spec.build(a.grid_radius);
-            free_field(
-                &geometry,
-                &grid,
-                config.nfft,
-                config.sample_rate_hz,
-                0..config.nfft / 2 + 1,
-                a.speed_of_sound,
-            )?
-        }
-        (None, None) => bail!(
-            "no transfer functions: give --tf FILE (HARK TF zip or *_loc.dat) or --geometry array.toml --grid ring:5"
-        ),
-    };
-    Ok(if a.channels.is_empty() {
-        tf
-    } else {
-        tf.select_channels(&a.channels)?
-    })
-}
-
-/// Apply --input-channels (HARK's ChannelSelector).
-fn pick_input_channels(audio: Audio, keep: &[usize], what: &Path) -> anyhow::Result<Audio> {
-    if keep.is_empty() {
-        return Ok(audio);
+impl Args {
+    /// The library spec these arguments describe, for an input sampled at `rate_hz`.
+    pub fn spec(&self, rate_hz: u32) -> anyhow::Result<LocalizerSpec> {
+        let array = match (&self.tf, &self.geometry) {
+            (Some(p), _) => ArraySpec::TransferFunctions { path: p.clone() },
+            (None, Some(g)) => ArraySpec::FreeField {
+                mics: Geometry::load(g)?.mics,
+                grid: self.grid.parse::<GridSpec>()?,
+                radius_m: self.grid_radius,
+                speed_of_sound_m_s: self.speed_of_sound,
+            },
+            (None, None) => bail!(
+                "no transfer functions: give --tf FILE (HARK TF zip or *_loc.dat) or --geometry array.toml --grid ring:5"
+            ),
+        };
+        let noise = if let Some(p) = &self.noise {
+            NoiseSource::Recording { path: p.clone() }
+        } else if let Some(r) = &self.noise_range {
+            let (start_s, end_s) = parse_range(r)?;
+            NoiseSource::Range { start_s, end_s }
+        } else if let Some(p) = &self.noise_cm {
+            NoiseSource::CorrelationFile { path: p.clone() }
+        } else {
+            NoiseSource::None
+        };
+        let tracking = if self.track {
+            let tracker = TrackerConfig {
+                thresh_db: self.thresh,
+                pause_length: self.pause_length,
+                min_src_interval_deg: self.min_src_interval,
+                min_id: self.min_id,
+            };
+            tracker.validate()?;
+            Some(TrackingSpec {
+                tracker,
+                preroll: self.preroll,
+            })
+        } else {
+            if self.summary.is_some() {
+                bail!("--summary needs --track");
+            }
+            None
+        };
+        Ok(LocalizerSpec {
+            array,
+            algorithm: self.analysis.algorithm.map(Into::into),
+            analysis: self.analysis.config(Algorithm::Sevd, rate_hz),
+            channels: self.channels.clone(),
+            input_channels: self.input_channels.clone(),
+            noise,
+            noise_update: noise_update(self)?,
+            tracking,
+            precision: match self.precision {
+                PrecisionArg::F32 => soundloc::Precision::F32,
+                PrecisionArg::F64 => soundloc::Precision::F64,
+            },
+            device: self.device.into(),
+            spectrum: self.spectrum.is_some() || self.plot.is_some(),
+        })
     }
-    audio
-        .select_channels(keep)
-        .with_context(|| format!("{}: --input-channels", what.display()))
-}
-
-/// Apply --channels to audio that has the TF's full channel count.
-fn select_audio(audio: Audio, channels: &[usize], full_mics: usize, what: &Path) -> anyhow::Result<Audio> {
-    if channels.is_empty() || audio.num_channels() == channels.len() {
-        return Ok(audio);
-    }
-    if audio.num_channels() == full_mics {
-        return Ok(audio.select_channels(channels)?);
-    }
-    bail!(
-        "{}: has {} channels; --channels selects {} of the transfer functions' {}",
-        what.display(),
-        audio.num_channels(),
-        channels.len(),
-        full_mics
-    )
 }
 
 pub fn run(a: Args) -> anyhow::Result<ExitCode> {
-    let audio = pick_input_channels(read_audio(&a.input)?, &a.input_channels, &a.input)?;
-    let update = noise_update(&a)?;
-    let noise_given = a.noise.is_some()
-        || a.noise_range.is_some()
-        || a.noise_cm.is_some()
-        || !matches!(update, NoiseUpdate::Fixed);
-    let algorithm: Algorithm = match a.analysis.algorithm {
-        Some(x) => x.into(),
-        None if noise_given => {
-            note(
-                a.quiet,
-                "a noise source was given: using the textbook GEVD (choose with --algorithm)",
-            );
-            Algorithm::Gevd
-        }
-        None => Algorithm::Sevd,
-    };
-    if algorithm.uses_noise() && !noise_given {
+    Sinks::check_paths(&a)?;
+    let input = a.input.open(a.quiet)?;
+    let name = input.name.clone();
+    let fmt = input.source.format();
+    let spec = a.spec(fmt.sample_rate_hz)?;
+    let mut loc = Localizer::new(&spec)?;
+    for n in loc.notes() {
+        note(a.quiet, n);
+    }
+    loc.check_input(fmt.sample_rate_hz, fmt.channels)
+        .map_err(|e| anyhow!("{}: {e}", name.display()))?;
+    let fs = fmt.sample_rate_hz as f64;
+    if input.live {
+        let c = loc.config();
         note(
             a.quiet,
-            &format!("{} without a noise source: K = identity", algorithm.name()),
+            &format!(
+                "streaming from {}: a result is out {} frames ({:.0} ms) after its frame starts, plus one frame of {} samples",
+                name.display(),
+                loc.latency_frames(),
+                loc.latency_frames() as f64 * c.hop as f64 / fs * 1e3,
+                c.nfft
+            ),
         );
     }
-    let config = a.analysis.config(algorithm, audio.sample_rate_hz);
-    let tf = transfer_functions(&a, &config)?;
-    let config = LocalizeConfig {
-        sample_rate_hz: tf.sample_rate_hz,
-        ..config
-    };
-    let full_mics = if a.channels.is_empty() {
-        tf.num_mics
-    } else {
-        // The TF before selection had at least max(channel)+1 mics; the audio must match it.
-        a.channels.iter().max().map_or(0, |m| m + 1).max(tf.num_mics)
-    };
-    let full_mics = if let Some(p) = &a.tf {
-        TransferFunctions::load(p)
-            .map(|t| t.num_mics)
-            .unwrap_or(full_mics)
-    } else if let Some(g) = &a.geometry {
-        Geometry::load(g).map(|g| g.num_mics()).unwrap_or(full_mics)
-    } else {
-        full_mics
-    };
-    let audio = select_audio(audio, &a.channels, full_mics, &a.input)?;
-    if audio.sample_rate_hz != tf.sample_rate_hz {
-        bail!(
-            "{}: sampled at {} Hz, but the transfer functions are for {} Hz",
-            a.input.display(),
-            audio.sample_rate_hz,
-            tf.sample_rate_hz
-        );
-    }
-    if audio.num_channels() != tf.num_mics {
-        bail!(
-            "{}: has {} channels, but the transfer functions have {} microphones (select with --channels)",
-            a.input.display(),
-            audio.num_channels(),
-            tf.num_mics
-        );
-    }
-    let noise: Option<NoiseMatrices> = if !algorithm.uses_noise() {
-        None
-    } else if let Some(p) = &a.noise {
-        let n = pick_input_channels(read_audio(p)?, &a.input_channels, p)?;
-        let n = select_audio(n, &a.channels, full_mics, p)?;
-        if n.num_channels() != tf.num_mics {
-            bail!(
-                "{}: noise recording has {} channels, the transfer functions {}",
-                p.display(),
-                n.num_channels(),
-                tf.num_mics
-            );
-        }
-        Some(
-            estimate_noise(&config, n.sample_rate_hz, &n.channels, None)
-                .with_context(|| format!("{}", p.display()))?,
-        )
-    } else if let Some(r) = &a.noise_range {
-        let range = parse_range(r)?;
-        Some(
-            estimate_noise(&config, audio.sample_rate_hz, &audio.channels, Some(range))
-                .with_context(|| format!("{}: --noise-range {r}", a.input.display()))?,
-        )
-    } else if let Some(p) = &a.noise_cm {
-        Some(crate::cmd::noise_cm_for(p, &config, tf.num_mics)?)
-    } else {
-        None
-    };
-
-    let show_progress = !a.quiet && audio.duration_s() > 3.0;
-    let want_spectrum = a.spectrum.is_some() || a.plot.is_some();
-    let run = match a.precision {
-        PrecisionArg::F32 => localize::<f32>(
-            &config,
-            &tf,
-            noise.as_ref(),
-            a.device,
-            &audio,
-            &update,
-            want_spectrum,
-            show_progress,
-        )?,
-        PrecisionArg::F64 => localize::<f64>(
-            &config,
-            &tf,
-            noise.as_ref(),
-            a.device,
-            &audio,
-            &update,
-            want_spectrum,
-            show_progress,
-        )?,
-    };
-    note(
-        a.quiet,
-        &format!(
-            "{} results from {:.2} s of {}-channel audio, {} on {}",
-            run.results.len(),
-            audio.duration_s(),
-            audio.num_channels(),
-            algorithm.name(),
-            run.device
-        ),
-    );
-    let mut results = run.results.clone();
-    if a.track {
-        let cfg = TrackerConfig {
-            thresh_db: a.thresh,
-            pause_length: a.pause_length,
-            min_src_interval_deg: a.min_src_interval,
-            min_id: a.min_id,
-        };
-        cfg.validate()?;
-        let mut tracker = SourceTracker::new(cfg);
-        results = results.iter().map(|r| tracker.update(r)).collect();
-        if a.preroll > 0 {
-            results = soundloc::tracking::extend(
-                &results,
-                IntervalExtenderConfig {
-                    preroll_length: a.preroll,
-                },
-            );
-        }
-        if let Some(p) = &a.summary {
-            let s = soundloc::tracking::summarize(&results);
-            write_atomically(p, |w| {
-                serde_json::to_writer_pretty(&mut *w, &s)?;
-                writeln!(w)
-            })?;
-        }
-    } else if a.summary.is_some() {
-        bail!("--summary needs --track");
-    }
-    write_results(&a, &results)?;
-    if let Some(p) = &a.log_text {
-        soundloc::formats::source_log::write(
-            p,
-            &results,
-            soundloc::formats::source_log::SourceLogFormat::Text,
-        )?;
-    }
-    if let Some(p) = &a.log_xml {
-        soundloc::formats::source_log::write(
-            p,
-            &results,
-            soundloc::formats::source_log::SourceLogFormat::Xml,
-        )?;
-    }
-    if let Some(addr) = &a.hark_stream {
-        let mut s = soundloc::output::hark_stream::HarkStreamSender::connect(addr, config.hop as i32)?;
-        for r in &results {
-            s.send(r, r.frame as i32)?;
-        }
-    }
-    if let Some(table) = &run.spectrum {
-        if let Some(p) = &a.spectrum {
-            write_spectrum(p, table, &tf)?;
-            note(a.quiet, &format!("spectrum written to {}", p.display()));
-        }
-        if let Some(p) = &a.plot {
-            let plot = SpectrumPlot {
-                times_s: table.times_s.clone(),
-                azimuth_deg: (0..tf.num_dirs()).map(|d| tf.grid.azimuth_deg(d)).collect(),
-                elevation_deg: (0..tf.num_dirs()).map(|d| tf.grid.elevation_deg(d)).collect(),
-                db: table.db.clone(),
-                peaks: results
-                    .iter()
-                    .map(|r| r.sources.iter().map(|s| (s.azimuth_deg, s.power_db)).collect())
-                    .collect(),
-                truth_azimuths_deg: Vec::new(),
-                title: format!(
-                    "{} — {} MUSIC, {}",
-                    a.input
-                        .file_name()
-                        .map(|s| s.to_string_lossy().into_owned())
-                        .unwrap_or_default(),
-                    algorithm.name(),
-                    run.device
-                ),
-            };
-            plot_spectrum(p, &plot)?;
-            note(a.quiet, &format!("plot written to {}", p.display()));
-        }
-    }
-    Ok(ExitCode::SUCCESS)
-}
-
-#[allow(clippy::too_many_arguments)]
-fn localize<T: soundloc::Real>(
-    config: &LocalizeConfig,
-    tf: &TransferFunctions,
-    noise: Option<&NoiseMatrices>,
-    device: DeviceArg,
-    audio: &Audio,
-    update: &NoiseUpdate,
-    want_spectrum: bool,
-    progress: bool,
-) -> anyhow::Result<Localization> {
-    let mut engine = Engine::<T>::new(config, tf, noise, device.into())?;
-    let bar = progress.then(|| {
-        let b = indicatif::ProgressBar::new(0);
+    let mut sinks = Sinks::open(&a, &loc)?;
+    let total = fmt.total_frames.unwrap_or(0);
+    let bar = (!a.quiet && !input.live && total as f64 / fs > 3.0).then(|| {
+        let b = indicatif::ProgressBar::new(total);
         b.set_style(
-            indicatif::ProgressStyle::with_template(
-                "{spinner} localizing [{bar:40}] {pos}/{len} windows {eta}",
-            )
-            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+            indicatif::ProgressStyle::with_template("{spinner} localizing [{bar:40}] {percent}% {eta}")
+                .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
         );
         b
     });
-    let mut cb = |done: usize, total: usize| {
-        if let Some(b) = &bar {
-            b.set_length(total as u64);
-            b.set_position(done as u64);
+    let (fmt, rx) = spawn_reader(input.source, input.live, a.input.max_buffer);
+    let nch = fmt.channels;
+    let mut out = Output::default();
+    let (mut audio_frames, mut lost_frames, mut gaps) = (0u64, 0u64, 0usize);
+    let mut compute_s = 0.0;
+    let mut next_report = 10.0;
+    let ctx = |e: soundloc::Error| anyhow!("{}: {e}", name.display());
+    loop {
+        let msg = rx
+            .recv()
+            .map_err(|_| anyhow!("{}: the reader stopped", name.display()))?;
+        let t = Instant::now();
+        let (data, gap, end) = match msg {
+            Msg::Block { data, gap } => (data, gap, false),
+            Msg::End { gap } => (Vec::new(), gap, true),
+            Msg::Failed(e) => return Err(e.into()),
+        };
+        if gap > 0 {
+            loc.skip(gap, &mut out).map_err(ctx)?;
+            lost_frames += gap;
+            gaps += 1;
         }
-    };
-    let run = if matches!(update, NoiseUpdate::Fixed) {
-        engine.localize_samples(audio.sample_rate_hz, &audio.channels, want_spectrum, &mut cb)?
-    } else {
-        let spectra = engine.spectra(audio.sample_rate_hz, &audio.channels)?;
-        localize_online(&mut engine, &spectra, update, want_spectrum, &mut cb)?
-    };
+        if end {
+            loc.flush(&mut out).map_err(ctx)?;
+        } else {
+            loc.push(
+                Block::Interleaved {
+                    data: &data,
+                    channels: nch,
+                },
+                &mut out,
+            )
+            .map_err(ctx)?;
+            audio_frames += (data.len() / nch) as u64;
+        }
+        compute_s += t.elapsed().as_secs_f64();
+        for n in out.notes.drain(..) {
+            note(a.quiet, &n);
+        }
+        sinks.emit(&mut out, &loc)?;
+        if let Some(b) = &bar {
+            b.set_position(audio_frames);
+        }
+        let audio_s = audio_frames as f64 / fs;
+        if input.live && audio_s >= next_report {
+            next_report += 10.0;
+            note(
+                a.quiet,
+                &format!(
+                    "{audio_s:.1} s localized, real-time factor {:.3} (compute / audio){}",
+                    compute_s / audio_s,
+                    if lost_frames > 0 {
+                        format!(", {:.2} s lost in {gaps} gaps", lost_frames as f64 / fs)
+                    } else {
+                        String::new()
+                    }
+                ),
+            );
+        }
+        if end {
+            break;
+        }
+    }
     if let Some(b) = bar {
         b.finish_and_clear();
     }
-    Ok(run)
-}
-
-fn write_results(a: &Args, results: &[LocalizationResult]) -> anyhow::Result<()> {
-    let emit = |w: &mut dyn Write| -> std::io::Result<()> {
-        match a.format {
-            FormatArg::Jsonl => {
-                let mut j = JsonlWriter::new(w);
-                j.write_all(results)?;
-                j.flush()
-            }
-            FormatArg::Csv => {
-                let mut c = CsvWriter::new(w)?;
-                c.write_all(results)?;
-                c.flush()
-            }
-        }
-    };
-    match &a.output {
-        Some(p) => write_atomically(p, |w| emit(w))?,
-        None => {
-            let stdout = std::io::stdout();
-            let mut lock = stdout.lock();
-            emit(&mut lock).context("writing results to stdout")?;
-        }
+    if audio_frames == 0 {
+        bail!("{}: no audio frames (zero samples)", name.display());
     }
-    Ok(())
-}
-
-fn write_spectrum(
-    path: &Path,
-    table: &soundloc::engine::SpectrumTable,
-    tf: &TransferFunctions,
-) -> anyhow::Result<()> {
-    let rows = table.frames.len();
-    write_atomically(path, |w| write_npy_f32(w, rows, table.num_dirs, &table.db))?;
-    let meta = serde_json::json!({
-        "description": "dB MUSIC spectrum 10*log10(P+1), rows = results, columns = directions",
-        "shape": [rows, table.num_dirs],
-        "frames": table.frames,
-        "times_s": table.times_s,
-        "azimuth_deg": (0..tf.num_dirs()).map(|d| tf.grid.azimuth_deg(d)).collect::<Vec<_>>(),
-        "elevation_deg": (0..tf.num_dirs()).map(|d| tf.grid.elevation_deg(d)).collect::<Vec<_>>(),
-    });
-    let mut side = path.as_os_str().to_owned();
-    side.push(".json");
-    write_atomically(PathBuf::from(side), |w| {
-        serde_json::to_writer(&mut *w, &meta)?;
-        writeln!(w)
-    })?;
-    Ok(())
+    let audio_s = audio_frames as f64 / fs;
+    note(
+        a.quiet,
+        &format!(
+            "{} results from {:.2} s of {}-channel audio, {} on {} (real-time factor {:.4})",
+            sinks.count(),
+            audio_s,
+            nch,
+            loc.config().algorithm.name(),
+            loc.device_name(),
+            compute_s / audio_s
+        ),
+    );
+    if lost_frames > 0 {
+        note(
+            a.quiet,
+            &format!(
+                "warning: {:.2} s of audio lost in {gaps} gaps (the input came faster than it was localized)",
+                lost_frames as f64 / fs
+            ),
+        );
+    }
+    let title = format!(
+        "{} — {} MUSIC, {}",
+        name.file_name()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_default(),
+        loc.config().algorithm.name(),
+        loc.device_name()
+    );
+    sinks.finish(&a, &loc, &title)?;
+    Ok(ExitCode::SUCCESS)
 }

@@ -2,8 +2,10 @@
 
 pub mod bench;
 pub mod demo;
+pub mod input;
 pub mod localize;
 pub mod noisecm;
+pub mod sinks;
 pub mod tf;
 
 use clap::{Parser, Subcommand, ValueEnum};
@@ -95,18 +97,4 @@ pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
         Command::Tf(a) => tf::run(a),
         Command::Noisecm(a) => noisecm::run(a),
     }
-}
-
-/// K from a HARK noise correlation file, for the config's used bins.
-pub fn noise_cm_for(
-    path: &std::path::Path,
-    config: &soundloc::LocalizeConfig,
-    num_mics: usize,
-) -> anyhow::Result<soundloc::noise::NoiseMatrices> {
-    use soundloc::formats::noise_cm::{Expected, NoiseCm};
-    let expected = Expected {
-        num_mics: Some(num_mics),
-        nfft: Some(config.nfft),
-    };
-    Ok(NoiseCm::load(path, expected)?.to_noise_matrices(config.bin_range())?)
 }

@@ -52,7 +52,7 @@
 //! ## Estimation and the engine's K
 //! [`NoiseCm::estimate`] averages x xᴴ over the STFT frames of a noise recording (or a time
 //! range of it) for **every** bin 0 … N/2, so the result has HARK's shape;
-//! [`crate::engine::estimate_noise`] does the same for the analysis bins only. The engine
+//! [`crate::noise::estimate`] does the same for the analysis bins only. The engine
 //! holds K as [`NoiseMatrices`] for a range of bins: [`NoiseCm::to_noise_matrices`] cuts
 //! that range out, [`NoiseCm::from_noise_matrices`] goes back to all N/2 + 1 bins, filling
 //! the bins the engine does not hold with the identity (white noise of unit power: the K
@@ -267,7 +267,7 @@ impl NoiseCm {
 
     /// Estimates K for every bin 0 … N/2 from planar samples: x xᴴ averaged over the
     /// complete `nfft`-sample frames (every `hop` samples, `window` applied, unscaled FFT)
-    /// inside `range_s` (seconds; `None` = all), as [`crate::engine::estimate_noise`] does
+    /// inside `range_s` (seconds; `None` = all), as [`crate::noise::estimate`] does
     /// for the analysis bins. Returns K and the number of frames averaged.
     pub fn estimate(
         channels: &[Vec<f32>],
@@ -290,7 +290,7 @@ impl NoiseCm {
             upper_freq_hz: sample_rate_hz as f64,
             ..LocalizeConfig::default()
         };
-        let k = crate::engine::estimate_noise(&config, sample_rate_hz, channels, range_s)?;
+        let k = crate::noise::estimate(&config, sample_rate_hz, channels, range_s)?;
         let frames = k.num_frames;
         Ok((Self::from_noise_matrices(&k, nfft)?, frames))
     }
@@ -415,7 +415,7 @@ mod tests {
             upper_freq_hz: 4000.0,
             ..LocalizeConfig::default()
         };
-        let k = crate::engine::estimate_noise(&config, fs, &ch, Some((0.0, 0.2))).unwrap();
+        let k = crate::noise::estimate(&config, fs, &ch, Some((0.0, 0.2))).unwrap();
         let cut = cm.to_noise_matrices(config.bin_range()).unwrap();
         for (a, b) in k.data.iter().zip(&cut.data) {
             assert!((a - b).norm() <= 1e-9 * a.norm().max(1.0), "{a} vs {b}");

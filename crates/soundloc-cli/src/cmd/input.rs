@@ -1,0 +1,215 @@
+//! Where `localize` reads audio: a file, standard input (WAV/FLAC or raw PCM), or a TCP
+//! peer (connecting or listening). A reader thread delivers blocks to the compute loop
+//! through a bounded queue:
+//!
+//! - files (and stdin redirected from a file) are read as fast as they are localized
+//!   (the queue applies back-pressure; nothing is lost);
+//! - live inputs (a pipe, a socket, a microphone) never wait for the localizer: when the
+//!   queue holds `--max-buffer` seconds the newest block is dropped and counted, and the
+//!   localizer is told about the gap (whole windows skipped, times kept true, a warning).
+
+use anyhow::{bail, Context};
+use clap::ValueEnum;
+use soundloc::audio::{open_source, open_stream, AudioFormat, AudioSource, RawEncoding, RawSource};
+use std::path::{Path, PathBuf};
+use std::sync::mpsc::{sync_channel, Receiver, SyncSender, TrySendError};
+
+#[derive(ValueEnum, Clone, Copy, Debug)]
+pub enum RawArg {
+    /// 16-bit signed little-endian.
+    S16le,
+    /// 24-bit signed little-endian (packed, 3 bytes).
+    S24le,
+    /// 32-bit signed little-endian.
+    S32le,
+    /// 32-bit float little-endian.
+    F32le,
+}
+
+impl From<RawArg> for RawEncoding {
+    fn from(r: RawArg) -> Self {
+        match r {
+            RawArg::S16le => RawEncoding::S16le,
+            RawArg::S24le => RawEncoding::S24le,
+            RawArg::S32le => RawEncoding::S32le,
+            RawArg::F32le => RawEncoding::F32le,
+        }
+    }
+}
+
+/// Input options shared by `localize` (and, for the queue, `listen`).
+#[derive(clap::Args, Debug, Clone)]
+pub struct InputArgs {
+    /// Input: a WAV/FLAC file, `-` for standard input, `tcp:HOST:PORT` to connect to a
+    /// sender, or `tcp-listen:HOST:PORT` to wait for one.
+    pub input: String,
+    /// Headerless interleaved PCM on the input (instead of WAV/FLAC), with --raw-channels
+    /// and --rate.
+    #[arg(long, value_enum, requires_all = ["raw_channels", "rate"])]
+    pub raw: Option<RawArg>,
+    /// Channels of --raw input.
+    #[arg(long)]
+    pub raw_channels: Option<usize>,
+    /// Sampling rate of --raw input, Hz.
+    #[arg(long)]
+    pub rate: Option<u32>,
+    /// Live input: audio buffered while the localizer is behind, seconds; beyond it whole
+    /// blocks are dropped (and counted).
+    #[arg(long, default_value_t = 10.0)]
+    pub max_buffer: f64,
+}
+
+/// An open input.
+pub struct Input {
+    pub source: Box<dyn AudioSource>,
+    /// Live (drop when behind) rather than a file (wait).
+    pub live: bool,
+    pub name: PathBuf,
+}
+
+fn stdin_is_file() -> bool {
+    std::fs::metadata("/dev/stdin")
+        .map(|m| m.is_file())
+        .unwrap_or(false)
+}
+
+impl InputArgs {
+    /// Open the input (for a listening socket: wait for the sender).
+    pub fn open(&self, quiet: bool) -> anyhow::Result<Input> {
+        let name = PathBuf::from(&self.input);
+        let raw = |r: Box<dyn std::io::Read + Send>, name: &Path| -> anyhow::Result<Box<dyn AudioSource>> {
+            let (Some(enc), Some(ch), Some(rate)) = (self.raw, self.raw_channels, self.rate) else {
+                bail!("--raw needs --raw-channels and --rate")
+            };
+            Ok(Box::new(RawSource::new(r, enc.into(), ch, rate, name)?))
+        };
+        let stream =
+            |r: Box<dyn std::io::Read + Send>, name: &Path| -> anyhow::Result<Box<dyn AudioSource>> {
+                if self.raw.is_some() {
+                    raw(r, name)
+                } else {
+                    Ok(open_stream(r, name)?)
+                }
+            };
+        if !(self.max_buffer.is_finite() && self.max_buffer > 0.0) {
+            bail!(
+                "--max-buffer must be a positive number of seconds, got {}",
+                self.max_buffer
+            );
+        }
+        if self.input == "-" {
+            let live = !stdin_is_file();
+            return Ok(Input {
+                source: stream(Box::new(std::io::stdin()), Path::new("-"))?,
+                live,
+                name: PathBuf::from("standard input"),
+            });
+        }
+        if let Some(addr) = self.input.strip_prefix("tcp:") {
+            let s =
+                std::net::TcpStream::connect(addr).with_context(|| format!("{}: connecting", self.input))?;
+            return Ok(Input {
+                source: stream(Box::new(s), &name)?,
+                live: true,
+                name,
+            });
+        }
+        if let Some(addr) = self.input.strip_prefix("tcp-listen:") {
+            let l =
+                std::net::TcpListener::bind(addr).with_context(|| format!("{}: listening", self.input))?;
+            if !quiet {
+                eprintln!("soundloc: waiting for a sender on tcp:{}", l.local_addr()?);
+            }
+            let (s, peer) = l.accept().with_context(|| format!("{}: accepting", self.input))?;
+            if !quiet {
+                eprintln!("soundloc: receiving from {peer}");
+            }
+            return Ok(Input {
+                source: stream(Box::new(s), &name)?,
+                live: true,
+                name,
+            });
+        }
+        let source = if self.raw.is_some() {
+            let f = std::fs::File::open(&name).map_err(|e| soundloc::Error::io(&name, e))?;
+            raw(Box::new(std::io::BufReader::with_capacity(1 << 20, f)), &name)?
+        } else {
+            open_source(&name)?
+        };
+        Ok(Input {
+            source,
+            live: false,
+            name,
+        })
+    }
+}
+
+/// What the reader thread sends.
+pub enum Msg {
+    /// Interleaved frames, after `gap` frames were dropped.
+    Block { data: Vec<f32>, gap: u64 },
+    /// The input ended (after `gap` more dropped frames).
+    End { gap: u64 },
+    /// The input failed.
+    Failed(soundloc::Error),
+}
+
+/// Frames per block read from a file.
+const FILE_BLOCK: usize = 1 << 15;
+
+/// Start reading `source` on its own thread. Live inputs drop blocks beyond
+/// `max_buffer_s` seconds of queued audio.
+pub fn spawn_reader(
+    mut source: Box<dyn AudioSource>,
+    live: bool,
+    max_buffer_s: f64,
+) -> (AudioFormat, Receiver<Msg>) {
+    let fmt = source.format();
+    let block = if live {
+        // ~20 ms blocks: results as soon as their window is complete.
+        (fmt.sample_rate_hz as usize / 50).max(1)
+    } else {
+        FILE_BLOCK
+    };
+    let slots = if live {
+        ((max_buffer_s * fmt.sample_rate_hz as f64) / block as f64)
+            .ceil()
+            .max(2.0) as usize
+    } else {
+        4
+    };
+    let (tx, rx) = sync_channel(slots);
+    std::thread::spawn(move || reader_loop(&mut *source, &tx, block, live));
+    (fmt, rx)
+}
+
+fn reader_loop(source: &mut dyn AudioSource, tx: &SyncSender<Msg>, block: usize, live: bool) {
+    let nch = source.format().channels;
+    let mut gap = 0u64;
+    loop {
+        let mut buf = Vec::new();
+        match source.read_interleaved(block, &mut buf) {
+            Ok(0) => {
+                let _ = tx.send(Msg::End { gap });
+                return;
+            }
+            Ok(n) => {
+                let msg = Msg::Block { data: buf, gap };
+                if live {
+                    match tx.try_send(msg) {
+                        Ok(()) => gap = 0,
+                        Err(TrySendError::Full(_)) => gap += n as u64,
+                        Err(TrySendError::Disconnected(_)) => return,
+                    }
+                } else if tx.send(msg).is_err() {
+                    return;
+                }
+                debug_assert!(nch > 0);
+            }
+            Err(e) => {
+                let _ = tx.send(Msg::Failed(e));
+                return;
+            }
+        }
+    }
+}

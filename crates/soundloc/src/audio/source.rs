@@ -1,0 +1,518 @@
+//! Audio sources that deliver interleaved blocks as they arrive: WAV and FLAC from files
+//! or pipes, and raw PCM (a sound card's or a network peer's bytes). A source never needs
+//! to seek, so standard input and sockets work as well as files.
+//!
+//! **WAV**: RIFF chunks are walked in order; `fmt ` must precede `data`. PCM 16/24/32-bit
+//! integer and 32-bit IEEE float (also as WAVE_FORMAT_EXTENSIBLE). A `data` size of 0 or
+//! ≥ 0x7FFF_F000 is a streaming placeholder (what `arecord` and other pipes write before
+//! they know the length): the data then runs to the end of the input. Otherwise the data
+//! ends at its declared size, and a file that ends earlier is an error ("truncated"). An
+//! incomplete trailing frame is dropped.
+//!
+//! **FLAC**: 16- and 24-bit, decoded frame by frame.
+//!
+//! **Raw**: interleaved little-endian `s16le`, `s32le` or `f32le` frames; a trailing
+//! partial frame at the end of the input is dropped.
+//!
+//! Every block is checked for non-finite samples; the error names the source, the sample
+//! (0-based, counted from the start) and the channel.
+
+use crate::{Error, Result};
+use std::io::{BufReader, ErrorKind, Read};
+use std::path::{Path, PathBuf};
+
+/// What a source delivers.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct AudioFormat {
+    /// Sampling rate in Hz.
+    pub sample_rate_hz: u32,
+    /// Channels per frame.
+    pub channels: usize,
+    /// Frames in all, when the source knows it (a file's header).
+    pub total_frames: Option<u64>,
+}
+
+/// A source of interleaved raw-valued samples (see the [module docs](self)).
+pub trait AudioSource: Send {
+    /// Rate, channels, length if known.
+    fn format(&self) -> AudioFormat;
+    /// The name used in messages (a path, `-` for stdin, `tcp:…`).
+    fn name(&self) -> &Path;
+    /// Read up to `max_frames` frames into `buf` (cleared first), interleaved; returns the
+    /// number of frames, 0 at the end of the input. Blocks until at least one frame or the
+    /// end has arrived.
+    fn read_interleaved(&mut self, max_frames: usize, buf: &mut Vec<f32>) -> Result<usize>;
+}
+
+/// Open a WAV or FLAC file, recognised by its first bytes.
+pub fn open_source(path: &Path) -> Result<Box<dyn AudioSource>> {
+    let file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
+    open_reader(BufReader::new(file), path, true)
+}
+
+/// A WAV or FLAC stream from any reader (a file, stdin, a socket), recognised by its first
+/// bytes; `name` is used in messages.
+pub fn open_stream<R: Read + Send + 'static>(r: R, name: &Path) -> Result<Box<dyn AudioSource>> {
+    open_reader(r, name, false)
+}
+
+fn open_reader<R: Read + Send + 'static>(
+    mut r: R,
+    name: &Path,
+    greedy: bool,
+) -> Result<Box<dyn AudioSource>> {
+    let mut magic = [0u8; 4];
+    let got = read_full(&mut r, &mut magic).map_err(|e| Error::io(name, e))?;
+    if got == 0 {
+        return Err(Error::format(name, "empty file"));
+    }
+    let r = std::io::Cursor::new(magic[..got].to_vec()).chain(r);
+    if got == 4 && &magic == b"RIFF" {
+        Ok(Box::new(WavSource::new(r, name, greedy)?))
+    } else if got == 4 && &magic == b"fLaC" {
+        Ok(Box::new(FlacSource::new(r, name)?))
+    } else {
+        let shown: String = magic[..got]
+            .iter()
+            .map(|&b| if b.is_ascii_graphic() { b as char } else { '.' })
+            .collect();
+        Err(Error::format(
+            name,
+            format!(
+                "not a WAV (RIFF/WAVE) or FLAC file (starts with \"{shown}\"); for headerless PCM give --raw"
+            ),
+        ))
+    }
+}
+
+/// Read until `buf` is full or the end; returns the bytes read.
+fn read_full<R: Read + ?Sized>(r: &mut R, buf: &mut [u8]) -> std::io::Result<usize> {
+    let mut got = 0;
+    while got < buf.len() {
+        match r.read(&mut buf[got..]) {
+            Ok(0) => break,
+            Ok(k) => got += k,
+            Err(e) if e.kind() == ErrorKind::Interrupted => {}
+            Err(e) => return Err(e),
+        }
+    }
+    Ok(got)
+}
+
+fn check_finite(name: &Path, buf: &[f32], channels: usize, first_frame: u64) -> Result<()> {
+    if let Some(i) = buf.iter().position(|v| !v.is_finite()) {
+        let what = if buf[i].is_nan() { "NaN" } else { "infinite" };
+        return Err(Error::format(
+            name,
+            format!(
+                "sample {} of channel {} is {what} (0-based)",
+                first_frame + (i / channels) as u64,
+                i % channels
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// Sample encodings of raw PCM and WAV data.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum RawEncoding {
+    /// 16-bit signed little-endian.
+    S16le,
+    /// 24-bit signed little-endian (3 bytes).
+    S24le,
+    /// 32-bit signed little-endian.
+    S32le,
+    /// 32-bit IEEE float little-endian.
+    F32le,
+}
+
+impl RawEncoding {
+    /// Bytes per sample.
+    pub fn bytes(self) -> usize {
+        match self {
+            RawEncoding::S16le => 2,
+            RawEncoding::S24le => 3,
+            RawEncoding::S32le | RawEncoding::F32le => 4,
+        }
+    }
+
+    fn decode(self, b: &[u8]) -> f32 {
+        match self {
+            RawEncoding::S16le => i16::from_le_bytes([b[0], b[1]]) as f32,
+            RawEncoding::S24le => (i32::from_le_bytes([0, b[0], b[1], b[2]]) >> 8) as f32,
+            RawEncoding::S32le => i32::from_le_bytes([b[0], b[1], b[2], b[3]]) as f32,
+            RawEncoding::F32le => f32::from_le_bytes([b[0], b[1], b[2], b[3]]),
+        }
+    }
+}
+
+/// Frames of PCM bytes from a reader, decoded in blocks (shared by WAV and raw).
+struct PcmReader<R> {
+    r: R,
+    enc: RawEncoding,
+    channels: usize,
+    /// Bytes of data left (None = to the end of the input).
+    left: Option<u64>,
+    bytes: Vec<u8>,
+    /// Bytes of a partial frame carried to the next read.
+    carry: usize,
+    frames_read: u64,
+    ended: bool,
+    /// Fill whole blocks (files) rather than return what has arrived (pipes, sockets).
+    greedy: bool,
+}
+
+impl<R: Read> PcmReader<R> {
+    fn read(
+        &mut self,
+        name: &Path,
+        max_frames: usize,
+        buf: &mut Vec<f32>,
+        truncated_is_error: bool,
+    ) -> Result<usize> {
+        buf.clear();
+        let fb = self.enc.bytes() * self.channels;
+        let target = max_frames.max(1) * fb;
+        let limit = match self.left {
+            Some(l) => target.min(self.carry + l.min(usize::MAX as u64 / 2) as usize),
+            None => target,
+        };
+        self.bytes.resize(limit.max(self.carry), 0);
+        let mut have = self.carry;
+        // Until one whole frame is here (greedy: until `limit`), or the data ends.
+        while (have < fb || self.greedy) && have < limit && !self.ended {
+            match self.r.read(&mut self.bytes[have..limit]) {
+                Ok(0) => self.ended = true,
+                Ok(k) => {
+                    have += k;
+                    if let Some(l) = &mut self.left {
+                        *l -= k as u64;
+                    }
+                }
+                Err(e) if e.kind() == ErrorKind::Interrupted => {}
+                Err(e) => return Err(Error::io(name, e)),
+            }
+        }
+        match self.left {
+            Some(0) => self.ended = true,
+            Some(l) if self.ended && truncated_is_error => {
+                return Err(Error::format(
+                    name,
+                    format!("truncated WAV file: {l} bytes of audio data missing"),
+                ))
+            }
+            _ => {}
+        }
+        let frames = have / fb;
+        let used = frames * fb;
+        buf.reserve(frames * self.channels);
+        for s in self.bytes[..used].chunks_exact(self.enc.bytes()) {
+            buf.push(self.enc.decode(s));
+        }
+        self.bytes.copy_within(used..have, 0);
+        self.carry = have - used;
+        check_finite(name, buf, self.channels, self.frames_read)?;
+        self.frames_read += frames as u64;
+        Ok(frames)
+    }
+}
+
+/// Headerless interleaved PCM (see the [module docs](self)).
+pub struct RawSource<R> {
+    pcm: PcmReader<R>,
+    rate: u32,
+    name: PathBuf,
+}
+
+impl<R: Read + Send> RawSource<R> {
+    /// `channels` channels at `sample_rate_hz`, encoded as `enc`.
+    pub fn new(r: R, enc: RawEncoding, channels: usize, sample_rate_hz: u32, name: &Path) -> Result<Self> {
+        if channels == 0 || channels > 4096 {
+            return Err(Error::Config(format!(
+                "raw input: {channels} channels (need 1 to 4096)"
+            )));
+        }
+        if sample_rate_hz == 0 {
+            return Err(Error::Config(
+                "raw input: the sample rate must be positive".into(),
+            ));
+        }
+        Ok(RawSource {
+            pcm: PcmReader {
+                r,
+                enc,
+                channels,
+                left: None,
+                bytes: Vec::new(),
+                carry: 0,
+                frames_read: 0,
+                ended: false,
+                greedy: false,
+            },
+            rate: sample_rate_hz,
+            name: name.to_path_buf(),
+        })
+    }
+}
+
+impl<R: Read + Send> AudioSource for RawSource<R> {
+    fn format(&self) -> AudioFormat {
+        AudioFormat {
+            sample_rate_hz: self.rate,
+            channels: self.pcm.channels,
+            total_frames: None,
+        }
+    }
+    fn name(&self) -> &Path {
+        &self.name
+    }
+    fn read_interleaved(&mut self, max_frames: usize, buf: &mut Vec<f32>) -> Result<usize> {
+        self.pcm.read(&self.name, max_frames, buf, false)
+    }
+}
+
+/// A WAV stream (see the [module docs](self)).
+pub struct WavSource<R> {
+    pcm: PcmReader<R>,
+    rate: u32,
+    name: PathBuf,
+    total: Option<u64>,
+}
+
+fn u16_at(b: &[u8], i: usize) -> u16 {
+    u16::from_le_bytes([b[i], b[i + 1]])
+}
+fn u32_at(b: &[u8], i: usize) -> u32 {
+    u32::from_le_bytes([b[i], b[i + 1], b[i + 2], b[i + 3]])
+}
+
+impl<R: Read + Send> WavSource<R> {
+    /// Parse the header up to the `data` chunk. `greedy`: reads fill whole blocks (a
+    /// file) instead of returning what has arrived (a pipe).
+    pub fn new(mut r: R, name: &Path, greedy: bool) -> Result<Self> {
+        let truncated = || Error::format(name, "truncated WAV file");
+        let mut head = [0u8; 12];
+        if read_full(&mut r, &mut head).map_err(|e| Error::io(name, e))? < 12 {
+            return Err(truncated());
+        }
+        if &head[0..4] != b"RIFF" || &head[8..12] != b"WAVE" {
+            return Err(Error::format(name, "bad WAV file: no RIFF/WAVE header"));
+        }
+        let mut fmt: Option<(RawEncoding, usize, u32)> = None;
+        loop {
+            let mut ch = [0u8; 8];
+            if read_full(&mut r, &mut ch).map_err(|e| Error::io(name, e))? < 8 {
+                return Err(match fmt {
+                    None => Error::format(name, "bad WAV file: no fmt chunk"),
+                    Some(_) => Error::format(name, "no audio frames (zero samples): no data chunk"),
+                });
+            }
+            let size = u32_at(&ch, 4);
+            match &ch[0..4] {
+                b"fmt " => {
+                    if !(16..=1024).contains(&size) {
+                        return Err(Error::format(
+                            name,
+                            format!("bad WAV file: fmt chunk of {size} bytes"),
+                        ));
+                    }
+                    let mut f = vec![0u8; size as usize + (size as usize & 1)];
+                    if read_full(&mut r, &mut f).map_err(|e| Error::io(name, e))? < f.len() {
+                        return Err(truncated());
+                    }
+                    let mut tag = u16_at(&f, 0);
+                    let channels = u16_at(&f, 2) as usize;
+                    let rate = u32_at(&f, 4);
+                    let bits = u16_at(&f, 14);
+                    if tag == 0xFFFE && size >= 26 {
+                        tag = u16_at(&f, 24); // the sub-format GUID's first two bytes
+                    }
+                    if channels == 0 {
+                        return Err(Error::format(name, "WAV header declares 0 channels"));
+                    }
+                    if rate == 0 {
+                        return Err(Error::format(name, "WAV header declares a sample rate of 0 Hz"));
+                    }
+                    let unsupported = |what: String| {
+                        Error::format(
+                            name,
+                            format!(
+                                "unsupported bit depth: {what} (supported: 16-, 24-, 32-bit integer and 32-bit float WAV; 16- and 24-bit FLAC)"
+                            ),
+                        )
+                    };
+                    let enc = match (tag, bits) {
+                        (1, 16) => RawEncoding::S16le,
+                        (1, 24) => RawEncoding::S24le,
+                        (1, 32) => RawEncoding::S32le,
+                        (3, 32) => RawEncoding::F32le,
+                        (1, b) => return Err(unsupported(format!("{b}-bit integer PCM"))),
+                        (3, b) => return Err(unsupported(format!("{b}-bit float"))),
+                        _ => {
+                            return Err(Error::format(
+                                name,
+                                "unsupported WAV encoding (supported: 16-, 24-, 32-bit integer PCM and 32-bit float)",
+                            ))
+                        }
+                    };
+                    fmt = Some((enc, channels, rate));
+                }
+                b"data" => {
+                    let Some((enc, channels, rate)) = fmt else {
+                        return Err(Error::format(name, "bad WAV file: data chunk before fmt chunk"));
+                    };
+                    let fb = (enc.bytes() * channels) as u64;
+                    let left = (size != 0 && size < 0x7FFF_F000).then_some(size as u64);
+                    return Ok(WavSource {
+                        pcm: PcmReader {
+                            r,
+                            enc,
+                            channels,
+                            left,
+                            bytes: Vec::new(),
+                            carry: 0,
+                            frames_read: 0,
+                            ended: false,
+                            greedy,
+                        },
+                        rate,
+                        name: name.to_path_buf(),
+                        total: left.map(|l| l / fb),
+                    });
+                }
+                _ => {
+                    // Skip the chunk (and its pad byte).
+                    let skip = size as u64 + (size as u64 & 1);
+                    let n = std::io::copy(&mut (&mut r).take(skip), &mut std::io::sink())
+                        .map_err(|e| Error::io(name, e))?;
+                    if n < skip {
+                        return Err(truncated());
+                    }
+                }
+            }
+        }
+    }
+}
+
+impl<R: Read + Send> AudioSource for WavSource<R> {
+    fn format(&self) -> AudioFormat {
+        AudioFormat {
+            sample_rate_hz: self.rate,
+            channels: self.pcm.channels,
+            total_frames: self.total,
+        }
+    }
+    fn name(&self) -> &Path {
+        &self.name
+    }
+    fn read_interleaved(&mut self, max_frames: usize, buf: &mut Vec<f32>) -> Result<usize> {
+        self.pcm.read(&self.name, max_frames, buf, true)
+    }
+}
+
+/// A FLAC stream, decoded frame by frame.
+pub struct FlacSource<R: Read> {
+    reader: claxon::FlacReader<R>,
+    info: claxon::metadata::StreamInfo,
+    name: PathBuf,
+    /// Decoded frames not yet delivered, interleaved.
+    pending: Vec<f32>,
+    at: usize,
+    block: Vec<i32>,
+    frames_read: u64,
+    ended: bool,
+}
+
+impl<R: Read + Send> FlacSource<R> {
+    /// Parse the metadata.
+    pub fn new(r: R, name: &Path) -> Result<Self> {
+        let reader = claxon::FlacReader::new(r).map_err(|e| flac_err(name, e))?;
+        let info = reader.streaminfo();
+        if !matches!(info.bits_per_sample, 16 | 24) {
+            return Err(Error::format(
+                name,
+                format!(
+                    "unsupported bit depth: {}-bit FLAC (supported: 16-, 24-, 32-bit integer and 32-bit float WAV; 16- and 24-bit FLAC)",
+                    info.bits_per_sample
+                ),
+            ));
+        }
+        if info.sample_rate == 0 {
+            return Err(Error::format(name, "FLAC stream declares a sample rate of 0 Hz"));
+        }
+        Ok(FlacSource {
+            reader,
+            info,
+            name: name.to_path_buf(),
+            pending: Vec::new(),
+            at: 0,
+            block: Vec::new(),
+            frames_read: 0,
+            ended: false,
+        })
+    }
+}
+
+fn flac_err(name: &Path, e: claxon::Error) -> Error {
+    match e {
+        claxon::Error::IoError(io) if io.kind() == ErrorKind::UnexpectedEof => {
+            Error::format(name, "truncated FLAC file")
+        }
+        claxon::Error::IoError(io) => Error::io(name, io),
+        other => Error::format(name, format!("bad FLAC file: {other}")),
+    }
+}
+
+impl<R: Read + Send> AudioSource for FlacSource<R> {
+    fn format(&self) -> AudioFormat {
+        AudioFormat {
+            sample_rate_hz: self.info.sample_rate,
+            channels: self.info.channels as usize,
+            total_frames: self.info.samples,
+        }
+    }
+    fn name(&self) -> &Path {
+        &self.name
+    }
+    fn read_interleaved(&mut self, max_frames: usize, buf: &mut Vec<f32>) -> Result<usize> {
+        buf.clear();
+        let nch = self.info.channels as usize;
+        while self.pending.len() - self.at < max_frames.max(1) * nch && !self.ended {
+            let frame = {
+                let mut blocks = self.reader.blocks();
+                blocks
+                    .read_next_or_eof(std::mem::take(&mut self.block))
+                    .map_err(|e| flac_err(&self.name, e))?
+            };
+            let Some(block) = frame else {
+                self.ended = true;
+                break;
+            };
+            if block.channels() as usize != nch {
+                return Err(Error::format(
+                    &self.name,
+                    format!(
+                        "FLAC frame has {} channels, stream header says {nch}",
+                        block.channels()
+                    ),
+                ));
+            }
+            self.pending.drain(..self.at);
+            self.at = 0;
+            for i in 0..block.duration() {
+                for c in 0..nch as u32 {
+                    self.pending.push(block.sample(c, i) as f32);
+                }
+            }
+            self.block = block.into_buffer();
+        }
+        let n = ((self.pending.len() - self.at) / nch).min(max_frames.max(1));
+        buf.extend_from_slice(&self.pending[self.at..self.at + n * nch]);
+        self.at += n * nch;
+        check_finite(&self.name, buf, nch, self.frames_read)?;
+        self.frames_read += n as u64;
+        Ok(n)
+    }
+}

@@ -1,0 +1,361 @@
+//! Audio reader tests.
+use super::*;
+use std::path::PathBuf;
+
+pub(crate) fn temp_dir(tag: &str) -> PathBuf {
+    use std::sync::atomic::{AtomicU64, Ordering};
+    static N: AtomicU64 = AtomicU64::new(0);
+    let d = std::env::temp_dir().join(format!(
+        "soundloc-audio-{tag}-{}-{}",
+        std::process::id(),
+        N.fetch_add(1, Ordering::Relaxed)
+    ));
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn write_int_wav(path: &Path, bits: u16, frames: &[Vec<i32>]) {
+    let spec = hound::WavSpec {
+        channels: frames[0].len() as u16,
+        sample_rate: 16000,
+        bits_per_sample: bits,
+        sample_format: hound::SampleFormat::Int,
+    };
+    let mut w = hound::WavWriter::create(path, spec).unwrap();
+    for f in frames {
+        for &s in f {
+            match bits {
+                8 => w.write_sample(s as i8).unwrap(),
+                16 => w.write_sample(s as i16).unwrap(),
+                _ => w.write_sample(s).unwrap(),
+            }
+        }
+    }
+    w.finalize().unwrap();
+}
+
+fn write_float_wav(path: &Path, frames: &[Vec<f32>]) {
+    let spec = hound::WavSpec {
+        channels: frames[0].len() as u16,
+        sample_rate: 48000,
+        bits_per_sample: 32,
+        sample_format: hound::SampleFormat::Float,
+    };
+    let mut w = hound::WavWriter::create(path, spec).unwrap();
+    for f in frames {
+        for &s in f {
+            w.write_sample(s).unwrap();
+        }
+    }
+    w.finalize().unwrap();
+}
+
+/// A minimal FLAC encoder (verbatim subframes, fixed block size) for tests.
+pub(crate) fn encode_flac(sample_rate: u32, bps: u32, channels: &[Vec<i32>]) -> Vec<u8> {
+    struct Bits {
+        out: Vec<u8>,
+        acc: u64,
+        n: u32,
+    }
+    impl Bits {
+        fn put(&mut self, v: u64, bits: u32) {
+            for i in (0..bits).rev() {
+                self.acc = (self.acc << 1) | ((v >> i) & 1);
+                self.n += 1;
+                if self.n == 8 {
+                    self.out.push(self.acc as u8);
+                    self.acc = 0;
+                    self.n = 0;
+                }
+            }
+        }
+        fn align(&mut self) {
+            while self.n != 0 {
+                self.put(0, 1);
+            }
+        }
+    }
+    fn crc8(d: &[u8]) -> u8 {
+        let mut c = 0u8;
+        for &b in d {
+            c ^= b;
+            for _ in 0..8 {
+                c = if c & 0x80 != 0 { (c << 1) ^ 0x07 } else { c << 1 };
+            }
+        }
+        c
+    }
+    fn crc16(d: &[u8]) -> u16 {
+        let mut c = 0u16;
+        for &b in d {
+            c ^= (b as u16) << 8;
+            for _ in 0..8 {
+                c = if c & 0x8000 != 0 {
+                    (c << 1) ^ 0x8005
+                } else {
+                    c << 1
+                };
+            }
+        }
+        c
+    }
+    let nch = channels.len();
+    let total = channels[0].len();
+    let block = 1024usize;
+    let mut b = Bits {
+        out: b"fLaC".to_vec(),
+        acc: 0,
+        n: 0,
+    };
+    b.put(1, 1); // last metadata block
+    b.put(0, 7); // STREAMINFO
+    b.put(34, 24);
+    b.put(block as u64, 16);
+    b.put(block as u64, 16);
+    b.put(0, 24);
+    b.put(0, 24);
+    b.put(sample_rate as u64, 20);
+    b.put(nch as u64 - 1, 3);
+    b.put(bps as u64 - 1, 5);
+    b.put(total as u64, 36);
+    b.put(0, 64);
+    b.put(0, 64);
+    for (fi, start) in (0..total).step_by(block).enumerate() {
+        assert!(fi < 128);
+        let len = block.min(total - start);
+        let frame_start = b.out.len();
+        b.put(0b11_1111_1111_1110, 14);
+        b.put(0, 1);
+        b.put(0, 1); // fixed block size
+        b.put(0b0111, 4); // 16-bit block size - 1 at end of header
+        b.put(0b0000, 4); // sample rate from STREAMINFO
+        b.put(nch as u64 - 1, 4); // independent channels
+        b.put(if bps == 16 { 0b100 } else { 0b110 }, 3);
+        b.put(0, 1);
+        b.put(fi as u64, 8); // UTF-8 frame number (< 128)
+        b.put(len as u64 - 1, 16);
+        let c8 = crc8(&b.out[frame_start..]);
+        b.put(c8 as u64, 8);
+        for ch in channels {
+            b.put(0, 1);
+            b.put(0b000001, 6); // VERBATIM
+            b.put(0, 1);
+            for &s in &ch[start..start + len] {
+                b.put((s as i64 as u64) & ((1u64 << bps) - 1), bps);
+            }
+        }
+        b.align();
+        let c16 = crc16(&b.out[frame_start..]);
+        b.put(c16 as u64, 16);
+    }
+    b.out
+}
+
+#[test]
+fn reads_int16_raw_values() {
+    let d = temp_dir("i16");
+    let p = d.join("a.wav");
+    let frames: Vec<Vec<i32>> = (0..100).map(|i| vec![1000, -i, 32767, -32768]).collect();
+    write_int_wav(&p, 16, &frames);
+    let a = read_audio(&p).unwrap();
+    assert_eq!(a.sample_rate_hz, 16000);
+    assert_eq!((a.num_channels(), a.num_samples()), (4, 100));
+    assert_eq!(a.channels[0][5], 1000.0);
+    assert_eq!(a.channels[1][7], -7.0);
+    assert_eq!(a.channels[2][0], 32767.0);
+    assert_eq!(a.channels[3][99], -32768.0);
+    assert!((a.duration_s() - 100.0 / 16000.0).abs() < 1e-12);
+    std::fs::remove_dir_all(&d).unwrap();
+}
+
+#[test]
+fn reads_int24_and_int32_raw_values() {
+    let d = temp_dir("i24");
+    let p = d.join("a.wav");
+    write_int_wav(&p, 24, &[vec![8_388_607, -8_388_608], vec![1000, -1]]);
+    let a = read_audio(&p).unwrap();
+    assert_eq!(
+        a.channels,
+        vec![vec![8_388_607.0, 1000.0], vec![-8_388_608.0, -1.0]]
+    );
+    let p = d.join("b.wav");
+    write_int_wav(&p, 32, &[vec![1 << 30, 123], vec![-7, 0]]);
+    let a = read_audio(&p).unwrap();
+    assert_eq!(
+        a.channels,
+        vec![vec![(1u32 << 30) as f32, -7.0], vec![123.0, 0.0]]
+    );
+    std::fs::remove_dir_all(&d).unwrap();
+}
+
+#[test]
+fn reads_float32_as_is_any_channel_count() {
+    let d = temp_dir("f32");
+    let p = d.join("a.wav");
+    let frames: Vec<Vec<f32>> = (0..10)
+        .map(|i| (0..9).map(|c| i as f32 * 0.25 - c as f32).collect())
+        .collect();
+    write_float_wav(&p, &frames);
+    let a = read_audio(&p).unwrap();
+    assert_eq!(a.sample_rate_hz, 48000);
+    assert_eq!((a.num_channels(), a.num_samples()), (9, 10));
+    assert_eq!(a.channels[8][3], 0.75 - 8.0);
+    std::fs::remove_dir_all(&d).unwrap();
+}
+
+#[test]
+fn reads_flac_16_and_24() {
+    let d = temp_dir("flac");
+    let ch16: Vec<Vec<i32>> = vec![
+        (0..2500).map(|i| (i * 13 % 65536) - 32768).collect(),
+        (0..2500).map(|i| -(i % 1000)).collect(),
+        (0..2500).map(|_| 1000).collect(),
+    ];
+    let p = d.join("a.flac");
+    std::fs::write(&p, encode_flac(16000, 16, &ch16)).unwrap();
+    let a = read_audio(&p).unwrap();
+    assert_eq!(
+        (a.sample_rate_hz, a.num_channels(), a.num_samples()),
+        (16000, 3, 2500)
+    );
+    let want: Vec<Vec<f32>> = ch16
+        .iter()
+        .map(|c| c.iter().map(|&s| s as f32).collect())
+        .collect();
+    assert_eq!(a.channels, want);
+    let ch24: Vec<Vec<i32>> = vec![vec![8_388_607, -8_388_608, 1000, -1]];
+    // A name without the extension: detection is by magic bytes.
+    let p = d.join("noext");
+    std::fs::write(&p, encode_flac(44100, 24, &ch24)).unwrap();
+    let a = read_audio(&p).unwrap();
+    assert_eq!(a.sample_rate_hz, 44100);
+    assert_eq!(a.channels, vec![vec![8_388_607.0, -8_388_608.0, 1000.0, -1.0]]);
+    std::fs::remove_dir_all(&d).unwrap();
+}
+
+#[test]
+fn errors_name_the_file() {
+    let d = temp_dir("err");
+    // Unreadable path.
+    let e = read_audio(d.join("missing.wav")).unwrap_err();
+    assert!(
+        matches!(e, Error::Io { .. }) && e.to_string().contains("missing.wav"),
+        "{e}"
+    );
+    // Empty file.
+    let p = d.join("empty.wav");
+    std::fs::write(&p, b"").unwrap();
+    let e = read_audio(&p).unwrap_err().to_string();
+    assert!(e.contains("empty.wav") && e.contains("empty file"), "{e}");
+    // Not a WAV/FLAC.
+    let p = d.join("text.wav");
+    std::fs::write(&p, b"hello, this is not audio").unwrap();
+    let e = read_audio(&p).unwrap_err().to_string();
+    assert!(e.contains("text.wav") && e.contains("not a WAV"), "{e}");
+    // Zero frames.
+    let p = d.join("zero.wav");
+    let spec = hound::WavSpec {
+        channels: 2,
+        sample_rate: 16000,
+        bits_per_sample: 16,
+        sample_format: hound::SampleFormat::Int,
+    };
+    hound::WavWriter::create(&p, spec).unwrap().finalize().unwrap();
+    let e = read_audio(&p).unwrap_err().to_string();
+    assert!(e.contains("zero.wav") && e.contains("no audio frames"), "{e}");
+    // NaN / infinite samples.
+    let p = d.join("nan.wav");
+    let mut frames = vec![vec![0.0f32; 3]; 2000];
+    frames[1234][2] = f32::NAN;
+    write_float_wav(&p, &frames);
+    let e = read_audio(&p).unwrap_err().to_string();
+    assert!(
+        e.contains("nan.wav") && e.contains("sample 1234 of channel 2 is NaN"),
+        "{e}"
+    );
+    let p = d.join("inf.wav");
+    frames[1234][2] = 0.0;
+    frames[7][0] = f32::NEG_INFINITY;
+    write_float_wav(&p, &frames);
+    let e = read_audio(&p).unwrap_err().to_string();
+    assert!(e.contains("sample 7 of channel 0 is infinite"), "{e}");
+    // Unsupported bit depth.
+    let p = d.join("u8.wav");
+    write_int_wav(&p, 8, &[vec![1, 2]]);
+    let e = read_audio(&p).unwrap_err().to_string();
+    assert!(
+        e.contains("u8.wav") && e.contains("unsupported bit depth: 8-bit"),
+        "{e}"
+    );
+    // Truncated data.
+    let p = d.join("trunc.wav");
+    write_int_wav(&p, 16, &vec![vec![5, 6]; 100]);
+    let bytes = std::fs::read(&p).unwrap();
+    std::fs::write(&p, &bytes[..bytes.len() - 101]).unwrap();
+    match read_audio(&p) {
+        Ok(a) => assert!(a.num_samples() < 100),
+        Err(e) => assert!(e.to_string().contains("trunc.wav"), "{e}"),
+    }
+    // Corrupt FLAC.
+    let p = d.join("bad.flac");
+    let mut f = encode_flac(16000, 16, &[vec![1; 100]]);
+    let n = f.len();
+    f[n - 10] ^= 0xff;
+    std::fs::write(&p, f).unwrap();
+    let e = read_audio(&p).unwrap_err().to_string();
+    assert!(e.contains("bad.flac"), "{e}");
+    std::fs::remove_dir_all(&d).unwrap();
+}
+
+#[test]
+fn select_and_slice() {
+    let a = Audio::new(
+        10,
+        vec![(0..20).map(|i| i as f32).collect(), vec![-1.0; 20], vec![2.0; 20]],
+    )
+    .unwrap();
+    let s = a.select_channels(&[2, 0]).unwrap();
+    assert_eq!(s.num_channels(), 2);
+    assert_eq!(s.channels[0][0], 2.0);
+    assert_eq!(s.channels[1][3], 3.0);
+    let e = a.select_channels(&[0, 3]).unwrap_err().to_string();
+    assert!(e.contains("channel 3") && e.contains("3 channels"), "{e}");
+    assert!(a.select_channels(&[]).is_err());
+    let t = a.slice_seconds(0.5, 1.2).unwrap();
+    assert_eq!(t.num_samples(), 7);
+    assert_eq!(t.channels[0][0], 5.0);
+    assert!(a.slice_seconds(0.0, 2.0).is_ok());
+    assert!(a.slice_seconds(1.0, 2.5).is_err());
+    assert!(a.slice_seconds(1.0, 1.0).is_err());
+    assert!(a.slice_seconds(-0.1, 1.0).is_err());
+    assert!(a.slice_seconds(f64::NAN, 1.0).is_err());
+    assert!(Audio::new(10, vec![vec![0.0; 3], vec![0.0; 2]]).is_err());
+}
+
+#[test]
+fn write_wav_round_trips() {
+    let d = temp_dir("write");
+    let a = Audio::new(
+        16000,
+        vec![
+            vec![1000.0, -1000.4, 40000.0, -0.6],
+            vec![0.5, 1.5, -2.5, 32767.0],
+        ],
+    )
+    .unwrap();
+    let p = d.join("i16.wav");
+    a.write_wav(&p, SampleFormat::Int16).unwrap();
+    let b = read_audio(&p).unwrap();
+    assert_eq!(b.channels[0], vec![1000.0, -1000.0, 32767.0, -1.0]);
+    assert_eq!(b.channels[1], vec![1.0, 2.0, -3.0, 32767.0]);
+    let p = d.join("f32.wav");
+    a.write_wav(&p, SampleFormat::Float32).unwrap();
+    assert_eq!(read_audio(&p).unwrap(), a);
+    // Only the target file is left behind.
+    let names: Vec<_> = std::fs::read_dir(&d)
+        .unwrap()
+        .map(|e| e.unwrap().file_name())
+        .collect();
+    assert_eq!(names.len(), 2);
+    std::fs::remove_dir_all(&d).unwrap();
+}

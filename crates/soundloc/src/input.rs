@@ -1,0 +1,214 @@
+//! Audio in, as the engine sees it: views of sample blocks in any layout ([`Block`]) and
+//! the map from input channels to microphones ([`ChannelMap`]).
+//!
+//! A block is borrowed, never copied before the STFT needs it: interleaved frames (what
+//! sound cards, WAV files and raw PCM streams give), channels-first contiguous arrays
+//! (numpy `(channels, samples)`), or one vector per channel. Samples are raw values (see
+//! [`crate::audio`]).
+
+use crate::{Error, Result};
+use std::ops::Range;
+
+/// A block of multichannel samples.
+#[derive(Debug, Clone, Copy)]
+pub enum Block<'a> {
+    /// `data[n * channels + c]` is sample n of channel c.
+    Interleaved {
+        /// The samples.
+        data: &'a [f32],
+        /// Number of channels.
+        channels: usize,
+    },
+    /// `data[c * samples + n]` is sample n of channel c (channels first, contiguous).
+    ChannelsFirst {
+        /// The samples.
+        data: &'a [f32],
+        /// Number of channels.
+        channels: usize,
+    },
+    /// One slice per channel, equal lengths.
+    Planar(&'a [Vec<f32>]),
+}
+
+impl<'a> Block<'a> {
+    /// Number of channels.
+    pub fn channels(&self) -> usize {
+        match self {
+            Block::Interleaved { channels, .. } | Block::ChannelsFirst { channels, .. } => *channels,
+            Block::Planar(p) => p.len(),
+        }
+    }
+
+    /// Samples per channel; an error when the layout is inconsistent (a length that is not
+    /// a multiple of the channel count, channels of different lengths, no channel).
+    pub fn samples(&self) -> Result<usize> {
+        let bad = |m: String| Err(Error::Mismatch(format!("audio block: {m}")));
+        match self {
+            Block::Interleaved { data, channels } | Block::ChannelsFirst { data, channels } => {
+                if *channels == 0 {
+                    return bad("0 channels".into());
+                }
+                if data.len() % channels != 0 {
+                    return bad(format!(
+                        "{} samples are not a whole number of {channels}-channel frames",
+                        data.len()
+                    ));
+                }
+                Ok(data.len() / channels)
+            }
+            Block::Planar(p) => {
+                let Some(first) = p.first() else {
+                    return bad("0 channels".into());
+                };
+                if let Some((c, ch)) = p.iter().enumerate().find(|(_, c)| c.len() != first.len()) {
+                    return bad(format!(
+                        "channel {c} has {} samples, channel 0 has {}",
+                        ch.len(),
+                        first.len()
+                    ));
+                }
+                Ok(first.len())
+            }
+        }
+    }
+
+    /// Append samples `range` of channel `c` to `out`.
+    pub fn extend_channel(&self, c: usize, range: Range<usize>, out: &mut Vec<f32>) {
+        match self {
+            Block::Interleaved { data, channels } => {
+                out.extend(
+                    data[range.start * channels..range.end * channels]
+                        .iter()
+                        .skip(c)
+                        .step_by(*channels),
+                );
+            }
+            Block::ChannelsFirst { data, channels } => {
+                let n = data.len() / channels;
+                out.extend_from_slice(&data[c * n + range.start..c * n + range.end]);
+            }
+            Block::Planar(p) => out.extend_from_slice(&p[c][range]),
+        }
+    }
+}
+
+/// Which input channels feed which microphone: HARK's ChannelSelector (`input_channels`,
+/// applied first) and TF_CHANNEL_SELECTION (`tf_channels`: microphones of the transfer
+/// functions kept; applied to the input too when, after the first step, it has the
+/// transfer functions' full channel count).
+#[derive(Debug, Clone, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
+pub struct ChannelMap {
+    /// Input channels kept, in order (empty = all).
+    pub input_channels: Vec<usize>,
+    /// Transfer-function channels kept (empty = all).
+    pub tf_channels: Vec<usize>,
+    /// Microphones of the transfer functions before `tf_channels`.
+    pub full_mics: usize,
+    /// Microphones after `tf_channels` (what the engine computes with).
+    pub mics: usize,
+}
+
+impl ChannelMap {
+    /// Every input channel is a microphone, in order.
+    pub fn identity(mics: usize) -> Self {
+        ChannelMap {
+            input_channels: Vec::new(),
+            tf_channels: Vec::new(),
+            full_mics: mics,
+            mics,
+        }
+    }
+
+    /// For an input of `n` channels: the input channel of each microphone, or an error
+    /// saying what does not fit.
+    pub fn resolve(&self, n: usize) -> Result<Vec<usize>> {
+        let mut idx: Vec<usize> = if self.input_channels.is_empty() {
+            (0..n).collect()
+        } else {
+            if let Some(&c) = self.input_channels.iter().find(|&&c| c >= n) {
+                return Err(Error::Mismatch(format!(
+                    "input channel {c} does not exist: the audio has {n} channels (0-based: 0..={})",
+                    n.saturating_sub(1)
+                )));
+            }
+            self.input_channels.clone()
+        };
+        if !self.tf_channels.is_empty() && idx.len() != self.tf_channels.len() {
+            if idx.len() != self.full_mics {
+                return Err(Error::Mismatch(format!(
+                    "has {} channels; --channels selects {} of the transfer functions' {}",
+                    idx.len(),
+                    self.tf_channels.len(),
+                    self.full_mics
+                )));
+            }
+            idx = self.tf_channels.iter().map(|&c| idx[c]).collect();
+        }
+        if idx.len() != self.mics {
+            return Err(Error::Mismatch(format!(
+                "has {} channels, but the transfer functions have {} microphones (select with --channels)",
+                idx.len(),
+                self.mics
+            )));
+        }
+        Ok(idx)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn layouts_give_the_same_channels() {
+        let planar = vec![vec![1.0, 2.0, 3.0], vec![10.0, 20.0, 30.0]];
+        let inter = [1.0, 10.0, 2.0, 20.0, 3.0, 30.0];
+        let first = [1.0, 2.0, 3.0, 10.0, 20.0, 30.0];
+        for b in [
+            Block::Planar(&planar),
+            Block::Interleaved {
+                data: &inter,
+                channels: 2,
+            },
+            Block::ChannelsFirst {
+                data: &first,
+                channels: 2,
+            },
+        ] {
+            assert_eq!((b.channels(), b.samples().unwrap()), (2, 3));
+            let mut v = Vec::new();
+            b.extend_channel(1, 1..3, &mut v);
+            assert_eq!(v, vec![20.0, 30.0]);
+        }
+        assert!(Block::Interleaved {
+            data: &inter[..5],
+            channels: 2
+        }
+        .samples()
+        .is_err());
+        assert!(Block::Planar(&[vec![1.0], vec![]]).samples().is_err());
+    }
+
+    #[test]
+    fn channel_map_selects_input_then_tf_channels() {
+        let m = ChannelMap {
+            input_channels: vec![1, 2, 3, 4],
+            tf_channels: vec![0, 2],
+            full_mics: 4,
+            mics: 2,
+        };
+        assert_eq!(m.resolve(5).unwrap(), vec![1, 3]);
+        assert!(m.resolve(3).unwrap_err().to_string().contains("input channel 3"));
+        let m = ChannelMap {
+            input_channels: vec![],
+            tf_channels: vec![0, 2],
+            full_mics: 4,
+            mics: 2,
+        };
+        assert_eq!(m.resolve(2).unwrap(), vec![0, 1]);
+        assert_eq!(m.resolve(4).unwrap(), vec![0, 2]);
+        assert!(m.resolve(3).unwrap_err().to_string().contains("has 3 channels"));
+        let e = ChannelMap::identity(8).resolve(4).unwrap_err().to_string();
+        assert!(e.contains("4 channels") && e.contains("8 microphones"), "{e}");
+    }
+}

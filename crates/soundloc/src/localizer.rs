@@ -1,0 +1,425 @@
+//! The public face: a [`LocalizerSpec`] (plain, serde, every option) becomes a stateful
+//! [`Localizer`] that streams. The CLI, the Python binding and the server only translate
+//! their inputs into a spec; every rule lives here:
+//!
+//! - the algorithm: `sevd`, or the textbook `gevd` when a noise source or an online update
+//!   is given and no algorithm is named (README "Which algorithm in noise");
+//! - the array: a HARK transfer-function file, or free-field transfer functions from
+//!   microphone positions and a grid; TF_CHANNEL_SELECTION, and the input channel map;
+//! - the noise: a noise recording, a time range of the input, a HARK noise-CM file, or
+//!   none (identity), mapped through the same channels; SEVD ignores K;
+//! - the precision (f32 or f64), dispatched here once; the device.
+//!
+//! ```no_run
+//! use soundloc::{Block, Localizer, LocalizerSpec, Output};
+//! let mut loc = Localizer::new(&LocalizerSpec::from_tf("tamago_rectf.zip"))?;
+//! let mut out = Output::default();
+//! let block = vec![0.0f32; 8 * 1600]; // 100 ms of 8 interleaved channels
+//! loc.push(Block::Interleaved { data: &block, channels: 8 }, &mut out)?;
+//! loc.flush(&mut out)?;
+//! # Ok::<(), soundloc::Error>(())
+//! ```
+
+use crate::array::freefield::{free_field, DEFAULT_SPEED_OF_SOUND_M_S};
+use crate::array::grid::GridSpec;
+use crate::array::{Geometry, Grid, TransferFunctions};
+use crate::backend::{DeviceChoice, StageTimes};
+use crate::config::{Algorithm, LocalizeConfig, Precision};
+use crate::engine::{make_backend, Engine, Localization, Output, StreamOptions, TrackingSpec};
+use crate::input::{Block, ChannelMap};
+use crate::noise::policy::{InitialNoise, NoiseUpdate};
+use crate::noise::NoiseMatrices;
+use crate::plan::Plan;
+use crate::real::Real;
+use crate::{Error, Result};
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+/// Where the microphone positions and steering vectors come from.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case", tag = "kind", deny_unknown_fields)]
+pub enum ArraySpec {
+    /// A HARK transfer-function zip (harktool) or an old HGTF file (`*_loc.dat`).
+    TransferFunctions {
+        /// The file.
+        path: PathBuf,
+    },
+    /// Free-field transfer functions (HARK's geometric convention) for microphone
+    /// positions and a direction grid.
+    FreeField {
+        /// Microphone positions in metres, in channel order.
+        mics: Vec<[f64; 3]>,
+        /// The direction grid.
+        grid: GridSpec,
+        /// Distance of the grid points, metres.
+        radius_m: f64,
+        /// Speed of sound, m/s.
+        speed_of_sound_m_s: f64,
+    },
+}
+
+/// Where the noise correlation matrix K comes from.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case", tag = "kind", deny_unknown_fields)]
+pub enum NoiseSource {
+    /// None: K = identity.
+    #[default]
+    None,
+    /// A noise-only recording (WAV/FLAC), mapped through the same channels as the input.
+    Recording {
+        /// The file.
+        path: PathBuf,
+    },
+    /// A time range of the input itself, seconds (results wait until it has arrived).
+    Range {
+        /// Start, seconds.
+        start_s: f64,
+        /// End, seconds.
+        end_s: f64,
+    },
+    /// A HARK noise correlation file (CMSave text pair or zip).
+    CorrelationFile {
+        /// The file (the real part's file of a text pair).
+        path: PathBuf,
+    },
+}
+
+/// Everything a localization needs, as plain data (see the [module docs](self)).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LocalizerSpec {
+    /// The array.
+    pub array: ArraySpec,
+    /// MUSIC_ALGORITHM; None = sevd, or gevd when a noise source is given.
+    #[serde(default)]
+    pub algorithm: Option<Algorithm>,
+    /// The analysis parameters (HARK LocalizeMUSIC's); its `algorithm` is replaced by the
+    /// resolved one and its `sample_rate_hz` by a transfer-function file's.
+    #[serde(default)]
+    pub analysis: LocalizeConfig,
+    /// TF_CHANNEL_SELECTION (empty = all).
+    #[serde(default)]
+    pub channels: Vec<usize>,
+    /// ChannelSelector: input channels kept first (empty = all).
+    #[serde(default)]
+    pub input_channels: Vec<usize>,
+    /// The noise matrix K.
+    #[serde(default)]
+    pub noise: NoiseSource,
+    /// Online K updates (iGEVD / iGSVD).
+    #[serde(default)]
+    pub noise_update: NoiseUpdate,
+    /// Tracking with ids (None = off).
+    #[serde(default)]
+    pub tracking: Option<TrackingSpec>,
+    /// Compute precision.
+    #[serde(default)]
+    pub precision: Precision,
+    /// Compute device.
+    #[serde(default)]
+    pub device: DeviceChoice,
+    /// Produce the spectrum rows (for `.npy`, plots, live views).
+    #[serde(default)]
+    pub spectrum: bool,
+}
+
+impl LocalizerSpec {
+    /// Defaults with a transfer-function file.
+    pub fn from_tf(path: impl Into<PathBuf>) -> Self {
+        Self::with_array(ArraySpec::TransferFunctions { path: path.into() })
+    }
+
+    /// Defaults with free-field transfer functions for `mics` and `grid` (1 m, 343 m/s).
+    pub fn free_field(mics: Vec<[f64; 3]>, grid: GridSpec) -> Self {
+        Self::with_array(ArraySpec::FreeField {
+            mics,
+            grid,
+            radius_m: 1.0,
+            speed_of_sound_m_s: DEFAULT_SPEED_OF_SOUND_M_S,
+        })
+    }
+
+    /// Defaults with an array.
+    pub fn with_array(array: ArraySpec) -> Self {
+        LocalizerSpec {
+            array,
+            algorithm: None,
+            analysis: LocalizeConfig::default(),
+            channels: Vec::new(),
+            input_channels: Vec::new(),
+            noise: NoiseSource::None,
+            noise_update: NoiseUpdate::Fixed,
+            tracking: None,
+            precision: Precision::F32,
+            device: DeviceChoice::Auto,
+            spectrum: false,
+        }
+    }
+
+    /// Whether a noise source or an online update is given.
+    pub fn noise_given(&self) -> bool {
+        self.noise != NoiseSource::None || self.noise_update != NoiseUpdate::Fixed
+    }
+
+    /// The algorithm that runs, and a note saying why when it was not named.
+    pub fn resolved_algorithm(&self) -> (Algorithm, Option<String>) {
+        match self.algorithm {
+            Some(a) if a.uses_noise() && !self.noise_given() => (
+                a,
+                Some(format!("{} without a noise source: K = identity", a.name())),
+            ),
+            Some(a) => (a, None),
+            None if self.noise_given() => (
+                Algorithm::Gevd,
+                Some("a noise source was given: using the textbook GEVD (choose with --algorithm)".into()),
+            ),
+            None => (Algorithm::Sevd, None),
+        }
+    }
+
+    /// Load the transfer functions (all bins) of the array, for an analysis config.
+    pub fn load_array(&self, config: &LocalizeConfig) -> Result<TransferFunctions> {
+        match &self.array {
+            ArraySpec::TransferFunctions { path } => TransferFunctions::load(path),
+            ArraySpec::FreeField {
+                mics,
+                grid,
+                radius_m,
+                speed_of_sound_m_s,
+            } => {
+                if !(radius_m.is_finite() && *radius_m > 0.0) {
+                    return Err(Error::Config(format!(
+                        "grid radius must be positive, got {radius_m} m"
+                    )));
+                }
+                let geometry = Geometry::new(mics.clone(), Path::new("microphone positions"))?;
+                free_field(
+                    &geometry,
+                    &grid.build(*radius_m),
+                    config.nfft,
+                    config.sample_rate_hz,
+                    0..config.nfft / 2 + 1,
+                    *speed_of_sound_m_s,
+                )
+            }
+        }
+    }
+}
+
+enum Inner {
+    F32(Engine<f32>),
+    F64(Engine<f64>),
+}
+
+/// Run `$e` on the engine whatever its precision.
+macro_rules! dispatch {
+    (mut $self:expr, $e:ident => $body:expr) => {
+        match &mut $self.inner {
+            Inner::F32($e) => $body,
+            Inner::F64($e) => $body,
+        }
+    };
+    ($self:expr, $e:ident => $body:expr) => {
+        match &$self.inner {
+            Inner::F32($e) => $body,
+            Inner::F64($e) => $body,
+        }
+    };
+}
+
+/// A stateful localizer for one array (see the [module docs](self) and
+/// [`crate::engine`] for the streaming contract).
+pub struct Localizer {
+    inner: Inner,
+    config: LocalizeConfig,
+    grid: Grid,
+    notes: Vec<String>,
+}
+
+impl Localizer {
+    /// Build from a spec: loads the files it names, plans, picks the device.
+    pub fn new(spec: &LocalizerSpec) -> Result<Self> {
+        let (algorithm, note) = spec.resolved_algorithm();
+        let config = LocalizeConfig {
+            algorithm,
+            ..spec.analysis.clone()
+        };
+        let tf = spec.load_array(&config)?;
+        let mut loc = Self::with_transfer_functions(spec, tf, None)?;
+        loc.notes.splice(0..0, note);
+        Ok(loc)
+    }
+
+    /// Build with transfer functions (all microphones, before `spec.channels`) already in
+    /// memory, and optionally K (`noise`, replacing `spec.noise`); `spec.array` is not
+    /// read.
+    pub fn with_transfer_functions(
+        spec: &LocalizerSpec,
+        tf: TransferFunctions,
+        noise: Option<NoiseMatrices>,
+    ) -> Result<Self> {
+        let (algorithm, _) = spec.resolved_algorithm();
+        let full_mics = tf.num_mics;
+        let tf = if spec.channels.is_empty() {
+            tf
+        } else {
+            tf.select_channels(&spec.channels)?
+        };
+        let config = LocalizeConfig {
+            algorithm,
+            sample_rate_hz: tf.sample_rate_hz,
+            ..spec.analysis.clone()
+        };
+        let channels = ChannelMap {
+            input_channels: spec.input_channels.clone(),
+            tf_channels: spec.channels.clone(),
+            full_mics,
+            mics: tf.num_mics,
+        };
+        let mut notes = Vec::new();
+        let initial_noise = match (noise, &spec.noise) {
+            _ if !algorithm.uses_noise() => InitialNoise::Given(None),
+            (Some(k), _) => InitialNoise::Given(Some(k)),
+            (None, NoiseSource::None) => InitialNoise::Given(None),
+            (None, NoiseSource::Range { start_s, end_s }) => InitialNoise::Range(*start_s, *end_s),
+            (None, NoiseSource::Recording { path }) => {
+                InitialNoise::Given(Some(noise_from_recording(path, &config, &channels)?))
+            }
+            (None, NoiseSource::CorrelationFile { path }) => {
+                use crate::formats::noise_cm::{Expected, NoiseCm};
+                let expected = Expected {
+                    num_mics: Some(tf.num_mics),
+                    nfft: Some(config.nfft),
+                };
+                InitialNoise::Given(Some(
+                    NoiseCm::load(path, expected)?.to_noise_matrices(config.bin_range())?,
+                ))
+            }
+        };
+        if !algorithm.uses_noise() && spec.noise != NoiseSource::None {
+            notes.push(format!("{} ignores the noise matrix", algorithm.name()));
+        }
+        let options = StreamOptions {
+            initial_noise,
+            noise_update: spec.noise_update.clone(),
+            tracking: spec.tracking,
+            channels,
+            want_spectrum: spec.spectrum,
+        };
+        let grid = tf.grid.clone();
+        let inner = match spec.precision {
+            Precision::F32 => Inner::F32(engine::<f32>(&config, &tf, spec.device, options)?),
+            Precision::F64 => Inner::F64(engine::<f64>(&config, &tf, spec.device, options)?),
+        };
+        Ok(Localizer {
+            inner,
+            config,
+            grid,
+            notes,
+        })
+    }
+
+    /// Notes from building (the algorithm chosen, K ignored…).
+    pub fn notes(&self) -> &[String] {
+        &self.notes
+    }
+
+    /// The resolved analysis parameters (algorithm, sample rate).
+    pub fn config(&self) -> &LocalizeConfig {
+        &self.config
+    }
+
+    /// The direction grid (columns of the spectrum, `grid_index` of sources).
+    pub fn grid(&self) -> &Grid {
+        &self.grid
+    }
+
+    /// Microphones (channels after the channel map).
+    pub fn num_mics(&self) -> usize {
+        dispatch!(self, e => e.plan().num_mics)
+    }
+
+    /// The device description.
+    pub fn device_name(&self) -> String {
+        dispatch!(self, e => e.device_name())
+    }
+
+    /// Stage times since the start (or the last reset).
+    pub fn stage_times(&self) -> StageTimes {
+        dispatch!(self, e => e.stage_times())
+    }
+
+    /// See [`Engine::check_input`].
+    pub fn check_input(&self, sample_rate_hz: u32, channels: usize) -> Result<()> {
+        dispatch!(self, e => e.check_input(sample_rate_hz, channels))
+    }
+
+    /// See [`Engine::push`].
+    pub fn push(&mut self, block: Block<'_>, out: &mut Output) -> Result<()> {
+        dispatch!(mut self, e => e.push(block, out))
+    }
+
+    /// See [`Engine::flush`].
+    pub fn flush(&mut self, out: &mut Output) -> Result<()> {
+        dispatch!(mut self, e => e.flush(out))
+    }
+
+    /// See [`Engine::reset`].
+    pub fn reset(&mut self) -> Result<()> {
+        dispatch!(mut self, e => e.reset())
+    }
+
+    /// See [`Engine::skip`].
+    pub fn skip(&mut self, samples: u64, out: &mut Output) -> Result<()> {
+        dispatch!(mut self, e => e.skip(samples, out))
+    }
+
+    /// See [`Engine::set_noise`].
+    pub fn set_noise(&mut self, noise: &NoiseMatrices) -> Result<()> {
+        dispatch!(mut self, e => e.set_noise(noise))
+    }
+
+    /// See [`Engine::latency_frames`].
+    pub fn latency_frames(&self) -> usize {
+        dispatch!(self, e => e.latency_frames())
+    }
+
+    /// See [`Engine::samples_needed_next`].
+    pub fn samples_needed_next(&self) -> usize {
+        dispatch!(self, e => e.samples_needed_next())
+    }
+
+    /// Batch: push planar channels whole, then flush.
+    pub fn localize(&mut self, channels: &[Vec<f32>]) -> Result<Localization> {
+        dispatch!(mut self, e => e.localize(channels))
+    }
+}
+
+fn engine<T: Real>(
+    config: &LocalizeConfig,
+    tf: &TransferFunctions,
+    device: DeviceChoice,
+    options: StreamOptions,
+) -> Result<Engine<T>> {
+    let k = match &options.initial_noise {
+        InitialNoise::Given(k) => k.as_ref(),
+        InitialNoise::Range(..) => None,
+    };
+    let plan = Arc::new(Plan::<T>::new(config, tf, k)?);
+    let backend = make_backend(plan.clone(), device)?;
+    Engine::new(plan, backend, options)
+}
+
+/// K from a noise recording, through the input's channel map.
+fn noise_from_recording(
+    path: &Path,
+    config: &LocalizeConfig,
+    channels: &ChannelMap,
+) -> Result<NoiseMatrices> {
+    let ctx = |e: Error| Error::Mismatch(format!("{}: {e}", path.display()));
+    let audio = crate::audio::read_audio(path)?;
+    let idx = channels.resolve(audio.num_channels()).map_err(ctx)?;
+    let picked: Vec<Vec<f32>> = idx.iter().map(|&c| audio.channels[c].clone()).collect();
+    crate::noise::estimate(config, audio.sample_rate_hz, &picked, None).map_err(ctx)
+}
