@@ -544,3 +544,63 @@ fn sevd_rejects_online_updates_and_bad_rules_are_errors() {
         run.notes
     );
 }
+
+#[test]
+fn a_gap_skips_the_windows_across_it_and_keeps_times_true() {
+    let scene = ring8_drone(0.0, 8).unwrap();
+    let audio = scene.render();
+    let config = LocalizeConfig {
+        window_type: WindowType::Future,
+        period: 10,
+        ..LocalizeConfig::default()
+    };
+    let spec = spec_for(&scene, &config);
+    let batch = Localizer::new(&spec).unwrap().localize(&audio.channels).unwrap();
+    // Lose samples [a, b) (b a multiple of hop × PERIOD, so results after the gap fall on
+    // the whole file's result grid).
+    let (a, b) = (19_200 - 160 * 37, 19_200usize);
+    let mut loc = Localizer::new(&spec).unwrap();
+    let mut out = Output::default();
+    let part = |r: std::ops::Range<usize>| -> Vec<Vec<f32>> {
+        audio.channels.iter().map(|c| c[r.clone()].to_vec()).collect()
+    };
+    loc.push(Block::Planar(&part(0..a)), &mut out).unwrap();
+    loc.skip((b - a) as u64, &mut out).unwrap();
+    assert!(
+        out.notes
+            .iter()
+            .any(|n| n.contains("input gap") && n.contains("0.370 s")),
+        "{:?}",
+        out.notes
+    );
+    loc.push(Block::Planar(&part(b..audio.num_samples())), &mut out)
+        .unwrap();
+    loc.flush(&mut out).unwrap();
+    // Before the gap: the whole file's windows that end before it.
+    let before: Vec<&LocalizationResult> = batch
+        .results
+        .iter()
+        .filter(|r| r.frame * 160 + 49 * 160 + 512 <= a)
+        .collect();
+    assert_eq!(
+        &out.results[..before.len()],
+        before.iter().map(|r| (*r).clone()).collect::<Vec<_>>().as_slice()
+    );
+    // After it: windows starting at the gap's end on, same times and values as the whole
+    // file's windows with the same frames.
+    let after: Vec<&LocalizationResult> = out.results[before.len()..].iter().collect();
+    assert!(!after.is_empty());
+    for r in &after {
+        assert!(r.time_s * 16000.0 >= b as f64 - 1e-6, "{}", r.time_s);
+        // After the gap result frames start afresh at b, which lies on the whole file's
+        // grid of results (every PERIOD frames from 0).
+        let x = batch
+            .results
+            .iter()
+            .find(|x| (x.time_s - r.time_s).abs() < 1e-9)
+            .expect("a whole-file result at the same time");
+        assert_eq!(x.sources, r.sources, "at {} s", r.time_s);
+        assert_eq!(x.frame, r.frame);
+    }
+    assert!(after.len() >= 5);
+}

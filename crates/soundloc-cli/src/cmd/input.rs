@@ -152,6 +152,8 @@ pub enum Msg {
     End { gap: u64 },
     /// The input failed.
     Failed(soundloc::Error),
+    /// Something the user should know about the input.
+    Note(String),
 }
 
 /// Frames per block read from a file.
@@ -188,7 +190,13 @@ fn reader_loop(source: &mut dyn AudioSource, tx: &SyncSender<Msg>, block: usize,
     let mut gap = 0u64;
     loop {
         let mut buf = Vec::new();
-        match source.read_interleaved(block, &mut buf) {
+        let r = source.read_interleaved(block, &mut buf);
+        for n in source.take_notes() {
+            if tx.send(Msg::Note(n)).is_err() {
+                return;
+            }
+        }
+        match r {
             Ok(0) => {
                 let _ = tx.send(Msg::End { gap });
                 return;

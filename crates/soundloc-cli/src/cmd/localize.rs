@@ -428,6 +428,10 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
             Msg::Block { data, gap } => (data, gap, false),
             Msg::End { gap } => (Vec::new(), gap, true),
             Msg::Failed(e) => return Err(e.into()),
+            Msg::Note(n) => {
+                note(a.quiet, &n);
+                continue;
+            }
         };
         if gap > 0 {
             loc.skip(gap, &mut out).map_err(ctx)?;

@@ -42,6 +42,11 @@ pub trait AudioSource: Send {
     /// number of frames, 0 at the end of the input. Blocks until at least one frame or the
     /// end has arrived.
     fn read_interleaved(&mut self, max_frames: usize, buf: &mut Vec<f32>) -> Result<usize>;
+    /// Things the user should know about the input so far (e.g. it ended inside a frame);
+    /// each note is returned once.
+    fn take_notes(&mut self) -> Vec<String> {
+        Vec::new()
+    }
 }
 
 /// Open a WAV or FLAC file, recognised by its first bytes.
@@ -162,6 +167,7 @@ struct PcmReader<R> {
     ended: bool,
     /// Fill whole blocks (files) rather than return what has arrived (pipes, sockets).
     greedy: bool,
+    notes: Vec<String>,
 }
 
 impl<R: Read> PcmReader<R> {
@@ -213,6 +219,14 @@ impl<R: Read> PcmReader<R> {
         }
         self.bytes.copy_within(used..have, 0);
         self.carry = have - used;
+        if self.ended && frames == 0 && self.carry > 0 {
+            self.notes.push(format!(
+                "{}: the input ended inside a frame: the last {} of {fb} bytes ignored",
+                name.display(),
+                self.carry
+            ));
+            self.carry = 0;
+        }
         check_finite(name, buf, self.channels, self.frames_read)?;
         self.frames_read += frames as u64;
         Ok(frames)
@@ -250,6 +264,7 @@ impl<R: Read + Send> RawSource<R> {
                 frames_read: 0,
                 ended: false,
                 greedy: false,
+                notes: Vec::new(),
             },
             rate: sample_rate_hz,
             name: name.to_path_buf(),
@@ -270,6 +285,9 @@ impl<R: Read + Send> AudioSource for RawSource<R> {
     }
     fn read_interleaved(&mut self, max_frames: usize, buf: &mut Vec<f32>) -> Result<usize> {
         self.pcm.read(&self.name, max_frames, buf, false)
+    }
+    fn take_notes(&mut self) -> Vec<String> {
+        std::mem::take(&mut self.pcm.notes)
     }
 }
 
@@ -376,6 +394,7 @@ impl<R: Read + Send> WavSource<R> {
                             frames_read: 0,
                             ended: false,
                             greedy,
+                            notes: Vec::new(),
                         },
                         rate,
                         name: name.to_path_buf(),
@@ -409,6 +428,9 @@ impl<R: Read + Send> AudioSource for WavSource<R> {
     }
     fn read_interleaved(&mut self, max_frames: usize, buf: &mut Vec<f32>) -> Result<usize> {
         self.pcm.read(&self.name, max_frames, buf, true)
+    }
+    fn take_notes(&mut self) -> Vec<String> {
+        std::mem::take(&mut self.pcm.notes)
     }
 }
 

@@ -1,0 +1,271 @@
+//! `soundloc localize` on streams: WAV or raw PCM on standard input, TCP (connecting and
+//! listening); results as windows complete, equal to the same audio read from a file.
+
+use soundloc::audio::{Audio, SampleFormat};
+use std::io::{BufRead, BufReader, Read, Write};
+use std::net::{TcpListener, TcpStream};
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+use std::sync::mpsc;
+use std::time::{Duration, Instant};
+
+fn bin() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_soundloc"))
+}
+
+fn tmp(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("soundloc-cli-stream-{}", std::process::id()));
+    std::fs::create_dir_all(&d).unwrap();
+    d.join(name)
+}
+
+/// The 8-mic ring scene (talkers at 30° and −120°), 3 s, as int16 values, its geometry
+/// file and a WAV of it.
+fn scene() -> (Audio, PathBuf, PathBuf) {
+    let s = soundloc::demo::ring8_incoherent(&[30.0, -120.0], 10.0, 4).unwrap();
+    let mut audio = s.render();
+    for c in &mut audio.channels {
+        for v in c.iter_mut() {
+            *v = v.round().clamp(-32768.0, 32767.0);
+        }
+    }
+    let geo = tmp("ring8.toml");
+    std::fs::write(&geo, s.geometry.to_toml_string()).unwrap();
+    let wav = tmp("ring8.wav");
+    audio.write_wav(&wav, SampleFormat::Int16).unwrap();
+    (audio, geo, wav)
+}
+
+const OPTS: [&str; 9] = [
+    "--grid",
+    "ring:5",
+    "--window-type",
+    "past",
+    "--period",
+    "10",
+    "--device",
+    "cpu",
+    "-q",
+];
+
+fn from_file(wav: &Path, geo: &Path) -> String {
+    let o = bin()
+        .arg("localize")
+        .arg(wav)
+        .arg("--geometry")
+        .arg(geo)
+        .args(OPTS)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let s = String::from_utf8(o.stdout).unwrap();
+    assert!(s.lines().count() > 10, "{s}");
+    s
+}
+
+fn s16le(audio: &Audio, range: std::ops::Range<usize>) -> Vec<u8> {
+    let mut b = Vec::new();
+    for i in range {
+        for c in &audio.channels {
+            b.extend_from_slice(&(c[i] as i16).to_le_bytes());
+        }
+    }
+    b
+}
+
+/// A WAV header with the streaming placeholder size, as `arecord` writes to a pipe.
+fn streaming_wav_header(channels: u16, rate: u32) -> Vec<u8> {
+    let mut h = Vec::new();
+    h.extend_from_slice(b"RIFF");
+    h.extend_from_slice(&0xFFFF_FFFFu32.to_le_bytes());
+    h.extend_from_slice(b"WAVEfmt ");
+    h.extend_from_slice(&16u32.to_le_bytes());
+    h.extend_from_slice(&1u16.to_le_bytes());
+    h.extend_from_slice(&channels.to_le_bytes());
+    h.extend_from_slice(&rate.to_le_bytes());
+    h.extend_from_slice(&(rate * 2 * channels as u32).to_le_bytes());
+    h.extend_from_slice(&(2 * channels).to_le_bytes());
+    h.extend_from_slice(&16u16.to_le_bytes());
+    h.extend_from_slice(b"data");
+    h.extend_from_slice(&0xFFFF_FFFFu32.to_le_bytes());
+    h
+}
+
+/// Read stdout lines on a thread, with the time each arrived.
+fn lines_of(r: impl Read + Send + 'static) -> mpsc::Receiver<String> {
+    let (tx, rx) = mpsc::channel();
+    std::thread::spawn(move || {
+        for l in BufReader::new(r).lines().map_while(Result::ok) {
+            if tx.send(l).is_err() {
+                return;
+            }
+        }
+    });
+    rx
+}
+
+#[test]
+fn stdin_wav_prints_results_before_the_input_ends() {
+    let (audio, geo, wav) = scene();
+    let want = from_file(&wav, &geo);
+    let mut child = bin()
+        .args(["localize", "-", "--geometry"])
+        .arg(&geo)
+        .args(OPTS)
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut stdin = child.stdin.take().unwrap();
+    let rx = lines_of(child.stdout.take().unwrap());
+    stdin.write_all(&streaming_wav_header(8, 16000)).unwrap();
+    // The first second, slowly, in 100 ms pieces: the first PAST window (50 frames,
+    // 0.5 s) completes inside it.
+    for k in 0..10 {
+        stdin.write_all(&s16le(&audio, k * 1600..(k + 1) * 1600)).unwrap();
+        stdin.flush().unwrap();
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    let first = rx
+        .recv_timeout(Duration::from_secs(60))
+        .expect("a result line before stdin is closed");
+    assert!(first.starts_with("{\"frame\":50,"), "{first}");
+    stdin
+        .write_all(&s16le(&audio, 16000..audio.num_samples()))
+        .unwrap();
+    drop(stdin);
+    let status = child.wait().unwrap();
+    let mut got = vec![first];
+    got.extend(rx.iter());
+    assert!(status.success());
+    assert_eq!(
+        got.join("\n") + "\n",
+        want,
+        "stdin results differ from the file's"
+    );
+}
+
+#[test]
+fn raw_pcm_on_stdin_equals_the_file() {
+    let (audio, geo, wav) = scene();
+    let want = from_file(&wav, &geo);
+    let mut child = bin()
+        .args([
+            "localize",
+            "-",
+            "--raw",
+            "s16le",
+            "--raw-channels",
+            "8",
+            "--rate",
+            "16000",
+            "--geometry",
+        ])
+        .arg(&geo)
+        .args(OPTS)
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut stdin = child.stdin.take().unwrap();
+    let bytes = s16le(&audio, 0..audio.num_samples());
+    // Odd-sized writes: frames split across writes.
+    for c in bytes.chunks(7777) {
+        stdin.write_all(c).unwrap();
+    }
+    drop(stdin);
+    let o = child.wait_with_output().unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert_eq!(String::from_utf8(o.stdout).unwrap(), want);
+    // --raw needs its companions.
+    let o = bin()
+        .args(["localize", "-", "--raw", "s16le", "--geometry"])
+        .arg(&geo)
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(2));
+}
+
+#[test]
+fn tcp_listen_and_connect_equal_the_file_and_a_cut_frame_is_reported() {
+    let (audio, geo, wav) = scene();
+    let want = from_file(&wav, &geo);
+    // soundloc listens; the test sends raw PCM, then 3 stray bytes, and hangs up.
+    let mut child = bin()
+        .args([
+            "localize",
+            "tcp-listen:127.0.0.1:0",
+            "--raw",
+            "s16le",
+            "--raw-channels",
+            "8",
+            "--rate",
+            "16000",
+        ])
+        .arg("--geometry")
+        .arg(&geo)
+        .args(&OPTS[..8])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut err = BufReader::new(child.stderr.take().unwrap());
+    let mut line = String::new();
+    let t = Instant::now();
+    let port = loop {
+        line.clear();
+        assert!(
+            err.read_line(&mut line).unwrap() > 0,
+            "soundloc exited before listening"
+        );
+        if let Some(p) = line.trim().strip_prefix("soundloc: waiting for a sender on tcp:") {
+            break p.rsplit(':').next().unwrap().parse::<u16>().unwrap();
+        }
+        assert!(t.elapsed() < Duration::from_secs(60));
+    };
+    let mut s = TcpStream::connect(("127.0.0.1", port)).unwrap();
+    s.write_all(&s16le(&audio, 0..audio.num_samples())).unwrap();
+    s.write_all(&[1, 2, 3]).unwrap();
+    drop(s);
+    let mut rest = String::new();
+    err.read_to_string(&mut rest).unwrap();
+    let o = child.wait_with_output().unwrap();
+    assert!(o.status.success(), "{rest}");
+    assert_eq!(String::from_utf8(o.stdout).unwrap(), want);
+    assert!(
+        rest.contains("ended inside a frame: the last 3 of 16 bytes ignored"),
+        "{rest}"
+    );
+
+    // soundloc connects to a sender of a WAV stream.
+    let l = TcpListener::bind("127.0.0.1:0").unwrap();
+    let addr = l.local_addr().unwrap();
+    let data = std::fs::read(&wav).unwrap();
+    let sender = std::thread::spawn(move || {
+        let (mut s, _) = l.accept().unwrap();
+        for c in data.chunks(10000) {
+            s.write_all(c).unwrap();
+        }
+    });
+    let o = bin()
+        .arg("localize")
+        .arg(format!("tcp:{addr}"))
+        .arg("--geometry")
+        .arg(&geo)
+        .args(OPTS)
+        .output()
+        .unwrap();
+    sender.join().unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert_eq!(String::from_utf8(o.stdout).unwrap(), want);
+    // Nobody listening: a clear error.
+    let o = bin()
+        .args(["localize", &format!("tcp:{addr}"), "--geometry"])
+        .arg(&geo)
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("connecting"));
+}
