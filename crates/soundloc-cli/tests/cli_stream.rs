@@ -269,3 +269,56 @@ fn tcp_listen_and_connect_equal_the_file_and_a_cut_frame_is_reported() {
     assert_eq!(o.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&o.stderr).contains("connecting"));
 }
+
+/// `soundloc listen` through ALSA: a capture PCM of ALSA's `file` plugin (over the `null`
+/// device) plays the scene's samples as a microphone would deliver them.
+#[test]
+fn listen_through_alsa_equals_the_file() {
+    if !cfg!(feature = "capture") {
+        let _ = writeln!(
+            std::io::stderr(),
+            "SKIPPED listen_through_alsa_equals_the_file: built without the capture feature"
+        );
+        return;
+    }
+    let (audio, geo, wav) = scene();
+    let want = from_file(&wav, &geo);
+    let home = tmp("alsa-home");
+    std::fs::create_dir_all(&home).unwrap();
+    let raw = home.join("in.raw");
+    std::fs::write(&raw, s16le(&audio, 0..audio.num_samples())).unwrap();
+    std::fs::write(
+        home.join(".asoundrc"),
+        format!(
+            "pcm.!default {{\n type file\n slave.pcm \"null\"\n file \"/dev/null\"\n infile \"{}\"\n format \"raw\"\n}}\n",
+            raw.display()
+        ),
+    )
+    .unwrap();
+    let o = bin()
+        .env("HOME", &home)
+        .args([
+            "listen",
+            "--channels-in",
+            "8",
+            "--rate",
+            "16000",
+            "--seconds",
+            "3",
+            "--geometry",
+        ])
+        .arg(&geo)
+        .args(OPTS)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    if err.contains("no input configuration") || err.contains("opening a") {
+        let _ = writeln!(
+            std::io::stderr(),
+            "SKIPPED listen_through_alsa_equals_the_file: no ALSA capture device ({err})"
+        );
+        return;
+    }
+    assert!(o.status.success(), "{err}");
+    assert_eq!(String::from_utf8(o.stdout).unwrap(), want, "{err}");
+}

@@ -8,14 +8,16 @@ use clap::ValueEnum;
 use soundloc::array::freefield::DEFAULT_SPEED_OF_SOUND_M_S;
 use soundloc::array::grid::GridSpec;
 use soundloc::array::Geometry;
+use soundloc::audio::AudioFormat;
 use soundloc::config::{Denominator, SpectrumWeight};
 use soundloc::tracking::TrackerConfig;
 use soundloc::{
     Algorithm, ArraySpec, Block, LocalizeConfig, Localizer, LocalizerSpec, NoiseSource, NoiseUpdate, Output,
     TrackingSpec, WindowFunction, WindowType,
 };
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
+use std::sync::mpsc::Receiver;
 use std::time::Instant;
 
 #[derive(ValueEnum, Clone, Copy, Debug)]
@@ -123,10 +125,19 @@ pub struct AnalysisArgs {
     pub diagonal_loading: f64,
 }
 
+/// `soundloc localize`: an input, and what to do with it.
 #[derive(clap::Args, Debug)]
 pub struct Args {
     #[command(flatten)]
     pub input: InputArgs,
+    #[command(flatten)]
+    pub run: RunArgs,
+}
+
+/// Everything but the input: array, analysis, noise, tracking, outputs, device (shared by
+/// `localize` and `listen`).
+#[derive(clap::Args, Debug)]
+pub struct RunArgs {
     /// HARK transfer-function zip or old HGTF (*_loc.dat).
     #[arg(long, conflicts_with = "geometry")]
     pub tf: Option<PathBuf>,
@@ -268,7 +279,7 @@ impl AnalysisArgs {
 }
 
 /// The online noise-update rule from --noise-segments / --noise-preceding.
-fn noise_update(a: &Args) -> anyhow::Result<NoiseUpdate> {
+fn noise_update(a: &RunArgs) -> anyhow::Result<NoiseUpdate> {
     if let Some(s) = &a.noise_segments {
         let segs = s
             .split(',')
@@ -314,7 +325,7 @@ pub fn note(quiet: bool, msg: &str) {
     }
 }
 
-impl Args {
+impl RunArgs {
     /// The library spec these arguments describe, for an input sampled at `rate_hz`.
     pub fn spec(&self, rate_hz: u32) -> anyhow::Result<LocalizerSpec> {
         let array = match (&self.tf, &self.geometry) {
@@ -376,11 +387,21 @@ impl Args {
     }
 }
 
-pub fn run(a: Args) -> anyhow::Result<ExitCode> {
-    Sinks::check_paths(&a)?;
-    let input = a.input.open(a.quiet)?;
-    let name = input.name.clone();
-    let fmt = input.source.format();
+pub fn run(args: Args) -> anyhow::Result<ExitCode> {
+    Sinks::check_paths(&args.run)?;
+    let input = args.input.open(args.run.quiet)?;
+    let (fmt, rx) = spawn_reader(input.source, input.live, args.input.max_buffer);
+    drive(&args.run, &input.name, input.live, fmt, rx)
+}
+
+/// Localize what the reader sends, writing results as they complete.
+pub fn drive(
+    a: &RunArgs,
+    name: &Path,
+    live: bool,
+    fmt: AudioFormat,
+    rx: Receiver<Msg>,
+) -> anyhow::Result<ExitCode> {
     let spec = a.spec(fmt.sample_rate_hz)?;
     let mut loc = Localizer::new(&spec)?;
     for n in loc.notes() {
@@ -389,7 +410,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     loc.check_input(fmt.sample_rate_hz, fmt.channels)
         .map_err(|e| anyhow!("{}: {e}", name.display()))?;
     let fs = fmt.sample_rate_hz as f64;
-    if input.live {
+    if live {
         let c = loc.config();
         note(
             a.quiet,
@@ -402,9 +423,9 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
             ),
         );
     }
-    let mut sinks = Sinks::open(&a, &loc)?;
+    let mut sinks = Sinks::open(a, &loc)?;
     let total = fmt.total_frames.unwrap_or(0);
-    let bar = (!a.quiet && !input.live && total as f64 / fs > 3.0).then(|| {
+    let bar = (!a.quiet && !live && total as f64 / fs > 3.0).then(|| {
         let b = indicatif::ProgressBar::new(total);
         b.set_style(
             indicatif::ProgressStyle::with_template("{spinner} localizing [{bar:40}] {percent}% {eta}")
@@ -412,7 +433,6 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         );
         b
     });
-    let (fmt, rx) = spawn_reader(input.source, input.live, a.input.max_buffer);
     let nch = fmt.channels;
     let mut out = Output::default();
     let (mut audio_frames, mut lost_frames, mut gaps) = (0u64, 0u64, 0usize);
@@ -460,7 +480,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
             b.set_position(audio_frames);
         }
         let audio_s = audio_frames as f64 / fs;
-        if input.live && audio_s >= next_report {
+        if live && audio_s >= next_report {
             next_report += 10.0;
             note(
                 a.quiet,
@@ -515,6 +535,6 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         loc.config().algorithm.name(),
         loc.device_name()
     );
-    sinks.finish(&a, &loc, &title)?;
+    sinks.finish(a, &loc, &title)?;
     Ok(ExitCode::SUCCESS)
 }

@@ -3,6 +3,7 @@
 pub mod bench;
 pub mod demo;
 pub mod input;
+pub mod listen;
 pub mod localize;
 pub mod noisecm;
 pub mod sinks;
@@ -23,8 +24,10 @@ pub struct Cli {
 pub enum Command {
     /// Simulated scenes with known answers, localized by every algorithm (no files needed).
     Demo(demo::Args),
-    /// Localize sound sources in a recording.
+    /// Localize sound sources in a recording, on standard input or from a TCP peer.
     Localize(Box<localize::Args>),
+    /// Localize a live microphone array (built with the `capture` feature).
+    Listen(Box<listen::Args>),
     /// Benchmark the seed configuration (GSVD, 60 mics, 73 bins, W 50, 2522 directions).
     Bench(bench::Args),
     /// Transfer functions: inspect HARK TF files, make geometric ones.
@@ -94,6 +97,7 @@ pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
         Command::Bench(a) => bench::run(a),
         Command::Demo(a) => demo::run(a),
         Command::Localize(a) => localize::run(*a),
+        Command::Listen(a) => listen::run(*a),
         Command::Tf(a) => tf::run(a),
         Command::Noisecm(a) => noisecm::run(a),
     }

@@ -5,7 +5,7 @@
 //! succeeds. Outputs that need the whole run (summary, HARK logs, the spectrum `.npy`, the
 //! plot) are written at the end. Every output path is checked before localization starts.
 
-use super::localize::{Args, FormatArg};
+use super::localize::{FormatArg, RunArgs};
 use anyhow::{bail, Context};
 use soundloc::output::atomic::{write_atomically, AtomicFile};
 use soundloc::output::hark_stream::HarkStreamSender;
@@ -77,7 +77,7 @@ fn check_dir(p: &Path, what: &str) -> anyhow::Result<()> {
 
 impl Sinks {
     /// Check every output path before anything is computed.
-    pub fn check_paths(a: &Args) -> anyhow::Result<()> {
+    pub fn check_paths(a: &RunArgs) -> anyhow::Result<()> {
         for (p, what) in [
             (&a.output, "--output"),
             (&a.spectrum, "--spectrum"),
@@ -109,7 +109,7 @@ impl Sinks {
     }
 
     /// Open the streaming outputs (the `-o` temporary file, the HARK stream connection).
-    pub fn open(a: &Args, loc: &Localizer) -> anyhow::Result<Self> {
+    pub fn open(a: &RunArgs, loc: &Localizer) -> anyhow::Result<Self> {
         let dest = match &a.output {
             Some(p) => Dest::File(Lines::new(a.format, AtomicFile::create(p)?)?, p.clone()),
             None => {
@@ -174,7 +174,7 @@ impl Sinks {
     }
 
     /// The end-of-run outputs, then the `-o` file is renamed into place.
-    pub fn finish(self, a: &Args, loc: &Localizer, title: &str) -> anyhow::Result<()> {
+    pub fn finish(self, a: &RunArgs, loc: &Localizer, title: &str) -> anyhow::Result<()> {
         let results = self.keep.unwrap_or_default();
         if let Some(p) = &a.summary {
             let s = soundloc::tracking::summarize(&results);
