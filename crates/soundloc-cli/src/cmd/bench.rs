@@ -36,6 +36,86 @@ pub struct Args {
     /// Print the reports as JSON (one object per line) instead of a table.
     #[arg(long)]
     pub json: bool,
+    /// The stream engine as live input drives it (10 ms pushes, PAST windows): real-time
+    /// factor and latency, on the 8-mic ring and the seed configuration.
+    #[arg(long)]
+    pub stream: bool,
+    /// With --stream: PERIOD in frames.
+    #[arg(long, default_value_t = 1)]
+    pub period: usize,
+    /// With --stream: seconds of audio per run (after one second of warm-up).
+    #[arg(long, default_value_t = 5.0)]
+    pub seconds: f64,
+    /// With --stream: which arrays (repeatable; default: both).
+    #[arg(long = "array", value_enum)]
+    pub arrays: Vec<ArrayArg>,
+}
+
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ArrayArg {
+    /// 8-mic circle, 72 directions.
+    Ring8,
+    /// 60 mics, 2522 directions.
+    Seed,
+}
+
+fn run_stream(a: &Args, algs: &[AlgorithmArg]) -> anyhow::Result<ExitCode> {
+    use soundloc::bench::stream::{run, StreamArray, StreamBenchConfig};
+    let arrays = if a.arrays.is_empty() { vec![ArrayArg::Ring8, ArrayArg::Seed] } else { a.arrays.clone() };
+    for arr in arrays {
+        for &alg in algs {
+            let cfg = StreamBenchConfig {
+                array: match arr {
+                    ArrayArg::Ring8 => StreamArray::Ring8,
+                    ArrayArg::Seed => StreamArray::Seed,
+                },
+                algorithm: alg.into(),
+                period: a.period,
+                seconds: a.seconds,
+                block: 160,
+                device: a.device.into(),
+                precision: match a.precision {
+                    PrecisionArg::F32 => soundloc::Precision::F32,
+                    PrecisionArg::F64 => soundloc::Precision::F64,
+                },
+            };
+            let r = run(&cfg)?;
+            if a.json {
+                println!("{}", serde_json::to_string(&r)?);
+            } else {
+                println!(
+                    "stream {:?} {} on {}: M={} D={} PERIOD {} ({:.0} results/s of audio), 10 ms pushes, {:.1} s",
+                    cfg.array,
+                    cfg.algorithm.name(),
+                    r.device,
+                    r.num_mics,
+                    r.num_dirs,
+                    cfg.period,
+                    100.0 / cfg.period as f64,
+                    cfg.seconds
+                );
+                println!(
+                    "  real-time factor {:.4} ({:.1}x real time); latency last sample -> result: median {:.2} ms, p99 {:.2} ms, max {:.2} ms",
+                    r.rtf,
+                    1.0 / r.rtf,
+                    r.latency_ms_median,
+                    r.latency_ms_p99,
+                    r.latency_ms_max
+                );
+                let s = &r.stages_per_result;
+                println!(
+                    "  per result (ms): correlation {:.3}, decomposition {:.3}, spectrum {:.3}, peaks {:.3}; rest {:.3}",
+                    s.correlation_ms,
+                    s.decomposition_ms,
+                    s.spectrum_ms,
+                    s.peaks_ms,
+                    r.rtf * 1e3 * cfg.period as f64 / 100.0
+                        - (s.correlation_ms + s.decomposition_ms + s.spectrum_ms + s.peaks_ms)
+                );
+            }
+        }
+    }
+    Ok(ExitCode::SUCCESS)
 }
 
 pub fn run(a: Args) -> anyhow::Result<ExitCode> {
@@ -44,6 +124,9 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     } else {
         a.algorithms.clone()
     };
+    if a.stream {
+        return run_stream(&a, &algs);
+    }
     for alg in algs {
         let cfg = BenchConfig {
             algorithm: alg.into(),

@@ -9,6 +9,8 @@
 //! compute per second of audio at PERIOD 50 and PERIOD 1 (2 and 100 localizations per
 //! second of audio at hop 160), the real-time factor, and the stage split.
 
+pub mod stream;
+
 use crate::array::{Grid, TransferFunctions};
 use crate::backend::{BatchOutput, DeviceChoice, Spectra, StageTimes, WindowSpec};
 use crate::config::{Algorithm, LocalizeConfig};
@@ -147,7 +149,7 @@ pub fn inputs<T: Real>(cfg: &BenchConfig) -> Result<BenchInputs<T>> {
     })
 }
 
-fn gauss(rng: &mut impl Rng) -> f64 {
+pub(crate) fn gauss(rng: &mut impl Rng) -> f64 {
     // Box–Muller.
     let u1: f64 = rng.gen_range(f64::EPSILON..1.0);
     let u2: f64 = rng.gen_range(0.0..1.0);
@@ -155,7 +157,7 @@ fn gauss(rng: &mut impl Rng) -> f64 {
 }
 
 /// K = Nᴴ N / (4M) + 0.1 I per bin, N a 4M × M complex Gaussian matrix.
-fn random_noise(rng: &mut impl Rng, m: usize, bins: std::ops::Range<usize>) -> NoiseMatrices {
+pub(crate) fn random_noise(rng: &mut impl Rng, m: usize, bins: std::ops::Range<usize>) -> NoiseMatrices {
     let mut k = NoiseMatrices::identity(m, bins.clone());
     for b in 0..bins.len() {
         let n: Vec<Complex<f64>> = (0..4 * m * m)

@@ -1,0 +1,176 @@
+//! `soundloc bench --stream`: the stream engine as a live input drives it — 10 ms blocks
+//! pushed one after another, PAST (causal) windows, PERIOD 1 by default — on the 8-mic ring
+//! (72 directions) or the seed configuration (60 mics, 2522 directions, random transfer
+//! functions and K as in [`super::inputs`]).
+//!
+//! Reported: the real-time factor (compute time / audio time), the results per second of
+//! audio, and the latency from the arrival of a window's last sample (the block that holds
+//! it is pushed) to its result (median, p99, max): on one engine a result is ready when the
+//! push that completes its window returns.
+
+use super::{gauss, random_noise};
+use crate::array::{freefield::free_field, Geometry, Grid, TransferFunctions};
+use crate::backend::DeviceChoice;
+use crate::config::{Algorithm, LocalizeConfig, Precision, WindowType};
+use crate::input::Block;
+use crate::localizer::{Localizer, LocalizerSpec, NoiseSource};
+use crate::{Output, Result};
+use num_complex::Complex;
+use rand::{Rng, SeedableRng};
+use std::time::Instant;
+
+/// Which array.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum StreamArray {
+    /// 8-mic circle (r 3.65 cm), 5° ring grid (72 directions), free field.
+    Ring8,
+    /// The seed configuration: 60 mics, 2522-direction sphere, random unit-modulus TFs.
+    Seed,
+}
+
+/// What to run.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct StreamBenchConfig {
+    /// Array.
+    pub array: StreamArray,
+    /// Algorithm.
+    pub algorithm: Algorithm,
+    /// PERIOD in frames.
+    pub period: usize,
+    /// Seconds of audio pushed (after one second of warm-up).
+    pub seconds: f64,
+    /// Samples per channel per push.
+    pub block: usize,
+    /// Device.
+    pub device: DeviceChoice,
+    /// Precision.
+    pub precision: Precision,
+}
+
+/// Figures.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct StreamReport {
+    /// What ran.
+    pub config: StreamBenchConfig,
+    /// Device description.
+    pub device: String,
+    /// Microphones, directions.
+    pub num_mics: usize,
+    /// Directions.
+    pub num_dirs: usize,
+    /// Results produced in the timed part.
+    pub results: usize,
+    /// Compute time / audio time.
+    pub rtf: f64,
+    /// Latency from a window's last sample to its result, ms: median.
+    pub latency_ms_median: f64,
+    /// p99.
+    pub latency_ms_p99: f64,
+    /// Max.
+    pub latency_ms_max: f64,
+    /// Stage split per result, ms (the STFT, scheduling, noise and tracking are the rest).
+    pub stages_per_result: crate::backend::StageTimes,
+}
+
+fn seed_tf(rng: &mut impl Rng, config: &LocalizeConfig, m: usize, d: usize) -> TransferFunctions {
+    let bins = config.bin_range();
+    let mut data = Vec::with_capacity(d * m * bins.len());
+    for _ in 0..d * m * bins.len() {
+        let ph: f32 = rng.gen_range(0.0..std::f32::consts::TAU);
+        data.push(Complex::new(ph.cos(), ph.sin()));
+    }
+    TransferFunctions {
+        nfft: config.nfft,
+        sample_rate_hz: config.sample_rate_hz,
+        grid: Grid::sphere(d, 1.0),
+        mic_positions: vec![[0.0; 3]; m],
+        num_mics: m,
+        first_bin: bins.start,
+        num_bins: bins.len(),
+        data,
+    }
+}
+
+/// Run it.
+pub fn run(cfg: &StreamBenchConfig) -> Result<StreamReport> {
+    let mut rng = rand::rngs::StdRng::seed_from_u64(1);
+    let config = LocalizeConfig {
+        algorithm: cfg.algorithm,
+        window_type: WindowType::Past,
+        period: cfg.period,
+        ..LocalizeConfig::default()
+    };
+    let (tf, k) = match cfg.array {
+        StreamArray::Ring8 => {
+            let g = Geometry::circle(8, 0.0365, 0.0);
+            let tf = free_field(&g, &Grid::ring(5.0, 0.0, 1.0), config.nfft, config.sample_rate_hz, config.bin_range(), 343.0)?;
+            (tf, random_noise(&mut rng, 8, config.bin_range()))
+        }
+        StreamArray::Seed => (seed_tf(&mut rng, &config, 60, 2522), random_noise(&mut rng, 60, config.bin_range())),
+    };
+    let m = tf.num_mics;
+    let d = tf.num_dirs();
+    let mut spec = LocalizerSpec::from_tf("(benchmark)");
+    spec.analysis = config.clone();
+    spec.algorithm = Some(cfg.algorithm);
+    spec.noise = NoiseSource::None;
+    spec.device = cfg.device;
+    spec.precision = cfg.precision;
+    let k = cfg.algorithm.uses_noise().then_some(k);
+    let mut loc = Localizer::with_transfer_functions(&spec, tf, k)?;
+    let fs = config.sample_rate_hz as f64;
+    let block = cfg.block.max(1);
+    let mut buf = vec![0f32; block * m];
+    let mut out = Output::default();
+    let mut fill = |buf: &mut Vec<f32>| {
+        for v in buf.iter_mut() {
+            *v = (1000.0 * gauss(&mut rng)) as f32;
+        }
+    };
+    // Warm-up: one second (plan caches, kernel compilation, the first window).
+    for _ in 0..(fs as usize).div_ceil(block) {
+        fill(&mut buf);
+        loc.push(Block::Interleaved { data: &buf, channels: m }, &mut out)?;
+    }
+    out.results.clear();
+    let before = loc.stage_times();
+    let pushes = (cfg.seconds * fs / block as f64).ceil() as usize;
+    let mut compute = 0.0;
+    let mut lat = Vec::new();
+    let mut results = 0;
+    for _ in 0..pushes {
+        fill(&mut buf);
+        let t = Instant::now();
+        loc.push(Block::Interleaved { data: &buf, channels: m }, &mut out)?;
+        let dt = t.elapsed().as_secs_f64();
+        compute += dt;
+        if !out.results.is_empty() {
+            results += out.results.len();
+            lat.extend(std::iter::repeat_n(dt * 1e3, out.results.len()));
+            out.results.clear();
+        }
+    }
+    lat.sort_by(f64::total_cmp);
+    let st = loc.stage_times();
+    let n = results.max(1) as f64;
+    let stages = crate::backend::StageTimes {
+        correlation_ms: (st.correlation_ms - before.correlation_ms) / n,
+        decomposition_ms: (st.decomposition_ms - before.decomposition_ms) / n,
+        spectrum_ms: (st.spectrum_ms - before.spectrum_ms) / n,
+        peaks_ms: (st.peaks_ms - before.peaks_ms) / n,
+    };
+    let q = |p: f64| lat.get(((lat.len() as f64 - 1.0) * p).round() as usize).copied().unwrap_or(f64::NAN);
+    Ok(StreamReport {
+        config: cfg.clone(),
+        device: loc.device_name(),
+        num_mics: m,
+        num_dirs: d,
+        results,
+        rtf: compute / (pushes * block) as f64 * fs,
+        latency_ms_median: q(0.5),
+        latency_ms_p99: q(0.99),
+        latency_ms_max: lat.last().copied().unwrap_or(f64::NAN),
+        stages_per_result: stages,
+    })
+}
