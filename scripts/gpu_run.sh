@@ -5,7 +5,7 @@
 #   cargo build --release && cargo test --release -p soundloc --test gpu_parity --no-run
 #   scripts/gpu_run.sh --stage        # copies the binaries and the peer into .devcarry/
 # On the device (repo root, $OUT set by the device tool):
-#   scripts/gpu_run.sh [parity] [bench] [peer] [bigbatch] [f64]   (default: parity bench peer)
+#   scripts/gpu_run.sh [parity] [bench] [stream] [peer] [bigbatch] [f64]   (default: parity bench peer)
 set -uo pipefail
 root="$(cd "$(dirname "$0")/.." && pwd)"
 C="$root/.devcarry"
@@ -48,6 +48,9 @@ for s in $steps; do
       for b in 1 256; do
         SOUNDLOC_CUDA_PROFILE=1 "$C/soundloc" bench --device cuda --algorithm gsvd --algorithm sevd --batch $b --repeats 3 --json 2>&1 | grep -E "eigh cycles" | sort | uniq -c | sort -rn | head -4
       done 2>&1 | tee "$OUT/prof.txt" ;;
+    stream)
+      # The stream engine under 10 ms pushes, PERIOD 1: real-time factor and latency.
+      "$C/soundloc" bench --stream --device cuda --array ring8 --array seed --algorithm gsvd --algorithm gevd --seconds ${STREAM_SECONDS:-5} 2>&1 | tee "$OUT/stream.txt" ;;
     f64)
       "$C/soundloc" bench --device cuda --precision f64 --algorithm gsvd --algorithm gevd --batch 64 --repeats 5 --json 2>&1 | tee -a "$OUT/bench.jsonl" ;;
     allalg)
