@@ -24,6 +24,7 @@ use faer::linalg::solvers::DenseSolveCore;
 use faer::{c64, Mat, Side};
 use rayon::prelude::*;
 use std::ops::Range;
+use std::sync::Arc;
 
 /// Noise-dependent precomputation (absent for SEVD).
 #[derive(Debug, Clone, PartialEq)]
@@ -51,10 +52,10 @@ pub struct Plan<T: Real> {
     pub grid: Grid,
     /// Analysis window, N samples.
     pub window: Vec<T>,
-    /// a_{d,k}, `[bin][dir][mic]`.
-    pub steering: Vec<C<T>>,
-    /// ‖a_{d,k}‖², `[bin][dir]`.
-    pub steering_norm2: Vec<T>,
+    /// a_{d,k}, `[bin][dir][mic]`. Shared (not copied) by the plans a K update makes.
+    pub steering: Arc<Vec<C<T>>>,
+    /// ‖a_{d,k}‖², `[bin][dir]`. Shared like `steering`.
+    pub steering_norm2: Arc<Vec<T>>,
     /// Spectrum weight w_k per used bin.
     pub weights: Vec<T>,
     /// Whitening for GEVD / GEVD-HARK / GSVD.
@@ -166,15 +167,17 @@ impl<T: Real> Plan<T> {
             bins,
             grid: tf.grid.clone(),
             window: window_function::<T>(config.window_function, config.nfft),
-            steering,
-            steering_norm2: norm2,
+            steering: Arc::new(steering),
+            steering_norm2: Arc::new(norm2),
             weights,
             whitening,
             peak_table,
         })
     }
 
-    /// The same plan with a new noise matrix K (online K updates: iGSVD / iGEVD).
+    /// The same plan with a new noise matrix K (online K updates: iGSVD / iGEVD). Only the
+    /// noise part (whitening, and for GEVD the whitened steering) is computed; the steering
+    /// vectors and their norms are shared with `self`, not copied.
     pub fn with_noise(&self, noise: &NoiseMatrices) -> Result<Self> {
         let mut p = self.clone();
         if self.config.algorithm.uses_noise() {
@@ -477,5 +480,44 @@ fn bin_whitening<T: Real>(
             }
             Ok((row_major(&linv), st, n2))
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::array::{freefield::free_field, Geometry, Grid};
+
+    #[test]
+    fn a_k_update_shares_the_steering_and_rebuilds_only_the_whitening() {
+        let config = LocalizeConfig {
+            algorithm: Algorithm::Gsvd,
+            ..LocalizeConfig::default()
+        };
+        let tf = free_field(
+            &Geometry::circle(4, 0.05, 0.0),
+            &Grid::ring(10.0, 0.0, 1.0),
+            512,
+            16000,
+            config.bin_range(),
+            343.0,
+        )
+        .unwrap();
+        let p = Plan::<f32>::new(&config, &tf, None).unwrap();
+        let mut k = NoiseMatrices::identity(4, config.bin_range());
+        for b in 0..k.num_bins {
+            k.data[b * 16].re = 4.0; // K = diag(4, 1, 1, 1)
+        }
+        let q = p.with_noise(&k).unwrap();
+        assert!(Arc::ptr_eq(&p.steering, &q.steering));
+        assert!(Arc::ptr_eq(&p.steering_norm2, &q.steering_norm2));
+        // GSVD's W = K⁻¹ after HARK's scaling (K / max|Re K| = diag(1, 1/4, 1/4, 1/4)).
+        let w = q.whitening_matrix(0).unwrap();
+        assert!(
+            (w[0].re - 1.0).abs() < 1e-6 && (w[5].re - 4.0).abs() < 1e-5,
+            "{:?}",
+            &w[..6]
+        );
+        assert_eq!(p.whitening_matrix(0).unwrap()[5].re, 1.0);
     }
 }

@@ -469,7 +469,11 @@ fn streaming_on_the_gpu_equals_its_batch_run_and_the_cpu() {
     let scene = soundloc::demo::ring8_drone(-5.0, 21).unwrap();
     let audio = scene.render();
     let secs = if mode.is_emulator() { 2.2 } else { 3.0 };
-    let channels: Vec<Vec<f32>> = audio.channels.iter().map(|c| c[..(secs * 16000.0) as usize].to_vec()).collect();
+    let channels: Vec<Vec<f32>> = audio
+        .channels
+        .iter()
+        .map(|c| c[..(secs * 16000.0) as usize].to_vec())
+        .collect();
     let config = LocalizeConfig {
         algorithm: Algorithm::Gevd,
         window_type: WindowType::Past,
@@ -484,7 +488,12 @@ fn streaming_on_the_gpu_equals_its_batch_run_and_the_cpu() {
         channels: ChannelMap::identity(8),
         want_spectrum: true,
     };
-    fn engine<T: Real>(mode: Option<&Mode>, config: &LocalizeConfig, tf: &TransferFunctions, options: &StreamOptions) -> Engine<T> {
+    fn engine<T: Real>(
+        mode: Option<&Mode>,
+        config: &LocalizeConfig,
+        tf: &TransferFunctions,
+        options: &StreamOptions,
+    ) -> Engine<T> {
         let plan = Arc::new(Plan::<T>::new(config, tf, None).unwrap());
         let backend: Box<dyn Backend<T>> = match mode {
             Some(m) => gpu(m, plan.clone()),
@@ -492,7 +501,9 @@ fn streaming_on_the_gpu_equals_its_batch_run_and_the_cpu() {
         };
         Engine::new(plan, backend, options.clone()).unwrap()
     }
-    let whole = engine::<f32>(Some(&mode), &config, &tf, &options).localize(&channels).unwrap();
+    let whole = engine::<f32>(Some(&mode), &config, &tf, &options)
+        .localize(&channels)
+        .unwrap();
     let mut e = engine::<f32>(Some(&mode), &config, &tf, &options);
     let mut out = Output::default();
     let mut rng = rand::rngs::StdRng::seed_from_u64(4);
@@ -506,18 +517,39 @@ fn streaming_on_the_gpu_equals_its_batch_run_and_the_cpu() {
     }
     e.flush(&mut out).unwrap();
     assert_eq!(out.results.len(), whole.results.len());
-    let peaks = |r: &[soundloc::LocalizationResult]| -> Vec<Vec<usize>> { r.iter().map(|x| x.sources.iter().map(|s| s.grid_index).collect()).collect() };
-    assert_eq!(peaks(&out.results), peaks(&whole.results), "GPU stream vs GPU whole file");
-    let (a, b) = (&out.spectrum.as_ref().unwrap().db, &whole.spectrum.as_ref().unwrap().db);
+    let peaks = |r: &[soundloc::LocalizationResult]| -> Vec<Vec<usize>> {
+        r.iter()
+            .map(|x| x.sources.iter().map(|s| s.grid_index).collect())
+            .collect()
+    };
+    assert_eq!(
+        peaks(&out.results),
+        peaks(&whole.results),
+        "GPU stream vs GPU whole file"
+    );
+    let (a, b) = (
+        &out.spectrum.as_ref().unwrap().db,
+        &whole.spectrum.as_ref().unwrap().db,
+    );
     let max_diff = a.iter().zip(b).map(|(x, y)| (x - y).abs()).fold(0.0f32, f32::max);
     assert!(max_diff < 1e-3, "GPU stream vs GPU whole file: {max_diff} dB");
-    let cpu = engine::<f64>(None, &config, &tf, &options).localize(&channels).unwrap();
+    let cpu = engine::<f64>(None, &config, &tf, &options)
+        .localize(&channels)
+        .unwrap();
     let c = &cpu.spectrum.as_ref().unwrap().db;
-    let rms = (a.iter().zip(c).map(|(x, y)| ((x - y) as f64).powi(2)).sum::<f64>() / a.len() as f64).sqrt();
+    let rms = (a
+        .iter()
+        .zip(c)
+        .map(|(x, y)| ((x - y) as f64).powi(2))
+        .sum::<f64>()
+        / a.len() as f64)
+        .sqrt();
     // Peaks are compared once the talkers fill the window (they start at 1 s; a PAST
     // window is 0.5 s): before, the whitened spectrum is flat and its maxima move with
     // rounding (spec §9).
-    let talk: Vec<usize> = (0..out.results.len()).filter(|&i| out.results[i].time_s >= 1.5).collect();
+    let talk: Vec<usize> = (0..out.results.len())
+        .filter(|&i| out.results[i].time_s >= 1.5)
+        .collect();
     let (g, c64) = (peaks(&out.results), peaks(&cpu.results));
     let same = talk.iter().filter(|&&i| g[i] == c64[i]).count();
     note(&format!(

@@ -61,7 +61,11 @@ pub enum ArrayArg {
 
 fn run_stream(a: &Args, algs: &[AlgorithmArg]) -> anyhow::Result<ExitCode> {
     use soundloc::bench::stream::{run, StreamArray, StreamBenchConfig};
-    let arrays = if a.arrays.is_empty() { vec![ArrayArg::Ring8, ArrayArg::Seed] } else { a.arrays.clone() };
+    let arrays = if a.arrays.is_empty() {
+        vec![ArrayArg::Ring8, ArrayArg::Seed]
+    } else {
+        a.arrays.clone()
+    };
     for arr in arrays {
         for &alg in algs {
             let cfg = StreamBenchConfig {

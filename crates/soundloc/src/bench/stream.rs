@@ -104,10 +104,20 @@ pub fn run(cfg: &StreamBenchConfig) -> Result<StreamReport> {
     let (tf, k) = match cfg.array {
         StreamArray::Ring8 => {
             let g = Geometry::circle(8, 0.0365, 0.0);
-            let tf = free_field(&g, &Grid::ring(5.0, 0.0, 1.0), config.nfft, config.sample_rate_hz, config.bin_range(), 343.0)?;
+            let tf = free_field(
+                &g,
+                &Grid::ring(5.0, 0.0, 1.0),
+                config.nfft,
+                config.sample_rate_hz,
+                config.bin_range(),
+                343.0,
+            )?;
             (tf, random_noise(&mut rng, 8, config.bin_range()))
         }
-        StreamArray::Seed => (seed_tf(&mut rng, &config, 60, 2522), random_noise(&mut rng, 60, config.bin_range())),
+        StreamArray::Seed => (
+            seed_tf(&mut rng, &config, 60, 2522),
+            random_noise(&mut rng, 60, config.bin_range()),
+        ),
     };
     let m = tf.num_mics;
     let d = tf.num_dirs();
@@ -131,7 +141,13 @@ pub fn run(cfg: &StreamBenchConfig) -> Result<StreamReport> {
     // Warm-up: one second (plan caches, kernel compilation, the first window).
     for _ in 0..(fs as usize).div_ceil(block) {
         fill(&mut buf);
-        loc.push(Block::Interleaved { data: &buf, channels: m }, &mut out)?;
+        loc.push(
+            Block::Interleaved {
+                data: &buf,
+                channels: m,
+            },
+            &mut out,
+        )?;
     }
     out.results.clear();
     let before = loc.stage_times();
@@ -142,7 +158,13 @@ pub fn run(cfg: &StreamBenchConfig) -> Result<StreamReport> {
     for _ in 0..pushes {
         fill(&mut buf);
         let t = Instant::now();
-        loc.push(Block::Interleaved { data: &buf, channels: m }, &mut out)?;
+        loc.push(
+            Block::Interleaved {
+                data: &buf,
+                channels: m,
+            },
+            &mut out,
+        )?;
         let dt = t.elapsed().as_secs_f64();
         compute += dt;
         if !out.results.is_empty() {
@@ -160,7 +182,11 @@ pub fn run(cfg: &StreamBenchConfig) -> Result<StreamReport> {
         spectrum_ms: (st.spectrum_ms - before.spectrum_ms) / n,
         peaks_ms: (st.peaks_ms - before.peaks_ms) / n,
     };
-    let q = |p: f64| lat.get(((lat.len() as f64 - 1.0) * p).round() as usize).copied().unwrap_or(f64::NAN);
+    let q = |p: f64| {
+        lat.get(((lat.len() as f64 - 1.0) * p).round() as usize)
+            .copied()
+            .unwrap_or(f64::NAN)
+    };
     Ok(StreamReport {
         config: cfg.clone(),
         device: loc.device_name(),
