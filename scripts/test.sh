@@ -1,6 +1,8 @@
 #!/usr/bin/env bash
-# Every test suite, installing what the suites need first (Debian packages).
+# Every test suite, installing what the suites need first (Debian and PyPI packages).
 #   Rust: the workspace, with live-microphone capture compiled in (needs libasound2-dev).
+#   Python: the binding's wheel built with maturin into a virtual environment
+#   (target/pyvenv, with numpy and pytest), then pytest.
 # Tests that need hardware this machine lacks (GPU, capture device) print
 # "SKIPPED <test>: <reason>".
 set -euo pipefail
@@ -14,3 +16,11 @@ if ((${#need[@]})); then
     DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq "${need[@]}" >/dev/null
 fi
 cargo test --release --workspace --features soundloc-cli/capture "$@"
+
+venv=target/pyvenv
+[ -x "$venv/bin/python" ] || python3 -m venv "$venv"
+"$venv/bin/python" -m pip install -q --disable-pip-version-check "maturin>=1.5,<2" numpy pytest
+rm -rf target/wheels
+"$venv/bin/maturin" build --release -q -m crates/soundloc-py/Cargo.toml -o target/wheels -i "$venv/bin/python"
+"$venv/bin/python" -m pip install -q --disable-pip-version-check --force-reinstall --no-deps target/wheels/soundloc-*.whl
+SOUNDLOC_BIN="$PWD/target/release/soundloc" "$venv/bin/python" -m pytest -q crates/soundloc-py/tests

@@ -240,15 +240,13 @@ pub struct Localizer {
 impl Localizer {
     /// Build from a spec: loads the files it names, plans, picks the device.
     pub fn new(spec: &LocalizerSpec) -> Result<Self> {
-        let (algorithm, note) = spec.resolved_algorithm();
+        let (algorithm, _) = spec.resolved_algorithm();
         let config = LocalizeConfig {
             algorithm,
             ..spec.analysis.clone()
         };
         let tf = spec.load_array(&config)?;
-        let mut loc = Self::with_transfer_functions(spec, tf, None)?;
-        loc.notes.splice(0..0, note);
-        Ok(loc)
+        Self::with_transfer_functions(spec, tf, None)
     }
 
     /// Build with transfer functions (all microphones, before `spec.channels`) already in
@@ -259,7 +257,7 @@ impl Localizer {
         tf: TransferFunctions,
         noise: Option<NoiseMatrices>,
     ) -> Result<Self> {
-        let (algorithm, _) = spec.resolved_algorithm();
+        let (algorithm, note) = spec.resolved_algorithm();
         let full_mics = tf.num_mics;
         let tf = if spec.channels.is_empty() {
             tf
@@ -277,7 +275,7 @@ impl Localizer {
             full_mics,
             mics: tf.num_mics,
         };
-        let mut notes = Vec::new();
+        let mut notes: Vec<String> = note.into_iter().collect();
         let initial_noise = match (noise, &spec.noise) {
             _ if !algorithm.uses_noise() => InitialNoise::Given(None),
             (Some(k), _) => InitialNoise::Given(Some(k)),

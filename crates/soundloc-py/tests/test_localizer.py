@@ -1,0 +1,170 @@
+"""The Python binding: known directions on a synthetic scene, the same answers as the CLI,
+streaming in random blocks equal to a whole-array run, and clear exceptions."""
+
+import json
+import os
+import subprocess
+import wave
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import soundloc
+
+FS = 16000
+RADIUS = 0.0365
+MICS = np.array([[RADIUS * np.cos(2 * np.pi * k / 8), RADIUS * np.sin(2 * np.pi * k / 8), 0.0] for k in range(8)])
+TALKERS = (30.0, -120.0)
+ROOT = Path(__file__).resolve().parents[3]
+
+
+def scene(seconds=2.0, seed=1, snr_db=20.0):
+    """Two white-noise talkers as far-field plane waves on the 8-mic circle (fractional
+    delays in the frequency domain), plus sensor noise; int16 (samples, channels)."""
+    rng = np.random.default_rng(seed)
+    n = int(seconds * FS)
+    f = np.fft.rfftfreq(n, 1 / FS)
+    x = np.zeros((n, 8))
+    for az in TALKERS:
+        s = np.fft.rfft(rng.standard_normal(n))
+        u = np.array([np.cos(np.radians(az)), np.sin(np.radians(az)), 0.0])
+        for m in range(8):
+            tau = -MICS[m] @ u / 343.0  # arrival time relative to the centre
+            x[:, m] += np.fft.irfft(s * np.exp(-2j * np.pi * f * tau), n)
+    x *= 3000 / x.std()
+    x += rng.standard_normal(x.shape) * 3000 * 10 ** (-snr_db / 20)
+    return np.clip(np.round(x), -32768, 32767).astype(np.int16)
+
+
+def angle(a, b):
+    return abs((a - b + 180) % 360 - 180)
+
+
+def localizer(**kw):
+    args = dict(geometry=MICS, grid="ring:5", device="cpu")
+    args.update(kw)
+    return soundloc.Localizer(**args)
+
+
+def test_known_directions():
+    x = scene()
+    loc = localizer()
+    r = loc.localize(x, FS)
+    assert len(r) == len(r.times) >= 3
+    assert r.azimuth_deg.shape == (len(r), 2)
+    assert r.spectrum_db.shape == (len(r), 72)
+    for row in r.azimuth_deg:
+        for t in TALKERS:
+            assert min(angle(a, t) for a in row) <= 5.0, (row, t)
+    d = loc.directions()
+    assert d["azimuth_deg"].shape == (72,) and d["unit"].shape == (72, 3)
+    # The spectrum's maxima are the reported peaks.
+    best = np.argmax(r.spectrum_db, axis=1)
+    assert np.all(best == r.grid_index[:, 0])
+
+
+def test_dtypes_layouts_and_random_blocks_give_the_same_results():
+    x = scene(seconds=1.5, seed=2)
+    loc = localizer(window_type="past", period=7)
+    whole = loc.localize(x, FS)
+    for variant in (x.astype(np.float32), x.astype(np.float64), x.astype(np.int32)):
+        v = loc.localize(variant, FS)
+        np.testing.assert_array_equal(v.azimuth_deg, whole.azimuth_deg)
+        np.testing.assert_array_equal(v.spectrum_db, whole.spectrum_db)
+    cf = loc.localize(np.ascontiguousarray(x.T), FS, channels_first=True)
+    np.testing.assert_array_equal(cf.spectrum_db, whole.spectrum_db)
+    loc.reset()
+    rng = np.random.default_rng(3)
+    parts, pos = [], 0
+    while pos < len(x):
+        n = int(rng.integers(1, 4000))
+        parts.append(loc.push(x[pos : pos + n]))
+        pos += n
+    parts.append(loc.flush())
+    times = np.concatenate([p.times for p in parts])
+    az = np.concatenate([p.azimuth_deg for p in parts if len(p)])
+    spec = np.concatenate([p.spectrum_db for p in parts if len(p)])
+    np.testing.assert_array_equal(times, whole.times)
+    np.testing.assert_array_equal(az, whole.azimuth_deg)
+    np.testing.assert_array_equal(spec, whole.spectrum_db)
+    assert loc.latency_frames == 0
+
+
+def test_noise_array_selects_gevd_and_tracking_gives_ids():
+    x = scene(seconds=2.0, seed=4)
+    noise = (np.random.default_rng(5).standard_normal((16000, 8)) * 30).astype(np.float32)
+    loc = localizer(noise=noise, track=True)
+    assert loc.algorithm == "gevd"
+    assert any("textbook GEVD" in n for n in loc.notes)
+    r = loc.localize(x, FS)
+    assert np.all(r.ids[:, :2] >= 0)
+    loc = localizer(noise_range=(0.0, 0.5), algorithm="gsvd")
+    assert loc.algorithm == "gsvd"
+    assert len(loc.localize(x, FS)) > 0
+
+
+def write_wav(path, x):
+    with wave.open(str(path), "wb") as w:
+        w.setnchannels(x.shape[1])
+        w.setsampwidth(2)
+        w.setframerate(FS)
+        w.writeframes(x.astype("<i2").tobytes())
+
+
+def cli():
+    b = Path(os.environ.get("SOUNDLOC_BIN", ROOT / "target" / "release" / "soundloc"))
+    if not b.exists():
+        pytest.skip(f"SKIPPED python_equals_cli: {b} not built")
+    return b
+
+
+def test_python_equals_the_cli(tmp_path):
+    x = scene(seconds=2.0, seed=6)
+    wav = tmp_path / "rec.wav"
+    write_wav(wav, x)
+    geo = tmp_path / "array.toml"
+    geo.write_text("mics = [" + ", ".join("[%r, %r, %r]" % tuple(float(v) for v in m) for m in MICS) + "]\n")
+    out = subprocess.run(
+        [str(cli()), "localize", str(wav), "--geometry", str(geo), "--grid", "ring:5", "--device", "cpu", "-q",
+         "--period", "20"],
+        check=True,
+        capture_output=True,
+        text=True,
+    ).stdout
+    lines = [json.loads(l) for l in out.splitlines()]
+    r = localizer(period=20).localize(x, FS)
+    assert len(lines) == len(r)
+    for i, l in enumerate(lines):
+        assert l["frame"] == r.frames[i]
+        assert [s["azimuth_deg"] for s in l["sources"]] == list(r.azimuth_deg[i])
+        assert [s["power_db"] for s in l["sources"]] == list(r.power_db[i])
+
+
+def test_bad_input_raises_the_right_exception(tmp_path):
+    loc = localizer()
+    x = scene(seconds=1.0)
+    with pytest.raises(TypeError):
+        loc.localize(x.astype(np.complex64), FS)
+    with pytest.raises(ValueError, match="2-D"):
+        loc.localize(x[:, 0], FS)
+    with pytest.raises(ValueError, match="channels_first=True"):
+        loc.localize(np.ascontiguousarray(x.T), FS)
+    with pytest.raises(ValueError, match="4 channels"):
+        loc.localize(x[:, :4], FS)
+    with pytest.raises(ValueError, match="48000 Hz"):
+        loc.localize(x, 48000)
+    bad = x.astype(np.float32)
+    bad[100, 3] = np.nan
+    with pytest.raises(ValueError, match="NaN"):
+        loc.localize(bad, FS)
+    with pytest.raises(ValueError, match="needs at least"):
+        loc.localize(x[:1000], FS)
+    with pytest.raises(OSError, match="missing.zip"):
+        soundloc.Localizer(tf=str(tmp_path / "missing.zip"))
+    with pytest.raises(ValueError, match="algorithm"):
+        localizer(algorithm="nope")
+    with pytest.raises(ValueError, match="num-sources"):
+        localizer(num_sources=8)
+    with pytest.raises(ValueError, match="no array"):
+        soundloc.Localizer()
