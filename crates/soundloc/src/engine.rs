@@ -384,8 +384,22 @@ impl<T: Real> Engine<T> {
             let (buf_start, buf) = self.stft.buffered();
             for (c, ch) in buf.iter().enumerate() {
                 let tail = &ch[first - buf_start..];
-                if let Some(i) = tail.iter().position(|v| !v.is_finite()) {
-                    let what = if tail[i].is_nan() { "NaN" } else { "infinite" };
+                if let Some(i) = tail
+                    .iter()
+                    .position(|v| !v.is_finite() || v.abs() > T::MAX_SAMPLE)
+                {
+                    let what = if tail[i].is_nan() {
+                        "NaN".to_string()
+                    } else if tail[i].is_infinite() {
+                        "infinite".to_string()
+                    } else {
+                        format!(
+                            "{:e}, beyond what {} correlation matrices hold (|x| <= {:e}; use --precision f64 or scale the input)",
+                            tail[i],
+                            T::NAME,
+                            T::MAX_SAMPLE
+                        )
+                    };
                     return Err(Error::numerical(
                         "audio",
                         format!(

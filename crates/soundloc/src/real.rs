@@ -37,6 +37,10 @@ pub trait Real:
     const NAME: &'static str;
     /// Machine epsilon.
     const EPS: f64;
+    /// Largest input sample magnitude the correlation matrices hold without overflow in
+    /// this precision (x → N·x by the FFT, then squared and summed over a window):
+    /// 1e14 for f32 (safe to N = 4096, W = 200), unlimited for f64.
+    const MAX_SAMPLE: f32;
     /// Convert from `f64` (rounding for `f32`).
     fn of_f64(x: f64) -> Self;
     /// Widen to `f64`.
@@ -46,6 +50,7 @@ pub trait Real:
 impl Real for f32 {
     const NAME: &'static str = "f32";
     const EPS: f64 = f32::EPSILON as f64;
+    const MAX_SAMPLE: f32 = 1e14;
     #[inline(always)]
     fn of_f64(x: f64) -> Self {
         x as f32
@@ -59,6 +64,7 @@ impl Real for f32 {
 impl Real for f64 {
     const NAME: &'static str = "f64";
     const EPS: f64 = f64::EPSILON;
+    const MAX_SAMPLE: f32 = f32::MAX;
     #[inline(always)]
     fn of_f64(x: f64) -> Self {
         x

@@ -261,6 +261,10 @@ pub fn unescape(s: &str) -> String {
     o
 }
 
+/// Deepest element nesting accepted: the tree (and dropping it) is recursive, so a
+/// hostile file nested a million levels deep must not reach it.
+pub const MAX_DEPTH: usize = 256;
+
 /// Parse a document. Returns a synthetic root element named `#document` whose children
 /// are the top-level elements (normally one, `hark_xml`). A leading UTF-8 BOM is skipped.
 pub fn parse(text: &str) -> Result<Element, XmlError> {
@@ -389,6 +393,11 @@ impl<'a> Parser<'a> {
                     }
                     if r.starts_with('>') {
                         self.pos += 1;
+                        if stack.len() > MAX_DEPTH {
+                            return self.err(format!(
+                                "elements nested deeper than {MAX_DEPTH} levels (HARK files use fewer than 10)"
+                            ));
+                        }
                         stack.push(el);
                         break;
                     }
@@ -454,6 +463,15 @@ fn close_top(stack: &mut Vec<Element>) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn nesting_is_limited() {
+        let deep = "<a>".repeat(1_000_000);
+        let e = parse(&deep).unwrap_err();
+        assert!(e.to_string().contains("nested deeper than 256"), "{e}");
+        let ok = format!("{}{}", "<a>".repeat(200), "</a>".repeat(200));
+        assert!(parse(&ok).is_ok());
+    }
 
     #[test]
     fn parses_hark_source_xml_shape() {

@@ -7,6 +7,12 @@
 //! temporary file, and the target keeps its previous content, or stays absent.
 //!
 //! Every writer in [`crate::output`] and [`crate::audio::Audio::write_wav`] goes through it.
+//!
+//! Targets that are not regular files are never replaced: a symbolic link is followed (the
+//! file it points to is replaced, the link stays); a device, FIFO or socket (`/dev/null`,
+//! `/dev/stdout`, a named pipe another program reads) is written directly, since renaming
+//! over it would destroy it (and leave a FIFO's reader waiting forever). A write error
+//! there (a full disk, `/dev/full`) is reported by `commit`.
 
 use crate::{Error, Result};
 use std::fs::{File, OpenOptions};
@@ -36,7 +42,36 @@ impl AtomicFile {
     /// Like [`create`](Self::create), with `suffix` appended to the temporary file's name
     /// (e.g. `".png"` for a library that picks the format from the extension).
     pub fn create_with_suffix(path: impl AsRef<Path>, suffix: &str) -> Result<Self> {
-        let target = path.as_ref().to_path_buf();
+        let target = resolve_links(path.as_ref());
+        if let Ok(meta) = std::fs::metadata(&target) {
+            if !meta.is_file() {
+                if meta.is_dir() {
+                    return Err(Error::io(
+                        &target,
+                        io::Error::new(io::ErrorKind::InvalidInput, "is a directory"),
+                    ));
+                }
+                if !suffix.is_empty() {
+                    return Err(Error::io(
+                        &target,
+                        io::Error::new(
+                            io::ErrorKind::InvalidInput,
+                            "not a regular file (this output is written by name)",
+                        ),
+                    ));
+                }
+                // A device, FIFO or socket: write it directly.
+                let f = OpenOptions::new()
+                    .write(true)
+                    .open(&target)
+                    .map_err(|e| Error::io(&target, e))?;
+                return Ok(AtomicFile {
+                    target,
+                    temp: PathBuf::new(),
+                    file: Some(BufWriter::new(f)),
+                });
+            }
+        }
         let name = target.file_name().ok_or_else(|| {
             Error::io(
                 &target,
@@ -85,12 +120,16 @@ impl AtomicFile {
         &self.temp
     }
 
-    /// Flush, sync to disk and rename over the target.
+    /// Flush, sync to disk and rename over the target (a special file: flush only).
     pub fn commit(mut self) -> Result<()> {
+        let direct = self.temp.as_os_str().is_empty();
         if let Some(w) = self.file.take() {
             let f = w
                 .into_inner()
                 .map_err(|e| Error::io(&self.target, e.into_error()))?;
+            if direct {
+                return Ok(());
+            }
             f.sync_all().map_err(|e| Error::io(&self.target, e))?;
         }
         std::fs::rename(&self.temp, &self.target).map_err(|e| Error::io(&self.target, e))?;
@@ -131,6 +170,23 @@ impl Drop for AtomicFile {
             let _ = std::fs::remove_file(&self.temp);
         }
     }
+}
+
+/// The file a path names after following symbolic links (a dangling link: the path it
+/// points to, relative to the link's directory).
+fn resolve_links(path: &Path) -> PathBuf {
+    let mut p = path.to_path_buf();
+    for _ in 0..40 {
+        match std::fs::symlink_metadata(&p) {
+            Ok(m) if m.file_type().is_symlink() => match std::fs::read_link(&p) {
+                Ok(t) if t.is_absolute() => p = t,
+                Ok(t) => p = p.parent().map_or(t.clone(), |d| d.join(&t)),
+                Err(_) => break,
+            },
+            _ => break,
+        }
+    }
+    p
 }
 
 /// Write `path` atomically with `f`, which receives the open temporary file.
@@ -209,6 +265,46 @@ mod tests {
         std::fs::write(f.temp_path(), b"by path").unwrap();
         f.commit().unwrap();
         assert_eq!(std::fs::read(&target).unwrap(), b"by path");
+        std::fs::remove_dir_all(&d).unwrap();
+    }
+
+    #[test]
+    fn special_files_are_written_in_place_and_links_followed() {
+        // /dev/null stays a device.
+        let mut f = AtomicFile::create("/dev/null").unwrap();
+        f.write_all(b"discarded").unwrap();
+        f.commit().unwrap();
+        assert!(!std::fs::metadata("/dev/null").unwrap().is_file());
+        // A full disk is an error at commit.
+        if Path::new("/dev/full").exists() {
+            let mut f = AtomicFile::create("/dev/full").unwrap();
+            let w = f.write_all(&[0u8; 1 << 16]);
+            assert!(w.is_err() || f.commit().is_err());
+        }
+        // A symlink: its target is replaced, the link stays.
+        let d = temp_dir("links");
+        let real = d.join("real.txt");
+        std::fs::write(&real, b"old").unwrap();
+        let link = d.join("link.txt");
+        std::os::unix::fs::symlink("real.txt", &link).unwrap();
+        write_atomically(&link, |w| w.write_all(b"new")).unwrap();
+        assert!(std::fs::symlink_metadata(&link).unwrap().file_type().is_symlink());
+        assert_eq!(std::fs::read(&real).unwrap(), b"new");
+        // A FIFO: the reader gets the bytes; the FIFO stays a FIFO.
+        let fifo = d.join("pipe");
+        let ok = std::process::Command::new("mkfifo")
+            .arg(&fifo)
+            .status()
+            .map(|s| s.success());
+        if ok.unwrap_or(false) {
+            let p = fifo.clone();
+            let reader = std::thread::spawn(move || std::fs::read(p).unwrap());
+            write_atomically(&fifo, |w| w.write_all(b"through the pipe")).unwrap();
+            assert_eq!(reader.join().unwrap(), b"through the pipe");
+            assert!(!std::fs::metadata(&fifo).unwrap().is_file());
+        }
+        // A directory is an error.
+        assert!(AtomicFile::create(&d).is_err());
         std::fs::remove_dir_all(&d).unwrap();
     }
 
