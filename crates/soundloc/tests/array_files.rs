@@ -549,3 +549,51 @@ fn grid_specs_and_sphere_neighbours() {
     assert_eq!(r.neighbors[0], vec![71, 1]);
     assert!("ring:7".parse::<GridSpec>().is_err());
 }
+
+#[test]
+fn zip_bombs_and_lying_sizes_are_refused() {
+    // 64 MiB of zeros deflate ~1000×: refused before inflating.
+    let p = tmp("bomb.zip");
+    write_zip_entries(
+        &p,
+        &[
+            ("transferFunction/".into(), Vec::new()),
+            (
+                "transferFunction/whatisthis.txt".into(),
+                b"transfer function".to_vec(),
+            ),
+            ("transferFunction/zeros.mat".into(), vec![0u8; 64 << 20]),
+        ],
+    )
+    .unwrap();
+    let e = err_text(read_zip_entries(&p));
+    assert!(e.contains("bomb.zip") && e.contains("zip bomb"), "{e}");
+    let e = err_text(TransferFunctions::load(&p));
+    assert!(e.contains("zip bomb"), "{e}");
+    // A TF zip whose <nfft> is absurd: an error naming the matrix, no giant reservation.
+    let tf = free_field(
+        &Geometry::circle(4, 0.05, 0.0),
+        &Grid::ring(30.0, 0.0, 1.0),
+        512,
+        16000,
+        0..257,
+        343.0,
+    )
+    .unwrap();
+    let base = tmp("nfft-base.zip");
+    write_tf_zip(&tf, &base).unwrap();
+    let mut entries: Vec<(String, Vec<u8>)> = read_zip_entries(&base).unwrap().into_iter().collect();
+    for (name, bytes) in entries.iter_mut() {
+        if name.ends_with("source.xml") {
+            let t = String::from_utf8(bytes.clone())
+                .unwrap()
+                .replace("<nfft>512</nfft>", "<nfft>4294967296</nfft>");
+            assert!(t.contains("4294967296"));
+            *bytes = t.into_bytes();
+        }
+    }
+    let huge = tmp("huge_nfft.zip");
+    write_zip_entries(&huge, &entries).unwrap();
+    let e = err_text(TransferFunctions::load(&huge));
+    assert!(e.contains("huge_nfft.zip") && e.contains("tf00000.mat"), "{e}");
+}

@@ -47,6 +47,12 @@ pub const TF_WHATISTHIS: &str = "transfer function";
 pub const CM_WHATISTHIS: &str = "correlation matrix";
 /// Largest entry we agree to inflate (bytes); protects against corrupt size fields.
 pub const MAX_ENTRY_BYTES: u64 = 1 << 30;
+/// Largest total we agree to inflate from one archive (bytes): a 60-mic, 2522-direction
+/// TF set of 257 bins is 0.6 GiB.
+pub const MAX_TOTAL_BYTES: u64 = 8 << 30;
+/// Largest inflated / compressed ratio accepted for an entry over 1 MiB: HARK's matrices
+/// compress a few times at most; a zip bomb a thousandfold.
+pub const MAX_RATIO: u64 = 200;
 
 /// True when `bytes` start like a zip archive (`PK\x03\x04`, or `PK\x05\x06` for an
 /// empty one).
@@ -64,6 +70,14 @@ pub fn entry_path(zip: &Path, entry: &str) -> PathBuf {
 /// skipped). Truncated or corrupt archives (bad central directory, CRC mismatch,
 /// unsupported compression) are errors naming the file and, where known, the entry.
 pub fn read_zip_entries(path: &Path) -> Result<BTreeMap<String, Vec<u8>>> {
+    read_zip_entries_where(path, |_| true)
+}
+
+/// [`read_zip_entries`] for the entries whose name `keep` accepts. Bounded by what the
+/// archive can hold: no entry over [`MAX_ENTRY_BYTES`], no more than [`MAX_TOTAL_BYTES`]
+/// in all, no entry over 1 MiB that inflates more than [`MAX_RATIO`] times its compressed
+/// size (a zip bomb), and an entry never inflates past the size its header declares.
+pub fn read_zip_entries_where(path: &Path, keep: impl Fn(&str) -> bool) -> Result<BTreeMap<String, Vec<u8>>> {
     let file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
     let mut ar = zip::ZipArchive::new(std::io::BufReader::new(file)).map_err(|e| {
         Error::format(
@@ -72,26 +86,44 @@ pub fn read_zip_entries(path: &Path) -> Result<BTreeMap<String, Vec<u8>>> {
         )
     })?;
     let mut out = BTreeMap::new();
+    let mut total = 0u64;
     for i in 0..ar.len() {
-        let mut f = ar
+        let f = ar
             .by_index(i)
             .map_err(|e| Error::format(path, format!("zip entry #{i} cannot be read (corrupt?): {e}")))?;
-        if f.is_dir() {
+        if f.is_dir() || !keep(f.name()) {
             continue;
         }
         let name = f.name().to_string();
-        if f.size() > MAX_ENTRY_BYTES {
-            return Err(Error::format(
-                entry_path(path, &name),
-                format!(
-                    "entry claims {} bytes, more than the {MAX_ENTRY_BYTES} allowed",
-                    f.size()
-                ),
+        let (size, packed) = (f.size(), f.compressed_size());
+        let bad = |m: String| Err(Error::format(entry_path(path, &name), m));
+        if size > MAX_ENTRY_BYTES {
+            return bad(format!(
+                "entry claims {size} bytes, more than the {MAX_ENTRY_BYTES} allowed"
             ));
         }
-        let mut buf = Vec::with_capacity(f.size() as usize);
-        f.read_to_end(&mut buf)
+        if size > 1 << 20 && size / packed.max(1) > MAX_RATIO {
+            return bad(format!(
+                "entry inflates {packed} bytes into {size} ({}×): refused as a zip bomb",
+                size / packed.max(1)
+            ));
+        }
+        total += size;
+        if total > MAX_TOTAL_BYTES {
+            return bad(format!(
+                "the archive inflates to more than {MAX_TOTAL_BYTES} bytes: refused"
+            ));
+        }
+        let mut buf = Vec::with_capacity(size.min(1 << 24) as usize);
+        f.take(size + 1)
+            .read_to_end(&mut buf)
             .map_err(|e| Error::format(entry_path(path, &name), format!("corrupt zip entry: {e}")))?;
+        if buf.len() as u64 != size {
+            return bad(format!(
+                "entry inflates to {} bytes, its header says {size}",
+                buf.len()
+            ));
+        }
         out.insert(name, buf);
     }
     Ok(out)
@@ -479,7 +511,8 @@ pub fn tf_entry_name(root: &str, folder: &str, id: usize) -> String {
 
 /// Read a HARK transfer-function zip (see the module docs).
 pub fn read_tf_zip(path: &Path) -> Result<TransferFunctions> {
-    let entries = read_zip_entries(path)?;
+    // The separation TFs (half of the archive) are not needed for localization.
+    let entries = read_zip_entries_where(path, |n| !n.contains("/separation/"))?;
     let (root, what) = container_root(&entries, path)?;
     if what != TF_WHATISTHIS {
         return Err(Error::format(
@@ -531,7 +564,6 @@ pub fn read_tf_zip(path: &Path) -> Result<TransferFunctions> {
             if num_mics == 0 {
                 return Err(Error::format(&ep, "0 microphones (rows)"));
             }
-            data.reserve(d * num_mics * nbins);
         }
         if m.rows != num_mics || m.cols != nbins {
             return Err(Error::format(
@@ -541,6 +573,10 @@ pub fn read_tf_zip(path: &Path) -> Result<TransferFunctions> {
                     cfg.nfft, m.rows, m.cols
                 ),
             ));
+        }
+        if id == 0 {
+            // Sized by a matrix that was read, not by a header's claim.
+            data.reserve(d.saturating_mul(num_mics * nbins).min(1 << 28));
         }
         let v = m.into_complex(&ep)?;
         if let Some(k) = v.iter().position(|c| !(c.re.is_finite() && c.im.is_finite())) {
