@@ -155,20 +155,31 @@ pub fn read_hgtf(bytes: &[u8], path_for_errors: &Path) -> Result<TransferFunctio
         )));
     }
     let (nd, nr) = (nd as usize, nr as usize);
-    let pos_bytes = nd * nr * 12;
-    if body.len() < 12 + pos_bytes {
+    // Checked: the counts come from the file; their product must not wrap.
+    let too_big = || {
+        fail(format!("\"M2PG\" chunk: {nd} directions × {nr} ranges × {nmic} mics × nfft {nfft} cannot fit in the file"))
+    };
+    let pos_bytes = nd
+        .checked_mul(nr)
+        .and_then(|x| x.checked_mul(12))
+        .ok_or_else(too_big)?;
+    if body.len().saturating_sub(12) < pos_bytes {
         return Err(fail(format!(
             "\"M2PG\" chunk: {} bytes, too short for {nd} × {nr} source positions",
             body.len()
         )));
     }
     let data_bytes = body.len() - 12 - pos_bytes;
-    let per_bin = nd * nr * nmic * 8;
+    let per_bin = nd
+        .checked_mul(nr)
+        .and_then(|x| x.checked_mul(nmic))
+        .and_then(|x| x.checked_mul(8))
+        .ok_or_else(too_big)?;
     let nbins = nfft / 2 + 1;
-    if data_bytes != per_bin * nbins {
+    if per_bin.checked_mul(nbins) != Some(data_bytes) {
         return Err(fail(format!(
             "\"M2PG\" chunk: {data_bytes} bytes of TF data, expected {} ({nd} directions × {nr} ranges × {nmic} mics × {nbins} bins × 8){}",
-            per_bin * nbins,
+            per_bin as u128 * nbins as u128,
             if data_bytes % per_bin == 0 {
                 format!(", i.e. {} bins instead of nfft/2+1", data_bytes / per_bin)
             } else {
@@ -309,6 +320,13 @@ mod tests {
         let mut bad = good.clone();
         bad[32..36].copy_from_slice(&6i32.to_le_bytes()); // nfft 4 -> 6 (4 bins)
         assert!(e(&bad).contains("i.e. 3 bins instead of nfft/2+1"), "{}", e(&bad));
+        // Counts whose product wraps past 2^64 (842443544 × 1824726041 × 12 = 2^64 + 32):
+        // an error, never a small wrapped size that passes the checks.
+        let mut bad = good.clone();
+        bad[80..84].copy_from_slice(&842_443_544i32.to_le_bytes());
+        bad[84..88].copy_from_slice(&1_824_726_041i32.to_le_bytes());
+        let msg = e(&bad);
+        assert!(msg.contains("cannot fit in the file"), "{msg}");
         // NaN value.
         // NaN in range 0 (read) is an error; header 12 + fmt 8+48 + M2PG header 8+12 +
         // 4×2 positions × 12 = 184 is direction 0, mic 0, bin 0.
