@@ -188,6 +188,7 @@ impl LocalizerSpec {
                 radius_m,
                 speed_of_sound_m_s,
             } => {
+                grid.validate()?;
                 if !(radius_m.is_finite() && *radius_m > 0.0) {
                     return Err(Error::Config(format!(
                         "grid radius must be positive, got {radius_m} m"

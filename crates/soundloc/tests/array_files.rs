@@ -597,3 +597,41 @@ fn zip_bombs_and_lying_sizes_are_refused() {
     let e = err_text(TransferFunctions::load(&huge));
     assert!(e.contains("huge_nfft.zip") && e.contains("tf00000.mat"), "{e}");
 }
+
+#[test]
+fn size_and_cost_limits_are_clear_errors() {
+    for (spec, want) in [
+        ("ring:0.001", "at least 0.1 degrees"),
+        ("sphere:1000000", "between 2 and 100000"),
+        ("sphere:1", "between 2 and 100000"),
+    ] {
+        let e = spec.parse::<GridSpec>().unwrap_err().to_string();
+        assert!(e.contains(want), "{spec}: {e}");
+    }
+    let mics: Vec<[f64; 3]> = (0..2000).map(|i| [i as f64 * 0.01, 0.0, 0.0]).collect();
+    let e = Geometry::new(mics, Path::new("big.toml"))
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("big.toml") && e.contains("2000 microphones") && e.contains("1024"),
+        "{e}"
+    );
+    // 60 mics × 100 000 directions × 257 bins: refused before anything is built.
+    let g = Geometry::sphere(60, 0.1);
+    let e = err_text(free_field(
+        &g,
+        &Grid::sphere(100_000, 1.0),
+        512,
+        16000,
+        0..257,
+        343.0,
+    ));
+    assert!(e.contains("more than the 268435456 allowed"), "{e}");
+    // A serde spec is checked like a parsed one.
+    assert!(GridSpec::Ring {
+        step_deg: 0.001,
+        elevation_deg: 0.0
+    }
+    .validate()
+    .is_err());
+}

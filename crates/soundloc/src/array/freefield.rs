@@ -67,6 +67,20 @@ pub fn free_field(
             grid.len()
         )));
     }
+    let values = grid
+        .len()
+        .saturating_mul(geometry.mics.len())
+        .saturating_mul(bins.len());
+    if values > super::MAX_TF_VALUES {
+        return Err(Error::Config(format!(
+            "free-field TFs: {} directions × {} microphones × {} bins = {values} values, more than the {} allowed \
+             (2 GiB): use a coarser grid or fewer bins",
+            grid.len(),
+            geometry.mics.len(),
+            bins.len(),
+            super::MAX_TF_VALUES
+        )));
+    }
     if let Some(i) = geometry
         .mics
         .iter()

@@ -52,6 +52,16 @@ impl Geometry {
         if self.mics.is_empty() {
             return Err(Error::format(what, "no microphones"));
         }
+        if self.mics.len() > super::MAX_MICS {
+            return Err(Error::format(
+                what,
+                format!(
+                    "{} microphones: at most {} are supported",
+                    self.mics.len(),
+                    super::MAX_MICS
+                ),
+            ));
+        }
         for (i, p) in self.mics.iter().enumerate() {
             if p.iter().any(|v| !v.is_finite()) {
                 return Err(Error::format(

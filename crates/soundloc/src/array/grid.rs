@@ -445,6 +445,11 @@ pub enum GridSpec {
 }
 
 impl GridSpec {
+    /// Check the limits [`FromStr`] checks (for specs that arrive through serde).
+    pub fn validate(&self) -> Result<()> {
+        self.to_string().parse::<GridSpec>().map(|_| ())
+    }
+
     /// The grid, with points at `radius_m` from the origin.
     pub fn build(&self, radius_m: f64) -> Grid {
         match *self {
@@ -474,6 +479,13 @@ impl FromStr for GridSpec {
                 if !(step_deg.is_finite() && step_deg > 0.0 && step_deg <= 360.0) {
                     return Err(bad("the step must be in (0, 360] degrees"));
                 }
+                if step_deg < super::MIN_RING_STEP_DEG {
+                    return Err(bad(&format!(
+                        "the step must be at least {} degrees ({} directions)",
+                        super::MIN_RING_STEP_DEG,
+                        (360.0 / super::MIN_RING_STEP_DEG).round()
+                    )));
+                }
                 let n = 360.0 / step_deg;
                 if (n - n.round()).abs() > 1e-6 {
                     return Err(bad("the step must divide 360 degrees"));
@@ -494,8 +506,8 @@ impl FromStr for GridSpec {
             }
             ["sphere", n] => {
                 let n: usize = n.parse().map_err(|_| bad("N must be a whole number of points"))?;
-                if n < 2 {
-                    return Err(bad("N must be at least 2"));
+                if !(2..=super::MAX_DIRECTIONS).contains(&n) {
+                    return Err(bad(&format!("N must be between 2 and {}", super::MAX_DIRECTIONS)));
                 }
                 Ok(GridSpec::Sphere { n })
             }
