@@ -322,3 +322,43 @@ fn listen_through_alsa_equals_the_file() {
     assert!(o.status.success(), "{err}");
     assert_eq!(String::from_utf8(o.stdout).unwrap(), want, "{err}");
 }
+
+#[test]
+fn negative_numbers_parse_and_bad_values_fail_before_any_work() {
+    let (_, geo, wav) = scene();
+    let run = |extra: &[&str]| {
+        bin()
+            .arg("localize")
+            .arg(&wav)
+            .arg("--geometry")
+            .arg(&geo)
+            .args(extra)
+            .output()
+            .unwrap()
+    };
+    let o = run(&["--lower-freq", "-100"]);
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{e}");
+    assert!(e.contains("frequency range must satisfy 0 <= lower"), "{e}");
+    let o = run(&["--max-peaks", "-5"]);
+    assert!(String::from_utf8_lossy(&o.stderr).contains("max-peaks must be -1"));
+    let o = run(&["--min-deg", "-90", "--max-deg", "90", "-q", "--device", "cpu"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    for (flags, want) in [
+        (&["--plot", "x.jpg"][..], "PNG or SVG"),
+        (&["--summary", "s.json"][..], "--summary needs --track"),
+        (&["-o", "/nonexistent-dir/out.jsonl"][..], "does not exist"),
+        (&["--track", "--thresh", "nan"][..], "THRESH must be finite"),
+        (&["--grid", "ring:0.001"][..], "at least 0.1 degrees"),
+        (&["--grid-radius", "0"][..], "grid radius must be positive"),
+    ] {
+        let o = run(flags);
+        let e = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{flags:?}: {e}");
+        assert!(e.contains(want), "{flags:?}: {e}");
+        assert!(
+            o.stdout.is_empty(),
+            "{flags:?}: nothing on stdout before the error"
+        );
+    }
+}

@@ -175,6 +175,9 @@ pub struct Engine<T: Real> {
     /// Absolute input sample of local sample 0 (moves forward at a gap, see
     /// [`Engine::skip`]).
     origin: u64,
+    /// Per microphone, the first sample and whether any later one differed: a constant
+    /// (silent or DC-only) input is reported at flush.
+    constant: Vec<(Option<f32>, bool)>,
 }
 
 impl<T: Real> Engine<T> {
@@ -218,6 +221,7 @@ impl<T: Real> Engine<T> {
             finished: false,
             batch: BatchOutput::default(),
             origin: 0,
+            constant: Vec::new(),
             plan,
             backend,
         })
@@ -382,8 +386,14 @@ impl<T: Real> Engine<T> {
                 debug_assert_eq!(v.len(), before + n);
             });
             let (buf_start, buf) = self.stft.buffered();
+            self.constant.resize(buf.len(), (None, false));
             for (c, ch) in buf.iter().enumerate() {
                 let tail = &ch[first - buf_start..];
+                let k = &mut self.constant[c];
+                if !k.1 {
+                    let v0 = *k.0.get_or_insert(tail.first().copied().unwrap_or(0.0));
+                    k.1 = tail.iter().any(|&v| v != v0);
+                }
                 if let Some(i) = tail
                     .iter()
                     .position(|v| !v.is_finite() || v.abs() > T::MAX_SAMPLE)
@@ -432,6 +442,19 @@ impl<T: Real> Engine<T> {
         if let Some(e) = &mut self.extender {
             out.results.extend(e.finish());
         }
+        if !self.constant.is_empty() && self.constant.iter().all(|k| !k.1) {
+            let v = self
+                .constant
+                .iter()
+                .filter_map(|k| k.0)
+                .fold(0.0f32, |a, b| a.max(b.abs()));
+            out.notes.push(if v == 0.0 {
+                "warning: the input is silent (every sample is 0): the reported directions mean nothing".into()
+            } else {
+                "warning: every channel is constant (DC only, no sound in the analysed band): the reported directions mean nothing"
+                    .into()
+            });
+        }
         if self.windows_run == 0 {
             let c = &self.plan.config;
             let len = self.stft.samples_received();
@@ -465,6 +488,7 @@ impl<T: Real> Engine<T> {
         self.windows_run = 0;
         self.finished = false;
         self.origin = 0;
+        self.constant.clear();
         self.backend.reset_stage_times();
         if self.noise.initial().is_some() && self.current != Some(KSource::Initial) {
             let (k, _) = self.noise.matrices(&KSource::Initial, &self.ring, 0)?;

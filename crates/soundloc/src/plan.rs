@@ -233,6 +233,12 @@ fn validate_config(c: &LocalizeConfig) -> Result<()> {
     if c.period == 0 {
         return bad("period must be at least 1 frame".into());
     }
+    if c.max_peaks < -1 {
+        return bad(format!(
+            "max-peaks must be -1 (= num-sources), 0 (all peaks) or a positive count, got {}",
+            c.max_peaks
+        ));
+    }
     if c.sample_rate_hz == 0 {
         return bad("sample rate must be positive".into());
     }

@@ -368,6 +368,29 @@ fn bad_blocks_and_misuse_are_clear_errors() {
         )
         .unwrap_err();
     assert!(e.to_string().contains("whole number"), "{e}");
+    // Silent and DC-only input: results, and a warning saying they mean nothing.
+    for (v, want) in [(0.0f32, "silent"), (250.0, "DC only")] {
+        loc.reset().unwrap();
+        let mut o = Output::default();
+        loc.push(
+            Block::Interleaved {
+                data: &vec![v; 8 * 20000],
+                channels: 8,
+            },
+            &mut o,
+        )
+        .unwrap();
+        loc.flush(&mut o).unwrap();
+        assert!(o.notes.iter().any(|n| n.contains(want)), "{:?}", o.notes);
+    }
+    loc.reset().unwrap();
+    let run = loc.localize(&scene.render().channels).unwrap();
+    assert!(
+        !run.notes.iter().any(|n| n.contains("warning")),
+        "{:?}",
+        run.notes
+    );
+    loc.reset().unwrap();
     // Too short for one window: flush says so.
     loc.push(
         Block::Interleaved {

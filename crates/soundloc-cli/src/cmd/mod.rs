@@ -25,14 +25,18 @@ pub enum Command {
     /// Simulated scenes with known answers, localized by every algorithm (no files needed).
     Demo(demo::Args),
     /// Localize sound sources in a recording, on standard input or from a TCP peer.
+    #[command(allow_negative_numbers = true)]
     Localize(Box<localize::Args>),
     /// Localize a live microphone array (built with the `capture` feature).
+    #[command(allow_negative_numbers = true)]
     Listen(Box<listen::Args>),
     /// Benchmark the seed configuration (GSVD, 60 mics, 73 bins, W 50, 2522 directions).
     Bench(bench::Args),
     /// Transfer functions: inspect HARK TF files, make geometric ones.
+    #[command(allow_negative_numbers = true)]
     Tf(tf::Args),
     /// Noise correlation matrices (HARK CMSave/CMLoad files): make from a recording, inspect.
+    #[command(allow_negative_numbers = true)]
     Noisecm(noisecm::Args),
 }
 
