@@ -12,7 +12,7 @@
 //! frames, a non-finite sample (`sample 1234 of channel 2 is NaN`, both 0-based), an
 //! unsupported bit depth.
 
-mod source;
+pub mod source;
 
 pub use source::{
     open_source, open_stream, AudioFormat, AudioSource, FlacSource, RawEncoding, RawSource, WavSource,
