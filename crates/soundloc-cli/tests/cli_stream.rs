@@ -362,3 +362,60 @@ fn negative_numbers_parse_and_bad_values_fail_before_any_work() {
         );
     }
 }
+
+#[test]
+fn ctrl_c_ends_a_live_session_cleanly() {
+    let (audio, geo, _) = scene();
+    let dir = tmp("ctrlc");
+    std::fs::create_dir_all(&dir).unwrap();
+    let out = dir.join("live.jsonl");
+    let mut child = bin()
+        .args([
+            "localize",
+            "-",
+            "--raw",
+            "s16le",
+            "--raw-channels",
+            "8",
+            "--rate",
+            "16000",
+            "--geometry",
+        ])
+        .arg(&geo)
+        .args(&OPTS[..8])
+        .arg("-o")
+        .arg(&out)
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut stdin = child.stdin.take().unwrap();
+    let mut err = BufReader::new(child.stderr.take().unwrap());
+    let mut line = String::new();
+    while !line.contains("streaming from") {
+        line.clear();
+        assert!(err.read_line(&mut line).unwrap() > 0, "soundloc exited early");
+    }
+    stdin.write_all(&s16le(&audio, 0..24000)).unwrap();
+    stdin.flush().unwrap();
+    std::thread::sleep(Duration::from_millis(1500));
+    let ok = Command::new("kill")
+        .args(["-INT", &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(ok.success());
+    let status = child.wait().unwrap();
+    let mut rest = String::new();
+    err.read_to_string(&mut rest).unwrap();
+    assert!(status.success(), "{rest}");
+    assert!(rest.contains("stopping"), "{rest}");
+    let text = std::fs::read_to_string(&out).unwrap();
+    assert!(text.lines().count() >= 10, "{text}");
+    let left: Vec<_> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name())
+        .collect();
+    assert_eq!(left.len(), 1, "no temporary file left: {left:?}");
+    drop(stdin);
+}

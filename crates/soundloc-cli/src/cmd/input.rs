@@ -181,8 +181,26 @@ pub fn spawn_reader(
         4
     };
     let (tx, rx) = sync_channel(slots);
+    if live {
+        stop_on_ctrl_c(tx.clone());
+    }
     std::thread::spawn(move || reader_loop(&mut *source, &tx, block, live));
     (fmt, rx)
+}
+
+/// A live session ends with Ctrl-C: the first one ends the input (what is queued is
+/// localized, outputs are completed and `-o` renamed into place); a second one exits at
+/// once (status 130).
+pub fn stop_on_ctrl_c(tx: SyncSender<Msg>) {
+    let mut pressed = false;
+    let _ = ctrlc::set_handler(move || {
+        if pressed {
+            std::process::exit(130);
+        }
+        pressed = true;
+        eprintln!("soundloc: stopping (Ctrl-C again to quit at once)");
+        let _ = tx.send(Msg::End { gap: 0 });
+    });
 }
 
 fn reader_loop(source: &mut dyn AudioSource, tx: &SyncSender<Msg>, block: usize, live: bool) {

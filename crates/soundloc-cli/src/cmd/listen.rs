@@ -5,7 +5,7 @@
 //! for another; samples reach the localizer on the int16 scale whatever the device's
 //! format (float × 32768, i32 / 65536), so dB values compare with 16-bit recordings. The
 //! audio callback never waits: blocks beyond `--max-buffer` seconds are dropped and
-//! counted (see `cmd::input`).
+//! counted (see `cmd::input`). Ctrl-C (or `--seconds`) ends the session cleanly.
 
 use super::localize::RunArgs;
 use std::process::ExitCode;
@@ -172,6 +172,7 @@ mod capture {
             channels,
             left: a.seconds.map(|s| (s * rate as f64) as u64),
         }));
+        super::super::input::stop_on_ctrl_c(tx.clone());
         let err_tx = tx.clone();
         let on_err = move |e: cpal::StreamError| {
             let _ = err_tx.send(Msg::Failed(soundloc::Error::Device(format!("capture: {e}"))));
