@@ -168,7 +168,7 @@ pub struct Engine<T: Real> {
     tracker: Option<SourceTracker>,
     extender: Option<IntervalExtender>,
     /// Input channel of each microphone, once the first block told the channel count.
-    map: Option<(usize, Vec<usize>)>,
+    map: Option<(usize, Arc<[usize]>)>,
     windows_run: usize,
     finished: bool,
     batch: BatchOutput,
@@ -370,7 +370,7 @@ impl<T: Real> Engine<T> {
                 )))
             }
             None => {
-                let idx = self.options.channels.resolve(n_in)?;
+                let idx: Arc<[usize]> = self.options.channels.resolve(n_in)?.into();
                 self.map = Some((n_in, idx.clone()));
                 idx
             }

@@ -93,6 +93,27 @@ mod capture {
         }
     }
 
+    /// An input stream of sample type `S` whose callback converts with `scale` and queues.
+    fn input_stream<S: cpal::SizedSample + Copy + 'static>(
+        device: &cpal::Device,
+        config: &cpal::StreamConfig,
+        feed: &Arc<Mutex<Feed>>,
+        on_err: impl FnMut(cpal::StreamError) + Send + 'static,
+        scale: fn(S) -> f32,
+    ) -> Result<cpal::Stream, cpal::BuildStreamError> {
+        let f = feed.clone();
+        device.build_input_stream(
+            config,
+            move |d: &[S], _: &cpal::InputCallbackInfo| {
+                if let Ok(mut f) = f.lock() {
+                    f.send(d.iter().map(|&v| scale(v)).collect());
+                }
+            },
+            on_err,
+            None,
+        )
+    }
+
     pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         let host = cpal::default_host();
         if a.list_devices {
@@ -177,46 +198,13 @@ mod capture {
         let on_err = move |e: cpal::StreamError| {
             let _ = err_tx.send(Msg::Failed(soundloc::Error::Device(format!("capture: {e}"))));
         };
+        // Samples reach the localizer on the int16 scale whatever the device's format.
         let stream = match format {
-            cpal::SampleFormat::I16 => {
-                let f = feed.clone();
-                device.build_input_stream(
-                    &config,
-                    move |d: &[i16], _: &cpal::InputCallbackInfo| {
-                        if let Ok(mut f) = f.lock() {
-                            f.send(d.iter().map(|&v| v as f32).collect());
-                        }
-                    },
-                    on_err,
-                    None,
-                )
-            }
+            cpal::SampleFormat::I16 => input_stream(&device, &config, &feed, on_err, |v: i16| v as f32),
             cpal::SampleFormat::I32 => {
-                let f = feed.clone();
-                device.build_input_stream(
-                    &config,
-                    move |d: &[i32], _: &cpal::InputCallbackInfo| {
-                        if let Ok(mut f) = f.lock() {
-                            f.send(d.iter().map(|&v| v as f32 / 65536.0).collect());
-                        }
-                    },
-                    on_err,
-                    None,
-                )
+                input_stream(&device, &config, &feed, on_err, |v: i32| v as f32 / 65536.0)
             }
-            cpal::SampleFormat::F32 => {
-                let f = feed.clone();
-                device.build_input_stream(
-                    &config,
-                    move |d: &[f32], _: &cpal::InputCallbackInfo| {
-                        if let Ok(mut f) = f.lock() {
-                            f.send(d.iter().map(|&v| v * 32768.0).collect());
-                        }
-                    },
-                    on_err,
-                    None,
-                )
-            }
+            cpal::SampleFormat::F32 => input_stream(&device, &config, &feed, on_err, |v: f32| v * 32768.0),
             other => bail!("{dname}: unsupported sample format {other:?} (i16, i32 or f32 needed)"),
         }
         .with_context(|| format!("{dname}: opening a {channels}-channel {rate} Hz input"))?;

@@ -111,22 +111,7 @@ pub fn inputs<T: Real>(cfg: &BenchConfig) -> Result<BenchInputs<T>> {
     };
     let bins = config.bin_range();
     let (m, d) = (cfg.num_mics, cfg.num_dirs);
-    let grid = Grid::sphere(d, 1.0);
-    let mut data = Vec::with_capacity(d * m * bins.len());
-    for _ in 0..d * m * bins.len() {
-        let ph: f32 = rng.gen_range(0.0..std::f32::consts::TAU);
-        data.push(Complex::new(ph.cos(), ph.sin()));
-    }
-    let tf = TransferFunctions {
-        nfft: config.nfft,
-        sample_rate_hz: config.sample_rate_hz,
-        grid,
-        mic_positions: vec![[0.0; 3]; m],
-        num_mics: m,
-        first_bin: bins.start,
-        num_bins: bins.len(),
-        data,
-    };
+    let tf = random_transfer_functions(&mut rng, &config, m, d);
     let noise = random_noise(&mut rng, m, bins.clone());
     let plan = Arc::new(Plan::<T>::new(&config, &tf, Some(&noise))?);
     let nw = cfg.batch.max(1);
@@ -147,6 +132,32 @@ pub fn inputs<T: Real>(cfg: &BenchConfig) -> Result<BenchInputs<T>> {
         spectra,
         windows,
     })
+}
+
+/// Unit-modulus random-phase transfer functions of `m` mics for a `d`-point sphere, over
+/// the config's used bins.
+pub(crate) fn random_transfer_functions(
+    rng: &mut impl Rng,
+    config: &LocalizeConfig,
+    m: usize,
+    d: usize,
+) -> TransferFunctions {
+    let bins = config.bin_range();
+    let mut data = Vec::with_capacity(d * m * bins.len());
+    for _ in 0..d * m * bins.len() {
+        let ph: f32 = rng.gen_range(0.0..std::f32::consts::TAU);
+        data.push(Complex::new(ph.cos(), ph.sin()));
+    }
+    TransferFunctions {
+        nfft: config.nfft,
+        sample_rate_hz: config.sample_rate_hz,
+        grid: Grid::sphere(d, 1.0),
+        mic_positions: vec![[0.0; 3]; m],
+        num_mics: m,
+        first_bin: bins.start,
+        num_bins: bins.len(),
+        data,
+    }
 }
 
 pub(crate) fn gauss(rng: &mut impl Rng) -> f64 {

@@ -8,15 +8,14 @@
 //! it is pushed) to its result (median, p99, max): on one engine a result is ready when the
 //! push that completes its window returns.
 
-use super::{gauss, random_noise};
-use crate::array::{freefield::free_field, Geometry, Grid, TransferFunctions};
+use super::{gauss, random_noise, random_transfer_functions};
+use crate::array::{freefield::free_field, Geometry, Grid};
 use crate::backend::DeviceChoice;
 use crate::config::{Algorithm, LocalizeConfig, Precision, WindowType};
 use crate::input::Block;
 use crate::localizer::{Localizer, LocalizerSpec, NoiseSource};
 use crate::{Output, Result};
-use num_complex::Complex;
-use rand::{Rng, SeedableRng};
+use rand::SeedableRng;
 use std::time::Instant;
 
 /// Which array.
@@ -73,25 +72,6 @@ pub struct StreamReport {
     pub stages_per_result: crate::backend::StageTimes,
 }
 
-fn seed_tf(rng: &mut impl Rng, config: &LocalizeConfig, m: usize, d: usize) -> TransferFunctions {
-    let bins = config.bin_range();
-    let mut data = Vec::with_capacity(d * m * bins.len());
-    for _ in 0..d * m * bins.len() {
-        let ph: f32 = rng.gen_range(0.0..std::f32::consts::TAU);
-        data.push(Complex::new(ph.cos(), ph.sin()));
-    }
-    TransferFunctions {
-        nfft: config.nfft,
-        sample_rate_hz: config.sample_rate_hz,
-        grid: Grid::sphere(d, 1.0),
-        mic_positions: vec![[0.0; 3]; m],
-        num_mics: m,
-        first_bin: bins.start,
-        num_bins: bins.len(),
-        data,
-    }
-}
-
 /// Run it.
 pub fn run(cfg: &StreamBenchConfig) -> Result<StreamReport> {
     let mut rng = rand::rngs::StdRng::seed_from_u64(1);
@@ -115,7 +95,7 @@ pub fn run(cfg: &StreamBenchConfig) -> Result<StreamReport> {
             (tf, random_noise(&mut rng, 8, config.bin_range()))
         }
         StreamArray::Seed => (
-            seed_tf(&mut rng, &config, 60, 2522),
+            random_transfer_functions(&mut rng, &config, 60, 2522),
             random_noise(&mut rng, 60, config.bin_range()),
         ),
     };
