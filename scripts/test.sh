@@ -1,14 +1,18 @@
 #!/usr/bin/env bash
 # Every test suite, installing what the suites need first (Debian and PyPI packages).
 #   Rust: the workspace, with live-microphone capture compiled in (needs libasound2-dev).
+#   Browser: the live view (--serve) in headless Chromium through chromedriver (Debian
+#   chromium + chromium-driver), driven by crates/soundloc-cli/tests/cli_live.rs.
 #   Python: the binding's wheel built with maturin into a virtual environment
 #   (target/pyvenv, with numpy and pytest), then pytest.
-# Tests that need hardware this machine lacks (GPU, capture device) print
+# Tests that need hardware or programs this machine lacks (GPU, capture device, browser) print
 # "SKIPPED <test>: <reason>".
 set -euo pipefail
 cd "$(dirname "$0")/.."
 need=()
 pkg-config --exists alsa 2>/dev/null || need+=(libasound2-dev pkg-config)
+command -v chromium >/dev/null 2>&1 || need+=(chromium)
+command -v chromedriver >/dev/null 2>&1 || need+=(chromium-driver)
 if ((${#need[@]})); then
     echo "scripts/test.sh: installing ${need[*]}" >&2
     SUDO=""; [ "$(id -u)" = 0 ] || SUDO="sudo"

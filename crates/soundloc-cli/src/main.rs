@@ -2,6 +2,7 @@
 //! behaviour lives in the `soundloc` library.
 
 mod cmd;
+mod serve;
 
 use clap::Parser;
 use std::process::ExitCode;

@@ -65,6 +65,7 @@ fn all_writers_produce_consistent_files() {
             .iter()
             .map(|r| r.sources.iter().map(|s| (s.azimuth_deg, s.power_db)).collect())
             .collect(),
+        peak_ids: Vec::new(),
         truth_azimuths_deg: vec![30.0, 120.0],
         title: "integration".into(),
     };

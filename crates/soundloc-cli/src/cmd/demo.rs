@@ -98,6 +98,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
                         .iter()
                         .map(|r| r.sources.iter().map(|x| (x.azimuth_deg, x.power_db)).collect())
                         .collect(),
+                    peak_ids: Vec::new(),
                     truth_azimuths_deg: s.talkers.iter().map(|t| t.0).collect(),
                     title: format!("{} — {} MUSIC ({})", s.name, alg.name(), run.device),
                 };

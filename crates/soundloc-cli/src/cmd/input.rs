@@ -12,6 +12,7 @@ use anyhow::{bail, Context};
 use clap::ValueEnum;
 use soundloc::audio::{open_source, open_stream, AudioFormat, AudioSource, RawEncoding, RawSource};
 use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::{sync_channel, Receiver, SyncSender, TrySendError};
 
 #[derive(ValueEnum, Clone, Copy, Debug)]
@@ -57,6 +58,10 @@ pub struct InputArgs {
     /// blocks are dropped (and counted).
     #[arg(long, default_value_t = 10.0)]
     pub max_buffer: f64,
+    /// Read a file at real-time speed (as if it were being recorded), e.g. to review it
+    /// in the live view (--serve); without it files are read as fast as they are localized.
+    #[arg(long)]
+    pub realtime: bool,
 }
 
 /// An open input.
@@ -160,14 +165,17 @@ pub enum Msg {
 const FILE_BLOCK: usize = 1 << 15;
 
 /// Start reading `source` on its own thread. Live inputs drop blocks beyond
-/// `max_buffer_s` seconds of queued audio.
+/// `max_buffer_s` seconds of queued audio; `realtime` paces a file at real-time speed.
+/// Ctrl-C ends the input of live, paced or `serving` sessions (see [`stop_on_ctrl_c`]).
 pub fn spawn_reader(
     mut source: Box<dyn AudioSource>,
     live: bool,
     max_buffer_s: f64,
+    realtime: bool,
+    serving: bool,
 ) -> (AudioFormat, Receiver<Msg>) {
     let fmt = source.format();
-    let block = if live {
+    let block = if live || realtime {
         // ~20 ms blocks: results as soon as their window is complete.
         (fmt.sample_rate_hz as usize / 50).max(1)
     } else {
@@ -181,11 +189,21 @@ pub fn spawn_reader(
         4
     };
     let (tx, rx) = sync_channel(slots);
-    if live {
+    if live || realtime || serving {
         stop_on_ctrl_c(tx.clone());
     }
-    std::thread::spawn(move || reader_loop(&mut *source, &tx, block, live));
+    let pace = (realtime && !live).then_some(fmt.sample_rate_hz as f64);
+    std::thread::spawn(move || reader_loop(&mut *source, &tx, block, live, pace));
     (fmt, rx)
+}
+
+static INTERRUPTED: AtomicBool = AtomicBool::new(false);
+
+/// Block until Ctrl-C (after [`stop_on_ctrl_c`] was installed).
+pub fn wait_for_ctrl_c() {
+    while !INTERRUPTED.load(Ordering::Relaxed) {
+        std::thread::sleep(std::time::Duration::from_millis(50));
+    }
 }
 
 /// A live session ends with Ctrl-C: the first one ends the input (what is queued is
@@ -198,15 +216,35 @@ pub fn stop_on_ctrl_c(tx: SyncSender<Msg>) {
             std::process::exit(130);
         }
         pressed = true;
+        INTERRUPTED.store(true, Ordering::Relaxed);
         eprintln!("soundloc: stopping (Ctrl-C again to quit at once)");
-        let _ = tx.send(Msg::End { gap: 0 });
+        // Never block the handler: the queue may be full, or nobody reads it any more.
+        let tx = tx.clone();
+        std::thread::spawn(move || {
+            let _ = tx.send(Msg::End { gap: 0 });
+        });
     });
 }
 
-fn reader_loop(source: &mut dyn AudioSource, tx: &SyncSender<Msg>, block: usize, live: bool) {
+fn reader_loop(
+    source: &mut dyn AudioSource,
+    tx: &SyncSender<Msg>,
+    block: usize,
+    live: bool,
+    pace_hz: Option<f64>,
+) {
     let nch = source.format().channels;
     let mut gap = 0u64;
+    let start = std::time::Instant::now();
+    let mut frames = 0u64;
     loop {
+        if let Some(fs) = pace_hz {
+            // A block is handed over once its audio has "been recorded".
+            let due = std::time::Duration::from_secs_f64((frames + block as u64) as f64 / fs);
+            if let Some(wait) = due.checked_sub(start.elapsed()) {
+                std::thread::sleep(wait);
+            }
+        }
         let mut buf = Vec::new();
         let r = source.read_interleaved(block, &mut buf);
         for n in source.take_notes() {
@@ -220,6 +258,7 @@ fn reader_loop(source: &mut dyn AudioSource, tx: &SyncSender<Msg>, block: usize,
                 return;
             }
             Ok(n) => {
+                frames += n as u64;
                 let msg = Msg::Block { data: buf, gap };
                 if live {
                     match tx.try_send(msg) {

@@ -1,7 +1,7 @@
 //! `soundloc localize`: localize sound sources in a recording.
 
 use super::input::{spawn_reader, InputArgs, Msg};
-use super::sinks::Sinks;
+use super::sinks::{LiveArgs, Progress, Sinks};
 use super::{AlgorithmArg, DeviceArg, PrecisionArg};
 use anyhow::{anyhow, bail, Context};
 use clap::ValueEnum;
@@ -219,9 +219,12 @@ pub struct RunArgs {
     /// Write a HARK source-location log (XML, HARK >= 2.1).
     #[arg(long)]
     pub log_xml: Option<PathBuf>,
-    /// Send results to a HarkDataStreamSender receiver at HOST:PORT (SRC_INFO packets).
+    /// Send results to a HarkDataStreamSender receiver at HOST:PORT (SRC_INFO packets;
+    /// retried while absent, never blocking).
     #[arg(long)]
     pub hark_stream: Option<String>,
+    #[command(flatten)]
+    pub live: LiveArgs,
     /// Compute device.
     #[arg(long, value_enum, default_value = "auto")]
     pub device: DeviceArg,
@@ -382,7 +385,7 @@ impl RunArgs {
                 PrecisionArg::F64 => soundloc::Precision::F64,
             },
             device: self.device.into(),
-            spectrum: self.spectrum.is_some() || self.plot.is_some(),
+            spectrum: self.spectrum.is_some() || self.plot.is_some() || self.live.serve.is_some(),
         })
     }
 }
@@ -390,7 +393,13 @@ impl RunArgs {
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     Sinks::check_paths(&args.run)?;
     let input = args.input.open(args.run.quiet)?;
-    let (fmt, rx) = spawn_reader(input.source, input.live, args.input.max_buffer);
+    let (fmt, rx) = spawn_reader(
+        input.source,
+        input.live,
+        args.input.max_buffer,
+        args.input.realtime,
+        args.run.live.serve.is_some(),
+    );
     drive(&args.run, &input.name, input.live, fmt, rx)
 }
 
@@ -423,7 +432,7 @@ pub fn drive(
             ),
         );
     }
-    let mut sinks = Sinks::open(a, &loc)?;
+    let mut sinks = Sinks::open(a, &loc, &name.display().to_string())?;
     let total = fmt.total_frames.unwrap_or(0);
     let bar = (!a.quiet && !live && total as f64 / fs > 3.0).then(|| {
         let b = indicatif::ProgressBar::new(total);
@@ -436,7 +445,7 @@ pub fn drive(
     let nch = fmt.channels;
     let mut out = Output::default();
     let (mut audio_frames, mut lost_frames, mut gaps) = (0u64, 0u64, 0usize);
-    let mut compute_s = 0.0;
+    let mut progress = Progress::default();
     let mut next_report = 10.0;
     let ctx = |e: soundloc::Error| anyhow!("{}: {e}", name.display());
     loop {
@@ -471,11 +480,15 @@ pub fn drive(
             .map_err(ctx)?;
             audio_frames += (data.len() / nch) as u64;
         }
-        compute_s += t.elapsed().as_secs_f64();
+        let dt = t.elapsed().as_secs_f64();
+        progress.compute_s += dt;
+        progress.last_compute_s = dt;
+        progress.audio_s = audio_frames as f64 / fs;
+        progress.lost_s = lost_frames as f64 / fs;
         for n in out.notes.drain(..) {
             note(a.quiet, &n);
         }
-        sinks.emit(&mut out, &loc)?;
+        sinks.emit(&mut out, &progress)?;
         if let Some(b) = &bar {
             b.set_position(audio_frames);
         }
@@ -486,7 +499,7 @@ pub fn drive(
                 a.quiet,
                 &format!(
                     "{audio_s:.1} s localized, real-time factor {:.3} (compute / audio){}",
-                    compute_s / audio_s,
+                    progress.compute_s / audio_s,
                     if lost_frames > 0 {
                         format!(", {:.2} s lost in {gaps} gaps", lost_frames as f64 / fs)
                     } else {
@@ -515,7 +528,7 @@ pub fn drive(
             nch,
             loc.config().algorithm.name(),
             loc.device_name(),
-            compute_s / audio_s
+            progress.compute_s / audio_s
         ),
     );
     if lost_frames > 0 {
@@ -535,6 +548,18 @@ pub fn drive(
         loc.config().algorithm.name(),
         loc.device_name()
     );
+    let view = sinks.take_view();
     sinks.finish(a, &loc, &title)?;
+    if let Some(mut v) = view {
+        v.status(Sinks::status(&progress, true), true);
+        note(
+            a.quiet,
+            &format!(
+                "the input has ended; the live view stays at http://{}/ until Ctrl-C",
+                v.local_addr()
+            ),
+        );
+        super::input::wait_for_ctrl_c();
+    }
     Ok(ExitCode::SUCCESS)
 }

@@ -4,8 +4,18 @@
 //! temporary file next to the target and renames it over the target only when the run
 //! succeeds. Outputs that need the whole run (summary, HARK logs, the spectrum `.npy`, the
 //! plot) are written at the end. Every output path is checked before localization starts.
+//!
+//! Live outputs never stall localization: the HARK stream and ODAS's SSL/SST messages go
+//! through reconnecting senders that drop (and count) what a missing receiver cannot take,
+//! and the browser view ([`crate::serve`]) drops per client.
 
-use super::localize::{FormatArg, RunArgs};
+use crate::serve::LiveServer;
+use soundloc::output::live;
+use soundloc::output::netsink::NetSender;
+use soundloc::output::odas::{self, SstSlots};
+use std::time::Duration;
+
+use super::localize::{note, FormatArg, RunArgs};
 use anyhow::{bail, Context};
 use soundloc::output::atomic::{write_atomically, AtomicFile};
 use soundloc::output::hark_stream::HarkStreamSender;
@@ -47,6 +57,113 @@ impl<W: Write> Lines<W> {
     }
 }
 
+/// Live outputs: the browser view and ODAS's JSON messages.
+#[derive(clap::Args, Debug, Clone)]
+pub struct LiveArgs {
+    /// Serve a live view (spectrum, peaks, tracks) to browsers at HOST:PORT, e.g.
+    /// 127.0.0.1:8080 (port 0 picks one). After the input ends the view stays up until
+    /// Ctrl-C.
+    #[arg(long, value_name = "HOST:PORT")]
+    pub serve: Option<String>,
+    /// ODAS SSL messages (potential sources) to a TCP server HOST:PORT (odas_web listens
+    /// on 9001; retried while absent, never blocking) or to a file.
+    #[arg(long, value_name = "HOST:PORT|FILE")]
+    pub odas_ssl: Option<String>,
+    /// ODAS SST messages (tracked sources; needs --track) to a TCP server HOST:PORT
+    /// (odas_web listens on 9000) or to a file.
+    #[arg(long, value_name = "HOST:PORT|FILE")]
+    pub odas_sst: Option<String>,
+    /// Potential sources per ODAS SSL message (ODAS's nPots).
+    #[arg(long, default_value_t = odas::DEFAULT_POTS)]
+    pub odas_pots: usize,
+    /// Track slots per ODAS SST message (ODAS's nTracks).
+    #[arg(long, default_value_t = odas::DEFAULT_TRACKS)]
+    pub odas_tracks: usize,
+}
+
+/// Where ODAS messages go: `tcp:HOST:PORT` or `HOST:PORT` (a name with no `/` ending in
+/// `:digits`) is a TCP server; anything else is a file.
+enum OdasOut {
+    Net(NetSender),
+    File(AtomicFile, PathBuf),
+}
+
+fn odas_target(v: &str) -> Option<&str> {
+    if let Some(a) = v.strip_prefix("tcp:") {
+        return Some(a);
+    }
+    let (_, port) = v.rsplit_once(':')?;
+    (!v.contains('/') && !port.is_empty() && port.bytes().all(|b| b.is_ascii_digit())).then_some(v)
+}
+
+impl OdasOut {
+    fn open(v: &str, what: &str) -> anyhow::Result<Self> {
+        Ok(match odas_target(v) {
+            Some(addr) => OdasOut::Net(NetSender::start(what, addr)?),
+            None => OdasOut::File(AtomicFile::create(v)?, PathBuf::from(v)),
+        })
+    }
+    fn write(&mut self, text: &str) -> anyhow::Result<()> {
+        match self {
+            OdasOut::Net(n) => n.send(text.as_bytes().to_vec()),
+            OdasOut::File(f, p) => f
+                .write_all(text.as_bytes())
+                .with_context(|| format!("{}: writing ODAS messages", p.display()))?,
+        }
+        Ok(())
+    }
+    fn notes(&self) -> Vec<String> {
+        match self {
+            OdasOut::Net(n) => n.take_notes(),
+            OdasOut::File(..) => Vec::new(),
+        }
+    }
+    fn finish(self, quiet: bool) -> anyhow::Result<()> {
+        match self {
+            OdasOut::Net(n) => {
+                let what = n.what().to_string();
+                let peer = n.peer().to_string();
+                for m in n.take_notes() {
+                    note(quiet, &m);
+                }
+                report(quiet, &what, &peer, n.finish(Duration::from_secs(2)));
+            }
+            OdasOut::File(mut f, p) => {
+                f.flush()
+                    .with_context(|| format!("{}: writing ODAS messages", p.display()))?;
+                f.commit()?;
+            }
+        }
+        Ok(())
+    }
+}
+
+fn report(quiet: bool, what: &str, peer: &str, s: soundloc::output::netsink::NetStats) {
+    if s.dropped > 0 {
+        note(
+            quiet,
+            &format!(
+                "warning: {what}: {} of {} messages to {peer} dropped (receiver absent, gone or too slow)",
+                s.dropped,
+                s.sent + s.dropped
+            ),
+        );
+    }
+}
+
+/// How far the run is, for the live view's status line.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Progress {
+    /// Audio localized, s.
+    pub audio_s: f64,
+    /// Compute time so far, s.
+    pub compute_s: f64,
+    /// Compute time of the last block, s.
+    pub last_compute_s: f64,
+    /// Live input dropped while behind, s.
+    pub lost_s: f64,
+}
+
 enum Dest {
     Stdout(Lines<std::io::Stdout>),
     File(Lines<AtomicFile>, PathBuf),
@@ -56,10 +173,32 @@ enum Dest {
 pub struct Sinks {
     dest: Dest,
     hark: Option<HarkStreamSender>,
+    view: Option<LiveServer>,
+    ssl: Option<OdasOut>,
+    sst: Option<(OdasOut, SstSlots)>,
+    /// The end-of-run outputs need the spectrum.
+    keep_spectrum: bool,
+    quiet: bool,
     /// Every result, when an end-of-run output needs them.
     keep: Option<Vec<LocalizationResult>>,
     spectrum: Option<SpectrumTable>,
     count: usize,
+    pots: usize,
+}
+
+fn status(p: &Progress, finished: bool) -> live::Status {
+    live::Status {
+        audio_s: p.audio_s,
+        rtf: if p.audio_s > 0.0 {
+            p.compute_s / p.audio_s
+        } else {
+            0.0
+        },
+        compute_ms: p.last_compute_s * 1e3,
+        lost_s: p.lost_s,
+        view_dropped: 0,
+        finished,
+    }
 }
 
 fn check_dir(p: &Path, what: &str) -> anyhow::Result<()> {
@@ -105,11 +244,28 @@ impl Sinks {
         if a.summary.is_some() && !a.track {
             bail!("--summary needs --track");
         }
+        let l = &a.live;
+        if l.odas_sst.is_some() && !a.track {
+            bail!("--odas-sst needs --track (SST messages carry tracked sources)");
+        }
+        if l.odas_sst.is_some() && a.min_id < 0 {
+            bail!("--odas-sst needs --min-id >= 0 (ODAS ids are unsigned; soundloc sends id + 1, 0 marks an empty slot)");
+        }
+        for (n, what) in [(l.odas_pots, "--odas-pots"), (l.odas_tracks, "--odas-tracks")] {
+            if !(1..=64).contains(&n) {
+                bail!("{what} must be 1..=64, got {n}");
+            }
+        }
+        for (v, what) in [(&l.odas_ssl, "--odas-ssl"), (&l.odas_sst, "--odas-sst")] {
+            if let Some(v) = v.as_deref().filter(|v| odas_target(v).is_none()) {
+                check_dir(Path::new(v), what)?;
+            }
+        }
         Ok(())
     }
 
     /// Open the streaming outputs (the `-o` temporary file, the HARK stream connection).
-    pub fn open(a: &RunArgs, loc: &Localizer) -> anyhow::Result<Self> {
+    pub fn open(a: &RunArgs, loc: &Localizer, source: &str) -> anyhow::Result<Self> {
         let dest = match &a.output {
             Some(p) => Dest::File(Lines::new(a.format, AtomicFile::create(p)?)?, p.clone()),
             None => {
@@ -121,12 +277,51 @@ impl Sinks {
             None => None,
         };
         let keep_all = a.summary.is_some() || a.log_text.is_some() || a.log_xml.is_some() || a.plot.is_some();
+        let l = &a.live;
+        let ssl = l
+            .odas_ssl
+            .as_deref()
+            .map(|v| OdasOut::open(v, "ODAS SSL"))
+            .transpose()?;
+        let sst = match l.odas_sst.as_deref() {
+            Some(v) => Some((OdasOut::open(v, "ODAS SST")?, SstSlots::new(l.odas_tracks))),
+            None => None,
+        };
+        let view = match &l.serve {
+            Some(addr) => {
+                let v = LiveServer::bind(addr)?;
+                let c = loc.config();
+                let grid = loc.grid();
+                let az: Vec<f64> = (0..grid.len()).map(|d| grid.azimuth_deg(d)).collect();
+                let el: Vec<f64> = (0..grid.len()).map(|d| grid.elevation_deg(d)).collect();
+                let fs = c.sample_rate_hz as f64;
+                let info = live::RunInfo {
+                    source: source.to_string(),
+                    algorithm: c.algorithm.name().to_string(),
+                    device: loc.device_name(),
+                    sample_rate_hz: c.sample_rate_hz,
+                    hop: c.hop,
+                    latency_ms: (loc.latency_frames() * c.hop + c.nfft) as f64 / fs * 1e3,
+                };
+                v.hello(live::hello(&info, &az, &el));
+                // Always said, even with --quiet: the user needs the address.
+                eprintln!("soundloc: live view at http://{}/", v.local_addr());
+                Some(v)
+            }
+            None => None,
+        };
         Ok(Sinks {
             dest,
             hark,
+            view,
+            ssl,
+            sst,
+            keep_spectrum: a.spectrum.is_some() || a.plot.is_some(),
+            quiet: a.quiet,
             keep: keep_all.then(Vec::new),
             spectrum: None,
             count: 0,
+            pots: a.live.odas_pots,
         })
     }
 
@@ -136,13 +331,36 @@ impl Sinks {
     }
 
     /// Write what `out` holds now and empty it.
-    pub fn emit(&mut self, out: &mut Output, _loc: &Localizer) -> anyhow::Result<()> {
+    pub fn emit(&mut self, out: &mut Output, progress: &Progress) -> anyhow::Result<()> {
         let results = std::mem::take(&mut out.results);
-        if let Some(t) = out.spectrum.take() {
+        let table = out.spectrum.take();
+        if let Some(v) = &mut self.view {
+            for (i, r) in results.iter().enumerate() {
+                let spectrum = table.as_ref().and_then(|t| {
+                    let row = t.frames.iter().position(|&f| f == r.frame).unwrap_or(i);
+                    let d = t.num_dirs;
+                    t.db.get(row * d..(row + 1) * d)
+                        .map(|db| live::spectrum(r.frame, r.time_s, db))
+                });
+                v.result(live::result(r), spectrum, r.time_s);
+            }
+            v.status(status(progress, false), false);
+        }
+        if let Some(t) = table.filter(|_| self.keep_spectrum) {
             match &mut self.spectrum {
                 Some(all) => all.append(t),
                 None => self.spectrum = Some(t),
             }
+        }
+        let mut notes = Vec::new();
+        if let Some(h) = &self.hark {
+            notes.extend(h.net().take_notes());
+        }
+        for o in self.ssl.iter().chain(self.sst.iter().map(|s| &s.0)) {
+            notes.extend(o.notes());
+        }
+        for n in notes {
+            note(self.quiet, &n);
         }
         if results.is_empty() {
             return Ok(());
@@ -166,6 +384,19 @@ impl Sinks {
                 h.send(r, r.frame as i32)?;
             }
         }
+        let mut text = String::new();
+        for r in &results {
+            if let Some(o) = &mut self.ssl {
+                text.clear();
+                odas::write_ssl(r, self.pots, &mut text);
+                o.write(&text)?;
+            }
+            if let Some((o, slots)) = &mut self.sst {
+                text.clear();
+                slots.write(r, &mut text);
+                o.write(&text)?;
+            }
+        }
         self.count += results.len();
         if let Some(k) = &mut self.keep {
             k.extend(results);
@@ -173,8 +404,31 @@ impl Sinks {
         Ok(())
     }
 
+    /// The live view, to keep serving after the other outputs are finished.
+    pub fn take_view(&mut self) -> Option<LiveServer> {
+        self.view.take()
+    }
+
+    /// The live view's status message for `p`.
+    pub fn status(p: &Progress, finished: bool) -> live::Status {
+        status(p, finished)
+    }
+
     /// The end-of-run outputs, then the `-o` file is renamed into place.
     pub fn finish(self, a: &RunArgs, loc: &Localizer, title: &str) -> anyhow::Result<()> {
+        if let Some(h) = self.hark {
+            let peer = h.peer().to_string();
+            for m in h.net().take_notes() {
+                note(a.quiet, &m);
+            }
+            report(a.quiet, "HARK stream", &peer, h.finish(Duration::from_secs(2)));
+        }
+        if let Some(o) = self.ssl {
+            o.finish(a.quiet)?;
+        }
+        if let Some((o, _)) = self.sst {
+            o.finish(a.quiet)?;
+        }
         let results = self.keep.unwrap_or_default();
         if let Some(p) = &a.summary {
             let s = soundloc::tracking::summarize(&results);
@@ -207,6 +461,10 @@ impl Sinks {
                     peaks: results
                         .iter()
                         .map(|r| r.sources.iter().map(|s| (s.azimuth_deg, s.power_db)).collect())
+                        .collect(),
+                    peak_ids: results
+                        .iter()
+                        .map(|r| r.sources.iter().map(|s| s.id).collect())
                         .collect(),
                     truth_azimuths_deg: Vec::new(),
                     title: title.to_string(),

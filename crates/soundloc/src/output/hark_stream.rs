@@ -22,12 +22,13 @@
 //! SRC_WAVE 0x8, SRC_FFT 0x10, SRC_FEATURE 0x20, SRC_RELIABILITY 0x40, TEXT 0x80,
 //! MATRIX 0x100, VECTOR 0x200) are listed for receivers' reference; only SRC_INFO is sent.
 //!
-//! Each message is assembled in a reusable buffer and written with one `write_all`
-//! (TCP_NODELAY on), so a receiver never sees half a header followed by a stall.
+//! Each message is assembled in a buffer and written with one `write_all` (TCP_NODELAY on),
+//! so a receiver never sees half a header followed by a stall. The connection is a
+//! [`NetSender`]: an absent or vanished receiver is retried, never waited for.
 
-use std::io::Write;
-use std::net::{TcpStream, ToSocketAddrs};
 use std::time::{SystemTime, UNIX_EPOCH};
+
+use super::netsink::{NetSender, NetStats};
 
 use crate::error::{Error, Result};
 use crate::result::LocalizationResult;
@@ -104,47 +105,46 @@ pub fn encode(
 }
 
 /// A TCP client speaking HarkDataStreamSender's SRC_INFO messages. See the
-/// [module docs](self).
+/// [module docs](self). It never stalls localization: it retries while the receiver is
+/// absent, reconnects when it goes away, and drops (and counts) what cannot be sent
+/// ([`NetSender`]).
 #[derive(Debug)]
 pub struct HarkStreamSender {
-    stream: TcpStream,
-    peer: String,
+    net: NetSender,
     advance: i32,
     buf: Vec<u8>,
 }
 
 impl HarkStreamSender {
-    /// Connects to `addr` (`host:port`; a bare host gets [`DEFAULT_PORT`]). `advance` is
-    /// the frame shift in samples written into every header.
+    /// Starts sending to `addr` (`host:port`; a bare host gets [`DEFAULT_PORT`]). `advance`
+    /// is the frame shift in samples written into every header. Fails only on an address
+    /// that does not resolve.
     pub fn connect(addr: &str, advance: i32) -> Result<Self> {
         let peer = if addr.contains(':') {
             addr.to_string()
         } else {
             format!("{addr}:{DEFAULT_PORT}")
         };
-        let err = |e: std::io::Error| Error::io(format!("tcp://{peer}"), e);
-        let addrs: Vec<_> = peer.as_str().to_socket_addrs().map_err(err)?.collect();
-        let mut last = std::io::Error::new(std::io::ErrorKind::NotFound, "no address resolved");
-        for a in addrs {
-            match TcpStream::connect(a) {
-                Ok(stream) => {
-                    stream.set_nodelay(true).map_err(err)?;
-                    return Ok(HarkStreamSender {
-                        stream,
-                        peer,
-                        advance,
-                        buf: Vec::new(),
-                    });
-                }
-                Err(e) => last = e,
-            }
-        }
-        Err(err(last))
+        Ok(HarkStreamSender {
+            net: NetSender::start("HARK stream", &peer)?,
+            advance,
+            buf: Vec::new(),
+        })
     }
 
     /// The receiver's address as given (with the default port added when missing).
     pub fn peer(&self) -> &str {
-        &self.peer
+        self.net.peer()
+    }
+
+    /// The connection (notes, counts, finishing).
+    pub fn net(&self) -> &NetSender {
+        &self.net
+    }
+
+    /// Stop, sending what is queued within `grace`; the final counts.
+    pub fn finish(self, grace: std::time::Duration) -> NetStats {
+        self.net.finish(grace)
     }
 
     /// Sends `result` with frame count `count`, time-stamped with the current wall clock.
@@ -155,6 +155,7 @@ impl HarkStreamSender {
     }
 
     /// Sends `result` with an explicit `timeval` (e.g. the capture time of its frame).
+    /// Fails only when the result cannot be encoded ([`encode`]).
     pub fn send_with_timestamp(
         &mut self,
         result: &LocalizationResult,
@@ -164,9 +165,7 @@ impl HarkStreamSender {
     ) -> Result<()> {
         self.buf.clear();
         encode(result, self.advance, count, tv_sec, tv_usec, &mut self.buf)?;
-        self.stream
-            .write_all(&self.buf)
-            .and_then(|_| self.stream.flush())
-            .map_err(|e| Error::io(format!("tcp://{}", self.peer), e))
+        self.net.send(self.buf.clone());
+        Ok(())
     }
 }

@@ -16,14 +16,14 @@
 //! written atomically.
 
 use super::atomic::AtomicFile;
+use super::style;
 use crate::{Error, Result};
 use plotters::coord::Shift;
 use plotters::prelude::*;
 use std::path::Path;
 use std::sync::OnceLock;
 
-/// Width of an azimuth bin of the heat map, degrees.
-pub const AZIMUTH_BIN_DEG: f64 = 2.0;
+pub use super::style::AZIMUTH_BIN_DEG;
 
 /// Image size in pixels (width, height).
 pub const PLOT_SIZE: (u32, u32) = (1200, 600);
@@ -46,6 +46,9 @@ pub struct SpectrumPlot {
     /// Detected peaks per result: (azimuth in degrees, power in dB). Empty, or one list
     /// per result.
     pub peaks: Vec<Vec<(f64, f64)>>,
+    /// Track id of each peak (same shape as `peaks`), or empty when untracked. A tracked
+    /// peak takes its id's colour ([`style::track_rgb`]).
+    pub peak_ids: Vec<Vec<Option<i64>>>,
     /// True source azimuths in degrees, drawn as dashed horizontal lines.
     pub truth_azimuths_deg: Vec<f64>,
     /// Title above the plot.
@@ -64,9 +67,7 @@ struct HeatMap {
     hi: f32,
 }
 
-fn wrap_az(az: f64) -> f64 {
-    (az + 180.0).rem_euclid(360.0) - 180.0
-}
+use super::style::wrap_azimuth_deg as wrap_az;
 
 fn validate(p: &SpectrumPlot) -> Result<()> {
     let (r, d) = (p.times_s.len(), p.azimuth_deg.len());
@@ -94,6 +95,14 @@ fn validate(p: &SpectrumPlot) -> Result<()> {
             p.peaks.len()
         )));
     }
+    if !p.peak_ids.is_empty()
+        && (p.peak_ids.len() != p.peaks.len()
+            || p.peak_ids.iter().zip(&p.peaks).any(|(i, k)| i.len() != k.len()))
+    {
+        return Err(Error::Mismatch(
+            "plot: peak ids must have the shape of the peaks".into(),
+        ));
+    }
     if p.times_s.iter().any(|t| !t.is_finite()) || p.azimuth_deg.iter().any(|a| !a.is_finite()) {
         return Err(Error::Mismatch("plot: times and azimuths must be finite".into()));
     }
@@ -107,12 +116,8 @@ fn validate(p: &SpectrumPlot) -> Result<()> {
 
 fn heat_map(p: &SpectrumPlot, max_cols: usize) -> HeatMap {
     let (r, d) = (p.times_s.len(), p.azimuth_deg.len());
-    let bins = (360.0 / AZIMUTH_BIN_DEG).round() as usize;
-    let bin_of: Vec<usize> = p
-        .azimuth_deg
-        .iter()
-        .map(|&a| (((wrap_az(a) + 180.0) / AZIMUTH_BIN_DEG).floor() as usize).min(bins - 1))
-        .collect();
+    let bins = style::azimuth_bins();
+    let bin_of: Vec<usize> = p.azimuth_deg.iter().map(|&a| style::azimuth_bin(a)).collect();
     // Nearest occupied bin for every bin (circular).
     let mut occupied = vec![false; bins];
     bin_of.iter().for_each(|&b| occupied[b] = true);
@@ -151,17 +156,7 @@ fn heat_map(p: &SpectrumPlot, max_cols: usize) -> HeatMap {
             values[col * bins + b] = row[source[b]];
         }
     }
-    let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
-    for &v in values.iter().filter(|v| v.is_finite()) {
-        lo = lo.min(v);
-        hi = hi.max(v);
-    }
-    if !lo.is_finite() {
-        (lo, hi) = (0.0, 1.0);
-    }
-    if hi <= lo {
-        hi = lo + 1.0;
-    }
+    let (lo, hi) = style::db_range(values.iter().copied());
     HeatMap {
         edges,
         bins,
@@ -171,29 +166,9 @@ fn heat_map(p: &SpectrumPlot, max_cols: usize) -> HeatMap {
     }
 }
 
-/// Viridis, sampled at 9 points.
-const VIRIDIS: [(u8, u8, u8); 9] = [
-    (68, 1, 84),
-    (71, 44, 122),
-    (59, 81, 139),
-    (44, 113, 142),
-    (33, 144, 141),
-    (39, 173, 129),
-    (92, 200, 99),
-    (170, 220, 50),
-    (253, 231, 37),
-];
-
 fn colour(v: f32, lo: f32, hi: f32) -> RGBColor {
-    if !v.is_finite() {
-        return RGBColor(40, 40, 40);
-    }
-    let x = (((v - lo) / (hi - lo)).clamp(0.0, 1.0) * 8.0) as f64;
-    let i = (x.floor() as usize).min(7);
-    let f = x - i as f64;
-    let (a, b) = (VIRIDIS[i], VIRIDIS[i + 1]);
-    let mix = |p: u8, q: u8| (p as f64 + (q as f64 - p as f64) * f).round() as u8;
-    RGBColor(mix(a.0, b.0), mix(a.1, b.1), mix(a.2, b.2))
+    let [r, g, b] = style::db_rgb(v, lo, hi);
+    RGBColor(r, g, b)
 }
 
 fn register_font() -> Result<()> {
@@ -308,27 +283,33 @@ fn draw<DB: DrawingBackend>(
             (t1 - t0) / 2.0
         }
     };
-    let marks: Vec<(f64, f64)> = p
-        .peaks
-        .iter()
-        .enumerate()
-        .flat_map(|(i, list)| {
-            let t = p.times_s[i] + half_dt(i);
-            list.iter()
-                .filter(|(az, _)| az.is_finite())
-                .map(move |&(az, _)| (t, wrap_az(az)))
-        })
-        .collect();
-    if !marks.is_empty() {
-        chart
-            .draw_series(
-                marks
-                    .iter()
-                    .map(|&c| Circle::new(c, 3, RGBColor(230, 30, 30).filled())),
-            )?
-            .label("detected peak")
-            .legend(|(x, y)| Circle::new((x + 10, y), 3, RGBColor(230, 30, 30).filled()));
-        chart.draw_series(marks.iter().map(|&c| Circle::new(c, 3, WHITE.stroke_width(1))))?;
+    // Peaks, coloured by track id (untracked ones red), as in the live view.
+    let mut marks: Vec<(Option<i64>, (f64, f64))> = Vec::new();
+    for (i, list) in p.peaks.iter().enumerate() {
+        let t = p.times_s[i] + half_dt(i);
+        for (k, &(az, _)) in list.iter().enumerate() {
+            if az.is_finite() {
+                let id = p.peak_ids.get(i).and_then(|ids| ids.get(k).copied().flatten());
+                marks.push((id, (t, wrap_az(az))));
+            }
+        }
+    }
+    let mut groups: Vec<Option<i64>> = marks.iter().map(|m| m.0).collect();
+    groups.sort_unstable();
+    groups.dedup();
+    for (n, g) in groups.iter().enumerate() {
+        let [r, gr, b] = g.map_or(style::PEAK_RGB, style::track_rgb);
+        let c = RGBColor(r, gr, b);
+        let pts: Vec<(f64, f64)> = marks.iter().filter(|m| m.0 == *g).map(|m| m.1).collect();
+        let s = chart.draw_series(pts.iter().map(|&q| Circle::new(q, 3, c.filled())))?;
+        // A legend entry per id (the first 8), or one for untracked peaks.
+        if n < 8 {
+            let label = g.map_or("detected peak".to_string(), |id| format!("source {id}"));
+            s.label(label)
+                .legend(move |(x, y)| Circle::new((x + 10, y), 3, c.filled()));
+        }
+        let ring = if g.is_some() { BLACK } else { WHITE };
+        chart.draw_series(pts.iter().map(|&q| Circle::new(q, 3, ring.stroke_width(1))))?;
     }
     if !marks.is_empty() || !p.truth_azimuths_deg.is_empty() {
         chart
@@ -442,6 +423,10 @@ mod tests {
             azimuth_deg: az,
             elevation_deg: el,
             db,
+            peak_ids: peaks
+                .iter()
+                .map(|l| (0..l.len()).map(|k| (k == 0).then_some(3)).collect())
+                .collect(),
             peaks,
             truth_azimuths_deg: vec![30.0, -120.0],
             title: "synthetic spectrum".into(),
@@ -534,6 +519,9 @@ mod tests {
         assert!(plot_spectrum(&path, &p).is_err());
         let mut p = synthetic(&[0.0]);
         p.peaks.pop();
+        assert!(plot_spectrum(&path, &p).is_err());
+        let mut p = synthetic(&[0.0]);
+        p.peak_ids[0].push(Some(1));
         assert!(plot_spectrum(&path, &p).is_err());
         assert!(plot_spectrum(&path, &SpectrumPlot::default()).is_err());
         assert_eq!(std::fs::read_dir(&d).unwrap().count(), 0);

@@ -1,0 +1,263 @@
+//! `--serve ADDR`: the live view. A small HTTP server on its own threads serves one
+//! self-contained page (`assets/view.html` and `assets/view.js`, embedded in the binary; no
+//! network needed) and streams the run to every page over a WebSocket (`/ws`) in the
+//! messages of [`soundloc::output::live`].
+//!
+//! The engine never waits for a browser: each client has a bounded queue
+//! ([`CLIENT_QUEUE`] messages); when it is full the client's new messages are dropped and
+//! counted (the page shows the count), and a client whose socket accepts nothing for
+//! [`WRITE_TIMEOUT`] is disconnected. A page that connects late first receives the
+//! `hello` and the last [`HISTORY`] results and spectra, so a finished file can still be
+//! reviewed.
+
+use anyhow::Context;
+use soundloc::output::live;
+use std::collections::VecDeque;
+use std::io::{Read, Write};
+use std::net::{SocketAddr, TcpListener, TcpStream};
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::mpsc::{sync_channel, Receiver, SyncSender, TrySendError};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+use tungstenite::Message;
+
+const PAGE: &str = include_str!("../assets/view.html");
+const SCRIPT: &str = include_str!("../assets/view.js");
+
+/// Messages queued per client before its new ones are dropped.
+pub const CLIENT_QUEUE: usize = 512;
+/// Results (with their spectra) replayed to a page that connects late.
+pub const HISTORY: usize = 450;
+/// A client socket that accepts nothing for this long is disconnected.
+pub const WRITE_TIMEOUT: Duration = Duration::from_secs(5);
+/// Longest HTTP request head read.
+const MAX_HEAD: usize = 16 * 1024;
+
+struct Client {
+    tx: SyncSender<Message>,
+    dropped: Arc<AtomicU64>,
+}
+
+#[derive(Default)]
+struct State {
+    clients: Vec<Client>,
+    hello: Option<Message>,
+    /// Result and spectrum messages, oldest first; `results` of them are results.
+    history: VecDeque<Message>,
+    results: usize,
+    /// The latest status, replayed to late pages.
+    status: Option<live::Status>,
+}
+
+impl State {
+    /// Queue `m` for every client; full queues drop it (counted), gone clients are removed.
+    fn broadcast(&mut self, m: &Message) {
+        self.clients.retain(|c| match c.tx.try_send(m.clone()) {
+            Ok(()) => true,
+            Err(TrySendError::Full(_)) => {
+                c.dropped.fetch_add(1, Ordering::Relaxed);
+                true
+            }
+            Err(TrySendError::Disconnected(_)) => false,
+        });
+    }
+}
+
+/// The running live-view server.
+pub struct LiveServer {
+    addr: SocketAddr,
+    state: Arc<Mutex<State>>,
+    /// Audio time of the last spectrum sent (spectra are thinned to [`MAX_SPECTRA_PER_S`]).
+    last_spectrum_s: f64,
+    last_status: Option<Instant>,
+}
+
+/// Spectra sent per second of audio at most (a page cannot show more).
+pub const MAX_SPECTRA_PER_S: f64 = 50.0;
+
+impl LiveServer {
+    /// Listen on `addr` (`HOST:PORT`; port 0 picks a free one).
+    pub fn bind(addr: &str) -> anyhow::Result<Self> {
+        let l = TcpListener::bind(addr).with_context(|| format!("--serve {addr}: cannot listen"))?;
+        let addr = l.local_addr()?;
+        let state = Arc::new(Mutex::new(State::default()));
+        let s = state.clone();
+        std::thread::Builder::new()
+            .name("soundloc view".into())
+            .spawn(move || {
+                for conn in l.incoming().flatten() {
+                    let s = s.clone();
+                    let _ = std::thread::Builder::new()
+                        .name("soundloc view client".into())
+                        .spawn(move || handle(conn, &s));
+                }
+            })?;
+        Ok(LiveServer {
+            addr,
+            state,
+            last_spectrum_s: f64::NEG_INFINITY,
+            last_status: None,
+        })
+    }
+
+    /// Where it listens.
+    pub fn local_addr(&self) -> SocketAddr {
+        self.addr
+    }
+
+    fn with<R>(&self, f: impl FnOnce(&mut State) -> R) -> R {
+        let mut g = self.state.lock().unwrap_or_else(|p| p.into_inner());
+        f(&mut g)
+    }
+
+    /// Send the `hello` (to pages now and later).
+    pub fn hello(&self, text: String) {
+        let m = Message::text(text);
+        self.with(|s| {
+            s.broadcast(&m);
+            s.hello = Some(m);
+        });
+    }
+
+    /// Send one result and, when given, its spectrum (kept for late pages).
+    pub fn result(&mut self, text: String, spectrum: Option<Vec<u8>>, time_s: f64) {
+        let spectrum = spectrum.filter(|_| {
+            let due = time_s - self.last_spectrum_s >= 1.0 / MAX_SPECTRA_PER_S - 1e-9;
+            if due {
+                self.last_spectrum_s = time_s;
+            }
+            due
+        });
+        self.with(|s| {
+            let m = Message::text(text);
+            s.broadcast(&m);
+            s.history.push_back(m);
+            s.results += 1;
+            if let Some(b) = spectrum {
+                let m = Message::binary(b);
+                s.broadcast(&m);
+                s.history.push_back(m);
+            }
+            while s.results > HISTORY {
+                if let Some(Message::Text(_)) = s.history.pop_front() {
+                    s.results -= 1;
+                }
+                // Drop the spectrum that followed the result too.
+                while matches!(s.history.front(), Some(Message::Binary(_))) {
+                    s.history.pop_front();
+                }
+            }
+        });
+    }
+
+    /// Send the run's status (at most about twice a second unless `force`).
+    pub fn status(&mut self, st: live::Status, force: bool) {
+        if !force
+            && self
+                .last_status
+                .is_some_and(|t| t.elapsed() < Duration::from_millis(500))
+        {
+            return;
+        }
+        self.last_status = Some(Instant::now());
+        self.with(|s| {
+            s.status = Some(st);
+            s.clients.retain(|c| {
+                let mut st = st;
+                st.view_dropped = c.dropped.load(Ordering::Relaxed);
+                match c.tx.try_send(Message::text(live::status(&st))) {
+                    Ok(()) => true,
+                    Err(TrySendError::Full(_)) => {
+                        c.dropped.fetch_add(1, Ordering::Relaxed);
+                        true
+                    }
+                    Err(TrySendError::Disconnected(_)) => false,
+                }
+            });
+        });
+    }
+}
+
+/// Read the request head without consuming it (a WebSocket handshake reads it again).
+fn peek_head(c: &TcpStream) -> Option<String> {
+    let mut buf = vec![0u8; MAX_HEAD];
+    let t = Instant::now();
+    loop {
+        let n = c.peek(&mut buf).ok()?;
+        if n == 0 {
+            return None;
+        }
+        if let Some(end) = buf[..n].windows(4).position(|w| w == b"\r\n\r\n") {
+            return Some(String::from_utf8_lossy(&buf[..end + 4]).into_owned());
+        }
+        if n == MAX_HEAD || t.elapsed() > Duration::from_secs(5) {
+            return None;
+        }
+        std::thread::sleep(Duration::from_millis(5));
+    }
+}
+
+fn handle(conn: TcpStream, state: &Mutex<State>) {
+    let _ = conn.set_read_timeout(Some(Duration::from_secs(5)));
+    let _ = conn.set_write_timeout(Some(WRITE_TIMEOUT));
+    let Some(head) = peek_head(&conn) else { return };
+    let mut first = head.lines().next().unwrap_or("").split_whitespace();
+    let (method, path) = (first.next().unwrap_or(""), first.next().unwrap_or(""));
+    let upgrade = head.lines().any(|l| {
+        l.to_ascii_lowercase().starts_with("upgrade:") && l.to_ascii_lowercase().contains("websocket")
+    });
+    if method == "GET" && path == "/ws" && upgrade {
+        websocket(conn, state);
+        return;
+    }
+    // A plain request: consume the head, answer, close.
+    let mut conn = conn;
+    let mut sink = vec![0u8; head.len()];
+    if conn.read_exact(&mut sink).is_err() {
+        return;
+    }
+    let (status, ctype, body) = match (method, path.split('?').next().unwrap_or("")) {
+        ("GET", "/" | "/index.html") => ("200 OK", "text/html; charset=utf-8", PAGE),
+        ("GET", "/view.js") => ("200 OK", "text/javascript; charset=utf-8", SCRIPT),
+        ("GET", _) => ("404 Not Found", "text/plain; charset=utf-8", "not found\n"),
+        _ => (
+            "405 Method Not Allowed",
+            "text/plain; charset=utf-8",
+            "GET only\n",
+        ),
+    };
+    let _ = write!(
+        conn,
+        "HTTP/1.1 {status}\r\nContent-Type: {ctype}\r\nContent-Length: {}\r\nCache-Control: no-store\r\nX-Content-Type-Options: nosniff\r\nConnection: close\r\n\r\n{body}",
+        body.len()
+    );
+    let _ = conn.flush();
+}
+
+fn websocket(conn: TcpStream, state: &Mutex<State>) {
+    let Ok(mut ws) = tungstenite::accept(conn) else {
+        return;
+    };
+    let (tx, rx): (SyncSender<Message>, Receiver<Message>) = sync_channel(CLIENT_QUEUE);
+    // Register and take the replay under one lock: nothing missed, nothing twice.
+    let replay: Vec<Message> = {
+        let mut s = state.lock().unwrap_or_else(|p| p.into_inner());
+        s.clients.push(Client {
+            tx,
+            dropped: Arc::new(AtomicU64::new(0)),
+        });
+        let status = s.status.map(|st| Message::text(live::status(&st)));
+        s.hello
+            .iter()
+            .chain(s.history.iter())
+            .cloned()
+            .chain(status)
+            .collect()
+    };
+    for m in replay.into_iter().chain(rx) {
+        if ws.send(m).is_err() {
+            return;
+        }
+    }
+    let _ = ws.close(None);
+}

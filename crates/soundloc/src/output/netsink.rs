@@ -1,0 +1,267 @@
+//! A network output that never stalls localization: [`NetSender`] is a TCP client on its
+//! own thread that connects to a receiver, retries while the receiver is absent, and
+//! reconnects when it goes away. The localizer hands it finished messages
+//! ([`NetSender::send`]) and returns at once:
+//!
+//! - messages wait in a bounded queue ([`QUEUE_MESSAGES`]); when it is full (the receiver is
+//!   absent or slower than the results) the new message is **dropped and counted**;
+//! - a message being written when the connection breaks is dropped and counted too; the
+//!   next one goes to the new connection (messages are never split across connections);
+//! - what happened (connected, lost, how many dropped) is reported as notes
+//!   ([`NetSender::take_notes`]) and in the final [`NetStats`].
+//!
+//! HARK's stream, ODAS's SSL/SST sinks and any later network output use it.
+
+use std::io::Write;
+use std::net::{SocketAddr, TcpStream, ToSocketAddrs};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::mpsc::{sync_channel, Receiver, RecvTimeoutError, SyncSender, TrySendError};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+/// Messages queued while the receiver is slow or absent; beyond, new ones are dropped.
+pub const QUEUE_MESSAGES: usize = 1024;
+
+/// Wait between connection attempts.
+pub const RETRY: Duration = Duration::from_millis(250);
+
+/// A write that makes no progress for this long counts as a lost connection.
+pub const WRITE_TIMEOUT: Duration = Duration::from_secs(2);
+
+/// What a sender did.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct NetStats {
+    /// Messages written to a receiver.
+    pub sent: u64,
+    /// Messages dropped (queue full, no receiver, or the connection broke while writing).
+    pub dropped: u64,
+    /// Connections made (1 when the receiver was there throughout).
+    pub connections: u64,
+}
+
+#[derive(Default)]
+struct Shared {
+    sent: AtomicU64,
+    dropped: AtomicU64,
+    connections: AtomicU64,
+    notes: Mutex<Vec<String>>,
+    connected: AtomicBool,
+    /// Set by [`NetSender::finish`]: send what is queued until then, drop the rest.
+    deadline: Mutex<Option<Instant>>,
+}
+
+impl Shared {
+    fn note(&self, s: String) {
+        if let Ok(mut n) = self.notes.lock() {
+            n.push(s);
+        }
+    }
+    fn stats(&self) -> NetStats {
+        NetStats {
+            sent: self.sent.load(Ordering::Relaxed),
+            dropped: self.dropped.load(Ordering::Relaxed),
+            connections: self.connections.load(Ordering::Relaxed),
+        }
+    }
+}
+
+/// A reconnecting, never-blocking TCP client. See the [module docs](self).
+pub struct NetSender {
+    what: String,
+    peer: String,
+    tx: Option<SyncSender<Vec<u8>>>,
+    shared: Arc<Shared>,
+    thread: Option<std::thread::JoinHandle<()>>,
+}
+
+impl std::fmt::Debug for NetSender {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("NetSender")
+            .field("what", &self.what)
+            .field("peer", &self.peer)
+            .finish()
+    }
+}
+
+impl NetSender {
+    /// Start sending to `peer` (`host:port`). `what` names the output in notes (e.g.
+    /// "ODAS SSL"). Fails only when `peer` is not a valid address; an absent receiver is
+    /// retried.
+    pub fn start(what: &str, peer: &str) -> crate::Result<Self> {
+        let addrs: Vec<SocketAddr> = peer
+            .to_socket_addrs()
+            .map_err(|e| crate::Error::Config(format!("{what}: {peer:?} is not a HOST:PORT address ({e})")))?
+            .collect();
+        if addrs.is_empty() {
+            return Err(crate::Error::Config(format!(
+                "{what}: {peer:?} resolves to no address"
+            )));
+        }
+        let (tx, rx) = sync_channel(QUEUE_MESSAGES);
+        let shared = Arc::new(Shared::default());
+        let (s, w, p) = (shared.clone(), what.to_string(), peer.to_string());
+        let thread = std::thread::Builder::new()
+            .name(format!("soundloc {what}"))
+            .spawn(move || run(&w, &p, &addrs, &rx, &s))
+            .map_err(|e| crate::Error::Config(format!("{what}: cannot start its thread: {e}")))?;
+        Ok(NetSender {
+            what: what.to_string(),
+            peer: peer.to_string(),
+            tx: Some(tx),
+            shared,
+            thread: Some(thread),
+        })
+    }
+
+    /// The receiver's address as given.
+    pub fn peer(&self) -> &str {
+        &self.peer
+    }
+
+    /// Whether a receiver is connected now.
+    pub fn is_connected(&self) -> bool {
+        self.shared.connected.load(Ordering::Relaxed)
+    }
+
+    /// Queue one message (returns at once; a full queue drops it and counts it). Empty
+    /// messages are ignored.
+    pub fn send(&self, msg: Vec<u8>) {
+        let Some(tx) = &self.tx else { return };
+        if msg.is_empty() {
+            return;
+        }
+        match tx.try_send(msg) {
+            Ok(()) => {}
+            Err(TrySendError::Full(_)) | Err(TrySendError::Disconnected(_)) => {
+                self.shared.dropped.fetch_add(1, Ordering::Relaxed);
+            }
+        }
+    }
+
+    /// Notes since the last call (connected, connection lost, ...).
+    pub fn take_notes(&self) -> Vec<String> {
+        self.shared
+            .notes
+            .lock()
+            .map(|mut n| std::mem::take(&mut *n))
+            .unwrap_or_default()
+    }
+
+    /// Counts so far.
+    pub fn stats(&self) -> NetStats {
+        self.shared.stats()
+    }
+
+    /// Stop: what is queued is sent if a receiver is connected within `grace`; the rest is
+    /// dropped and counted. Returns the final counts.
+    pub fn finish(mut self, grace: Duration) -> NetStats {
+        self.stop(grace);
+        self.shared.stats()
+    }
+
+    fn stop(&mut self, grace: Duration) {
+        let Some(tx) = self.tx.take() else { return };
+        // Tell the thread when to give up, then close the queue.
+        if let Ok(mut d) = self.shared.deadline.lock() {
+            *d = Some(Instant::now() + grace);
+        }
+        drop(tx);
+        if let Some(t) = self.thread.take() {
+            let _ = t.join();
+        }
+    }
+
+    /// The output's name, as given to [`NetSender::start`].
+    pub fn what(&self) -> &str {
+        &self.what
+    }
+}
+
+impl Drop for NetSender {
+    /// Sends what is queued if a receiver is connected (up to [`WRITE_TIMEOUT`]).
+    fn drop(&mut self) {
+        self.stop(WRITE_TIMEOUT);
+    }
+}
+
+fn connect(addrs: &[SocketAddr]) -> std::io::Result<TcpStream> {
+    let mut last = std::io::Error::new(std::io::ErrorKind::NotFound, "no address");
+    for a in addrs {
+        match TcpStream::connect_timeout(a, Duration::from_secs(1)) {
+            Ok(s) => {
+                s.set_nodelay(true)?;
+                s.set_write_timeout(Some(WRITE_TIMEOUT))?;
+                return Ok(s);
+            }
+            Err(e) => last = e,
+        }
+    }
+    Err(last)
+}
+
+fn run(what: &str, peer: &str, addrs: &[SocketAddr], rx: &Receiver<Vec<u8>>, sh: &Shared) {
+    let mut conn: Option<TcpStream> = None;
+    let mut next_try = Instant::now();
+    let mut said_absent = false;
+    let drop_one = || {
+        sh.dropped.fetch_add(1, Ordering::Relaxed);
+    };
+    loop {
+        let deadline = sh.deadline.lock().ok().and_then(|d| *d);
+        if deadline.is_some_and(|d| Instant::now() >= d) {
+            break;
+        }
+        if conn.is_none() && Instant::now() >= next_try {
+            match connect(addrs) {
+                Ok(s) => {
+                    let n = sh.connections.fetch_add(1, Ordering::Relaxed);
+                    sh.connected.store(true, Ordering::Relaxed);
+                    sh.note(if n == 0 {
+                        format!("{what}: connected to {peer}")
+                    } else {
+                        format!("{what}: reconnected to {peer}")
+                    });
+                    said_absent = false;
+                    conn = Some(s);
+                }
+                Err(e) => {
+                    if !said_absent {
+                        sh.note(format!(
+                            "{what}: {peer} not reachable ({e}); retrying, results are dropped (and counted) until it is"
+                        ));
+                        said_absent = true;
+                    }
+                    next_try = Instant::now() + RETRY;
+                }
+            }
+        }
+        let wait = match (deadline, conn.is_some()) {
+            (Some(d), _) => d.saturating_duration_since(Instant::now()).min(RETRY),
+            (None, true) => Duration::from_secs(3600),
+            (None, false) => next_try.saturating_duration_since(Instant::now()),
+        };
+        match rx.recv_timeout(wait) {
+            Ok(msg) => match &mut conn {
+                Some(s) => {
+                    if let Err(e) = s.write_all(&msg).and_then(|_| s.flush()) {
+                        drop_one();
+                        sh.connected.store(false, Ordering::Relaxed);
+                        sh.note(format!("{what}: connection to {peer} lost ({e}); reconnecting"));
+                        conn = None;
+                        next_try = Instant::now();
+                    } else {
+                        sh.sent.fetch_add(1, Ordering::Relaxed);
+                    }
+                }
+                None => drop_one(),
+            },
+            Err(RecvTimeoutError::Timeout) => {}
+            Err(RecvTimeoutError::Disconnected) => break,
+        }
+    }
+    // Whatever is still queued is lost.
+    while rx.try_recv().is_ok() {
+        drop_one();
+    }
+    sh.connected.store(false, Ordering::Relaxed);
+}
