@@ -61,9 +61,9 @@ impl<W: Write> Lines<W> {
 #[derive(clap::Args, Debug, Clone)]
 pub struct LiveArgs {
     /// Serve a live view (spectrum, peaks, tracks) to browsers at HOST:PORT, e.g.
-    /// 127.0.0.1:8080 (port 0 picks one). After the input ends the view stays up until
-    /// Ctrl-C.
-    #[arg(long, value_name = "HOST:PORT")]
+    /// 127.0.0.1:8080, or a bare PORT on loopback (port 0 picks one). After the input ends
+    /// the view stays up until Ctrl-C.
+    #[arg(long, value_name = "[HOST:]PORT")]
     pub serve: Option<String>,
     /// ODAS SSL messages (potential sources) to a TCP server HOST:PORT (odas_web listens
     /// on 9001; retried while absent, never blocking) or to a file.
@@ -289,7 +289,13 @@ impl Sinks {
         };
         let view = match &l.serve {
             Some(addr) => {
-                let v = LiveServer::bind(addr)?;
+                // A bare port means loopback.
+                let addr = if addr.bytes().all(|b| b.is_ascii_digit()) {
+                    format!("127.0.0.1:{addr}")
+                } else {
+                    addr.clone()
+                };
+                let v = LiveServer::bind(&addr)?;
                 let c = loc.config();
                 let grid = loc.grid();
                 let az: Vec<f64> = (0..grid.len()).map(|d| grid.azimuth_deg(d)).collect();

@@ -5,7 +5,8 @@
 //!
 //! - **Directions.** Azimuth = atan2(y, x) in degrees, from +x toward +y, shown on
 //!   −180..180 (left to right on a sky map, bottom to top on a time plot); elevation from
-//!   the x-y plane, −90..90 (bottom to top).
+//!   the x-y plane, −90..90 (bottom to top). A ring grid's polar view is seen from above
+//!   with +x (0°) up and +y (90°) to the left, so azimuth runs counter-clockwise.
 //! - **Colour map.** Viridis (dark blue = low, yellow = high), linear in dB between the
 //!   scale's ends.
 //! - **Scale.** A finished run (a plot) spans the smallest to the largest finite dB value
