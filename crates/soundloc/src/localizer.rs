@@ -22,6 +22,7 @@
 
 use crate::array::freefield::{free_field, DEFAULT_SPEED_OF_SOUND_M_S};
 use crate::array::grid::GridSpec;
+use crate::array::tf_cache::TfCache;
 use crate::array::{Geometry, Grid, TransferFunctions};
 use crate::backend::{DeviceChoice, StageTimes};
 use crate::config::{Algorithm, LocalizeConfig, Precision};
@@ -122,6 +123,9 @@ pub struct LocalizerSpec {
     /// Produce the spectrum rows (for `.npy`, plots, live views).
     #[serde(default)]
     pub spectrum: bool,
+    /// Where prepared transfer functions (the used bins of a TF zip) are cached.
+    #[serde(default)]
+    pub tf_cache: TfCache,
 }
 
 impl LocalizerSpec {
@@ -154,6 +158,7 @@ impl LocalizerSpec {
             precision: Precision::F32,
             device: DeviceChoice::Auto,
             spectrum: false,
+            tf_cache: TfCache::Default,
         }
     }
 
@@ -178,10 +183,24 @@ impl LocalizerSpec {
         }
     }
 
-    /// Load the transfer functions (all bins) of the array, for an analysis config.
+    /// Load the transfer functions of the array for an analysis config: only the bins it
+    /// uses (all bins when the file does not fit the config, so the plan says why).
     pub fn load_array(&self, config: &LocalizeConfig) -> Result<TransferFunctions> {
-        match &self.array {
-            ArraySpec::TransferFunctions { path } => TransferFunctions::load(path),
+        Ok(self.load_array_noted(config)?.0)
+    }
+
+    /// [`LocalizerSpec::load_array`], with a note on what the TF cache did.
+    pub fn load_array_noted(&self, config: &LocalizeConfig) -> Result<(TransferFunctions, Option<String>)> {
+        let used = config.bin_range();
+        let tf = match &self.array {
+            ArraySpec::TransferFunctions { path } => {
+                let (tf, outcome) = TransferFunctions::load_cached(
+                    path,
+                    Some((config.nfft, config.sample_rate_hz, used)),
+                    &self.tf_cache,
+                )?;
+                return Ok((tf, outcome.note()));
+            }
             ArraySpec::FreeField {
                 mics,
                 grid,
@@ -200,11 +219,16 @@ impl LocalizerSpec {
                     &grid.build(*radius_m),
                     config.nfft,
                     config.sample_rate_hz,
-                    0..config.nfft / 2 + 1,
+                    if used.is_empty() {
+                        0..config.nfft / 2 + 1
+                    } else {
+                        used
+                    },
                     *speed_of_sound_m_s,
                 )
             }
-        }
+        }?;
+        Ok((tf, None))
     }
 }
 
@@ -246,8 +270,10 @@ impl Localizer {
             algorithm,
             ..spec.analysis.clone()
         };
-        let tf = spec.load_array(&config)?;
-        Self::with_transfer_functions(spec, tf, None)
+        let (tf, note) = spec.load_array_noted(&config)?;
+        let mut loc = Self::with_transfer_functions(spec, tf, None)?;
+        loc.notes.splice(0..0, note);
+        Ok(loc)
     }
 
     /// Build with transfer functions (all microphones, before `spec.channels`) already in

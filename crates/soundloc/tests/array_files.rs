@@ -568,8 +568,9 @@ fn zip_bombs_and_lying_sizes_are_refused() {
     .unwrap();
     let e = err_text(read_zip_entries(&p));
     assert!(e.contains("bomb.zip") && e.contains("zip bomb"), "{e}");
+    // A TF load inflates only the entries it needs: the bomb is never touched.
     let e = err_text(TransferFunctions::load(&p));
-    assert!(e.contains("zip bomb"), "{e}");
+    assert!(e.contains("missing entry transferFunction/source.xml"), "{e}");
     // A TF zip whose <nfft> is absurd: an error naming the matrix, no giant reservation.
     let tf = free_field(
         &Geometry::circle(4, 0.05, 0.0),
@@ -596,6 +597,17 @@ fn zip_bombs_and_lying_sizes_are_refused() {
     write_zip_entries(&huge, &entries).unwrap();
     let e = err_text(TransferFunctions::load(&huge));
     assert!(e.contains("huge_nfft.zip") && e.contains("tf00000.mat"), "{e}");
+    // A localization matrix that is a bomb: refused before inflating, naming it.
+    let mut bomb: Vec<(String, Vec<u8>)> = read_zip_entries(&base).unwrap().into_iter().collect();
+    for (name, bytes) in bomb.iter_mut() {
+        if name.ends_with("localization/tf00003.mat") {
+            *bytes = vec![0u8; 64 << 20];
+        }
+    }
+    let p = tmp("tf_bomb.zip");
+    write_zip_entries(&p, &bomb).unwrap();
+    let e = err_text(TransferFunctions::load(&p));
+    assert!(e.contains("tf00003.mat") && e.contains("zip bomb"), "{e}");
 }
 
 #[test]

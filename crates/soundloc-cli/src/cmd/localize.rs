@@ -7,6 +7,7 @@ use anyhow::{anyhow, bail, Context};
 use clap::ValueEnum;
 use soundloc::array::freefield::DEFAULT_SPEED_OF_SOUND_M_S;
 use soundloc::array::grid::GridSpec;
+use soundloc::array::tf_cache::TfCache;
 use soundloc::array::Geometry;
 use soundloc::audio::AudioFormat;
 use soundloc::config::{Denominator, SpectrumWeight};
@@ -231,6 +232,14 @@ pub struct RunArgs {
     /// Compute precision.
     #[arg(long, value_enum, default_value = "f32")]
     pub precision: PrecisionArg,
+    /// Read the TF zip itself, not the prepared-TF cache (which holds the used bins of
+    /// zips read before, keyed by content).
+    #[arg(long)]
+    pub no_cache: bool,
+    /// The prepared-TF cache folder (default: $SOUNDLOC_CACHE_DIR, else
+    /// $XDG_CACHE_HOME/soundloc, else ~/.cache/soundloc).
+    #[arg(long, conflicts_with = "no_cache")]
+    pub cache_dir: Option<PathBuf>,
     /// No progress bar or notes on stderr.
     #[arg(long, short = 'q')]
     pub quiet: bool,
@@ -386,6 +395,11 @@ impl RunArgs {
             },
             device: self.device.into(),
             spectrum: self.spectrum.is_some() || self.plot.is_some() || self.live.serve.is_some(),
+            tf_cache: match (&self.cache_dir, self.no_cache) {
+                (_, true) => TfCache::Off,
+                (Some(d), _) => TfCache::Dir(d.clone()),
+                (None, false) => TfCache::Default,
+            },
         })
     }
 }

@@ -31,6 +31,10 @@ pub struct InspectArgs {
     /// Print JSON (one object) instead of text.
     #[arg(long)]
     pub json: bool,
+    /// Read and check every matrix of a TF zip (by default only its structure and first
+    /// matrix are read; every matrix is checked to exist).
+    #[arg(long)]
+    pub verify: bool,
 }
 
 /// Built-in arrays.
@@ -88,8 +92,18 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
 }
 
 fn inspect(a: InspectArgs) -> anyhow::Result<ExitCode> {
-    let tf = TransferFunctions::load(&a.file)?;
-    let summary = tf.summary();
+    let quick = !a.verify
+        && std::fs::File::open(&a.file)
+            .and_then(|mut f| {
+                let mut h = [0u8; 4];
+                std::io::Read::read_exact(&mut f, &mut h).map(|_| h)
+            })
+            .is_ok_and(|h| soundloc::formats::hark_zip::looks_like_zip(&h));
+    let summary = if quick {
+        soundloc::formats::hark_zip::inspect_tf_zip(&a.file)?
+    } else {
+        TransferFunctions::load(&a.file)?.summary()
+    };
     if a.json {
         let mut v = serde_json::to_value(&summary)?;
         if let Some(o) = v.as_object_mut() {

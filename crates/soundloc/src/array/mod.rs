@@ -7,6 +7,7 @@
 pub mod freefield;
 pub mod geometry;
 pub mod grid;
+pub mod tf_cache;
 pub mod transfer;
 
 pub use geometry::Geometry;

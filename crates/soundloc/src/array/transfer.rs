@@ -143,6 +143,35 @@ impl TransferFunctions {
     /// bytes (`PK\x03\x04` / `HARK....HGTF`), then [`TransferFunctions::validate`]. Every
     /// error names the file.
     pub fn load(path: &Path) -> Result<Self> {
+        Self::load_bins(path, None)
+    }
+
+    /// [`TransferFunctions::load_bins`] through the prepared-TF cache ([`super::tf_cache`]):
+    /// a zip whose used bins were prepared before is read from the cache.
+    pub fn load_cached(
+        path: &Path,
+        want: Option<(usize, u32, Range<usize>)>,
+        cache: &super::tf_cache::TfCache,
+    ) -> Result<(Self, super::tf_cache::CacheOutcome)> {
+        let mut head = [0u8; 4];
+        let is_zip = std::fs::File::open(path)
+            .and_then(|mut f| f.read_exact(&mut head))
+            .is_ok()
+            && hark_zip::looks_like_zip(&head);
+        if !is_zip {
+            return Ok((
+                Self::load_bins(path, want)?,
+                super::tf_cache::CacheOutcome::Bypassed,
+            ));
+        }
+        super::tf_cache::load_cached(path, &want, cache, || Self::load_bins(path, want.clone()))
+    }
+
+    /// [`TransferFunctions::load`] keeping only `bins` — when the file is for `nfft` points
+    /// at `sample_rate_hz` and holds them; otherwise all bins, so that the caller's own
+    /// checks report the mismatch. A TF zip then inflates only what it needs and keeps
+    /// only those bins in memory (an HGTF file is read whole and cut).
+    pub fn load_bins(path: &Path, want: Option<(usize, u32, Range<usize>)>) -> Result<Self> {
         let mut head = [0u8; 12];
         let n = {
             let mut f = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
@@ -158,10 +187,21 @@ impl TransferFunctions {
             n
         };
         let head = &head[..n];
+        let matches = |nfft: usize, fs: u32| {
+            want.clone()
+                .filter(|(n, r, b)| *n == nfft && *r == fs && !b.is_empty() && b.end <= nfft / 2 + 1)
+                .map(|w| w.2)
+        };
         let tf = if hark_zip::looks_like_zip(head) {
-            hark_zip::read_tf_zip(path)?
+            hark_zip::read_tf_zip_bins(path, |c| matches(c.nfft, c.sampling_rate_hz))?
         } else if hgtf::looks_like_hgtf(head) {
-            hgtf::read_hgtf_file(path)?
+            let tf = hgtf::read_hgtf_file(path)?;
+            match matches(tf.nfft, tf.sample_rate_hz)
+                .filter(|b| b.start >= tf.first_bin && b.end <= tf.first_bin + tf.num_bins)
+            {
+                Some(b) => tf.restrict_bins(b)?,
+                None => tf,
+            }
         } else {
             return Err(Error::format(
                 path,
@@ -330,30 +370,51 @@ impl TransferFunctions {
 
     /// A summary for `soundloc tf inspect`.
     pub fn summary(&self) -> TfSummary {
-        let ((az0, az1), (el0, el1)) = self.grid.angle_ranges_deg().unwrap_or(((0.0, 0.0), (0.0, 0.0)));
-        let radii: Vec<f64> = (0..self.num_dirs()).map(|i| self.grid.radius_m(i)).collect();
+        TfSummary::new(
+            &self.grid,
+            self.nfft,
+            self.sample_rate_hz,
+            self.num_mics,
+            self.bins(),
+            &self.mic_positions,
+        )
+    }
+}
+
+impl TfSummary {
+    /// The summary of a TF set with these parts (`bins`: the bins held).
+    pub fn new(
+        grid: &Grid,
+        nfft: usize,
+        sample_rate_hz: u32,
+        num_mics: usize,
+        bins: Range<usize>,
+        mic_positions: &[[f64; 3]],
+    ) -> TfSummary {
+        let ((az0, az1), (el0, el1)) = grid.angle_ranges_deg().unwrap_or(((0.0, 0.0), (0.0, 0.0)));
+        let radii: Vec<f64> = (0..grid.len()).map(|i| grid.radius_m(i)).collect();
         let r0 = radii.iter().copied().fold(f64::INFINITY, f64::min);
         let r1 = radii.iter().copied().fold(f64::NEG_INFINITY, f64::max);
-        let end = self.first_bin + self.num_bins;
+        let hz = |b: usize| b as f64 * sample_rate_hz as f64 / nfft.max(1) as f64;
         TfSummary {
-            num_mics: self.num_mics,
-            num_dirs: self.num_dirs(),
-            nfft: self.nfft,
-            sample_rate_hz: self.sample_rate_hz,
-            first_bin: self.first_bin,
-            end_bin: end,
-            first_bin_hz: self.bin_hz(self.first_bin),
-            last_bin_hz: self.bin_hz(end.saturating_sub(1)),
-            grid_kind: self.grid.kind,
-            neighbor_relation: self.grid.neighbor_relation(),
-            max_neighbor_angle_deg: self.grid.max_neighbor_angle_deg(),
+            num_mics,
+            num_dirs: grid.len(),
+            nfft,
+            sample_rate_hz,
+            first_bin: bins.start,
+            end_bin: bins.end,
+            first_bin_hz: hz(bins.start),
+            last_bin_hz: hz(bins.end.saturating_sub(1)),
+            grid_kind: grid.kind,
+            neighbor_relation: grid.neighbor_relation(),
+            max_neighbor_angle_deg: grid.max_neighbor_angle_deg(),
             azimuth_min_deg: az0,
             azimuth_max_deg: az1,
             elevation_min_deg: el0,
             elevation_max_deg: el1,
             radius_min_m: if r0.is_finite() { r0 } else { 0.0 },
             radius_max_m: if r1.is_finite() { r1 } else { 0.0 },
-            mic_positions: self.mic_positions.clone(),
+            mic_positions: mic_positions.to_vec(),
         }
     }
 }

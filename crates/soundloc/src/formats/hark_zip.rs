@@ -30,13 +30,13 @@
 //! shortest round-trip formatting, so reading back gives identical numbers. The zip is
 //! written to a temporary file in the same folder and renamed into place.
 
-use crate::array::{Grid, TransferFunctions};
-use crate::formats::hark_mat::{read_mat, write_mat, MatData};
-use crate::formats::xml::{self, Element};
+use crate::array::TransferFunctions;
+use crate::formats::hark_mat::{write_mat, MatData};
+use crate::formats::xml::Element;
+use crate::formats::zip_archive::ZipReader;
 use crate::{Error, Result};
-use num_complex::Complex;
 use std::collections::BTreeMap;
-use std::io::{Read, Write};
+use std::io::Write;
 use std::path::{Path, PathBuf};
 
 /// Root folder of a transfer-function zip.
@@ -45,14 +45,8 @@ pub const TF_ROOT: &str = "transferFunction";
 pub const TF_WHATISTHIS: &str = "transfer function";
 /// `whatisthis.txt` content of a noise correlation-matrix zip.
 pub const CM_WHATISTHIS: &str = "correlation matrix";
-/// Largest entry we agree to inflate (bytes); protects against corrupt size fields.
-pub const MAX_ENTRY_BYTES: u64 = 1 << 30;
-/// Largest total we agree to inflate from one archive (bytes): a 60-mic, 2522-direction
-/// TF set of 257 bins is 0.6 GiB.
-pub const MAX_TOTAL_BYTES: u64 = 8 << 30;
-/// Largest inflated / compressed ratio accepted for an entry over 1 MiB: HARK's matrices
-/// compress a few times at most; a zip bomb a thousandfold.
-pub const MAX_RATIO: u64 = 200;
+pub use super::tf_zip_read::{inspect_tf_zip, read_tf_zip, read_tf_zip_bins};
+pub use super::zip_archive::{MAX_ENTRY_BYTES, MAX_RATIO, MAX_TOTAL_BYTES};
 
 /// True when `bytes` start like a zip archive (`PK\x03\x04`, or `PK\x05\x06` for an
 /// empty one).
@@ -78,53 +72,13 @@ pub fn read_zip_entries(path: &Path) -> Result<BTreeMap<String, Vec<u8>>> {
 /// in all, no entry over 1 MiB that inflates more than [`MAX_RATIO`] times its compressed
 /// size (a zip bomb), and an entry never inflates past the size its header declares.
 pub fn read_zip_entries_where(path: &Path, keep: impl Fn(&str) -> bool) -> Result<BTreeMap<String, Vec<u8>>> {
-    let file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
-    let mut ar = zip::ZipArchive::new(std::io::BufReader::new(file)).map_err(|e| {
-        Error::format(
-            path,
-            format!("not a readable zip archive (truncated or corrupt?): {e}"),
-        )
-    })?;
+    let mut zr = ZipReader::open(path)?;
+    let names: Vec<String> = zr.names().into_iter().filter(|n| keep(n)).collect();
+    zr.check_total(names.iter().map(String::as_str))?;
     let mut out = BTreeMap::new();
-    let mut total = 0u64;
-    for i in 0..ar.len() {
-        let f = ar
-            .by_index(i)
-            .map_err(|e| Error::format(path, format!("zip entry #{i} cannot be read (corrupt?): {e}")))?;
-        if f.is_dir() || !keep(f.name()) {
-            continue;
-        }
-        let name = f.name().to_string();
-        let (size, packed) = (f.size(), f.compressed_size());
-        let bad = |m: String| Err(Error::format(entry_path(path, &name), m));
-        if size > MAX_ENTRY_BYTES {
-            return bad(format!(
-                "entry claims {size} bytes, more than the {MAX_ENTRY_BYTES} allowed"
-            ));
-        }
-        if size > 1 << 20 && size / packed.max(1) > MAX_RATIO {
-            return bad(format!(
-                "entry inflates {packed} bytes into {size} ({}×): refused as a zip bomb",
-                size / packed.max(1)
-            ));
-        }
-        total += size;
-        if total > MAX_TOTAL_BYTES {
-            return bad(format!(
-                "the archive inflates to more than {MAX_TOTAL_BYTES} bytes: refused"
-            ));
-        }
-        let mut buf = Vec::with_capacity(size.min(1 << 24) as usize);
-        f.take(size + 1)
-            .read_to_end(&mut buf)
-            .map_err(|e| Error::format(entry_path(path, &name), format!("corrupt zip entry: {e}")))?;
-        if buf.len() as u64 != size {
-            return bad(format!(
-                "entry inflates to {} bytes, its header says {size}",
-                buf.len()
-            ));
-        }
-        out.insert(name, buf);
+    for n in names {
+        let b = zr.read(&n)?;
+        out.insert(n, b);
     }
     Ok(out)
 }
@@ -507,110 +461,6 @@ pub fn hark_xml_document(children: Vec<Element>, xml_declaration: bool) -> Strin
 /// (`localization` or `separation`): `transferFunction/localization/tf00003.mat`.
 pub fn tf_entry_name(root: &str, folder: &str, id: usize) -> String {
     format!("{root}{folder}/tf{id:05}.mat")
-}
-
-/// Read a HARK transfer-function zip (see the module docs).
-pub fn read_tf_zip(path: &Path) -> Result<TransferFunctions> {
-    // The separation TFs (half of the archive) are not needed for localization.
-    let entries = read_zip_entries_where(path, |n| !n.contains("/separation/"))?;
-    let (root, what) = container_root(&entries, path)?;
-    if what != TF_WHATISTHIS {
-        return Err(Error::format(
-            entry_path(path, &format!("{root}whatisthis.txt")),
-            format!("says {what:?}, expected {TF_WHATISTHIS:?}: not a transfer-function zip"),
-        ));
-    }
-    let src_name = format!("{root}source.xml");
-    let src_path = entry_path(path, &src_name);
-    let src = xml::parse_file_text(&entry_text(&entries, &src_name, path)?, &src_path)?;
-    let cfg = HarkConfig::from_xml(&src, &src_path)?;
-    let points = read_positions(&src, "soundsource", &src_path)?
-        .ok_or_else(|| Error::format(&src_path, "no <positions type=\"soundsource\">"))?;
-    if points.is_empty() {
-        return Err(Error::format(&src_path, "no source positions"));
-    }
-    let d = points.len();
-    let neighbors = read_neighbors(&src, d, &src_path)?;
-    let grid = match neighbors {
-        Some(nb) => Grid::from_table(points, nb),
-        None => Grid::from_points(points),
-    }
-    .map_err(|e| Error::format(&src_path, e.to_string()))?;
-
-    let mic_name = format!("{root}microphones.xml");
-    let mic_positions = match entries.get(&mic_name) {
-        Some(b) => {
-            let mp = entry_path(path, &mic_name);
-            let doc = xml::parse_file_text(&String::from_utf8_lossy(b), &mp)?;
-            read_positions(&doc, "microphone", &mp)?
-                .or(read_positions(&doc, "", &mp)?)
-                .unwrap_or_default()
-        }
-        None => Vec::new(),
-    };
-
-    let nbins = cfg.nfft / 2 + 1;
-    let mut num_mics = 0usize;
-    let mut data: Vec<Complex<f32>> = Vec::new();
-    for id in 0..d {
-        let name = tf_entry_name(&root, "localization", id);
-        let ep = entry_path(path, &name);
-        let bytes = entries
-            .get(&name)
-            .ok_or_else(|| Error::format(path, format!("missing entry {name} (direction {id} of {d})")))?;
-        let m = read_mat(bytes, &ep)?;
-        if id == 0 {
-            num_mics = m.rows;
-            if num_mics == 0 {
-                return Err(Error::format(&ep, "0 microphones (rows)"));
-            }
-        }
-        if m.rows != num_mics || m.cols != nbins {
-            return Err(Error::format(
-                &ep,
-                format!(
-                    "expected a {num_mics} × {nbins} matrix (microphones × nfft/2+1 with nfft {}), found {} × {}",
-                    cfg.nfft, m.rows, m.cols
-                ),
-            ));
-        }
-        if id == 0 {
-            // Sized by a matrix that was read, not by a header's claim.
-            data.reserve(d.saturating_mul(num_mics * nbins).min(1 << 28));
-        }
-        let v = m.into_complex(&ep)?;
-        if let Some(k) = v.iter().position(|c| !(c.re.is_finite() && c.im.is_finite())) {
-            return Err(Error::format(
-                &ep,
-                format!(
-                    "non-finite value {} at mic {}, bin {}",
-                    v[k],
-                    k / nbins,
-                    k % nbins
-                ),
-            ));
-        }
-        data.extend_from_slice(&v);
-    }
-    if !mic_positions.is_empty() && mic_positions.len() != num_mics {
-        return Err(Error::format(
-            entry_path(path, &mic_name),
-            format!(
-                "lists {} microphones, but the TFs have {num_mics}",
-                mic_positions.len()
-            ),
-        ));
-    }
-    Ok(TransferFunctions {
-        nfft: cfg.nfft,
-        sample_rate_hz: cfg.sampling_rate_hz,
-        grid,
-        mic_positions,
-        num_mics,
-        first_bin: 0,
-        num_bins: nbins,
-        data,
-    })
 }
 
 /// The entries of a TF zip for `tf` (see [`write_tf_zip`]), in HARKTOOL5's order.

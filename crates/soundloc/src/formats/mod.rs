@@ -6,4 +6,6 @@ pub mod hark_zip;
 pub mod hgtf;
 pub mod noise_cm;
 pub mod source_log;
+pub mod tf_zip_read;
 pub mod xml;
+pub mod zip_archive;
