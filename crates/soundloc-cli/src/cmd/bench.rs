@@ -49,6 +49,20 @@ pub struct Args {
     /// With --stream: which arrays (repeatable; default: both).
     #[arg(long = "array", value_enum)]
     pub arrays: Vec<ArrayArg>,
+    /// End to end: localize --input with --tf (a HARK TF zip) and print where the time
+    /// goes (TF load, plan, read, engine with its stages, write), first with the TF cache
+    /// off (read from the zip), then through the cache (the second of those hits it).
+    #[arg(long, requires_all = ["tf", "input"], conflicts_with = "stream")]
+    pub e2e: bool,
+    /// With --e2e: the transfer functions (HARK TF zip or HGTF).
+    #[arg(long)]
+    pub tf: Option<std::path::PathBuf>,
+    /// With --e2e: the recording (WAV/FLAC).
+    #[arg(long)]
+    pub input: Option<std::path::PathBuf>,
+    /// With --e2e: noise-only time range of the input for K, START:END seconds.
+    #[arg(long, default_value = "0:1")]
+    pub noise_range: String,
 }
 
 #[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
@@ -122,6 +136,63 @@ fn run_stream(a: &Args, algs: &[AlgorithmArg]) -> anyhow::Result<ExitCode> {
     Ok(ExitCode::SUCCESS)
 }
 
+fn run_e2e(a: &Args, alg: AlgorithmArg) -> anyhow::Result<ExitCode> {
+    use soundloc::array::tf_cache::TfCache;
+    use soundloc::{ArraySpec, LocalizerSpec, NoiseSource};
+    let (Some(tf), Some(input)) = (&a.tf, &a.input) else {
+        anyhow::bail!("--e2e needs --tf and --input");
+    };
+    let (start_s, end_s) = super::localize::parse_range(&a.noise_range)?;
+    let mut spec = LocalizerSpec::with_array(ArraySpec::TransferFunctions { path: tf.clone() });
+    spec.algorithm = Some(alg.into());
+    spec.analysis.period = a.period;
+    spec.analysis.window = a.window;
+    spec.analysis.num_sources = a.num_sources;
+    spec.noise = NoiseSource::Range { start_s, end_s };
+    spec.device = a.device.into();
+    spec.precision = match a.precision {
+        PrecisionArg::F32 => soundloc::Precision::F32,
+        PrecisionArg::F64 => soundloc::Precision::F64,
+    };
+    for (label, cache) in [
+        ("from the zip", TfCache::Off),
+        ("through the cache", TfCache::Default),
+        ("through the cache", TfCache::Default),
+    ] {
+        let r = soundloc::bench::e2e::run(&spec, input, cache)?;
+        if a.json {
+            println!("{}", serde_json::to_string(&r)?);
+            continue;
+        }
+        let s = &r.stages;
+        println!(
+            "e2e {} PERIOD {} on {}, TF {label}: {:.2} s of audio, {} results: total {:.0} ms",
+            soundloc::Algorithm::from(alg).name(),
+            a.period,
+            r.device,
+            r.audio_s,
+            r.results,
+            r.total_ms
+        );
+        println!(
+            "  TF load {:.0} ms, plan {:.0} ms, read {:.0} ms, engine {:.0} ms (stages: correlation {:.0}, decomposition {:.0}, spectrum {:.0}, peaks {:.0}), write {:.1} ms",
+            r.tf_load_ms,
+            r.plan_ms,
+            r.read_ms,
+            r.engine_ms,
+            s.correlation_ms,
+            s.decomposition_ms,
+            s.spectrum_ms,
+            s.peaks_ms,
+            r.write_ms
+        );
+        if let Some(n) = &r.cache_note {
+            println!("  {n}");
+        }
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
 pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     let algs = if a.algorithms.is_empty() {
         vec![AlgorithmArg::Gsvd, AlgorithmArg::Gevd]
@@ -130,6 +201,9 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     };
     if a.stream {
         return run_stream(&a, &algs);
+    }
+    if a.e2e {
+        return run_e2e(&a, algs[0]);
     }
     for alg in algs {
         let cfg = BenchConfig {
