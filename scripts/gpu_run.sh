@@ -51,6 +51,29 @@ for s in $steps; do
     stream)
       # The stream engine under 10 ms pushes, PERIOD 1: real-time factor and latency.
       "$C/soundloc" bench --stream --device cuda --array ring8 --array seed --algorithm gsvd --algorithm gevd --seconds ${STREAM_SECONDS:-5} 2>&1 | tee "$OUT/stream.txt" ;;
+    e2e)
+      # End to end (issue 10): a 60-mic, 2522-direction TF zip and 60 s of 60-channel
+      # 16-bit audio made here, GSVD PERIOD 1 on the GPU: cold (no cache) and warm.
+      W=/tmp/sl_e2e; mkdir -p $W; export SOUNDLOC_CACHE_DIR=$W/cache
+      [ -f $W/tf.zip ] || "$C/soundloc" tf make --builtin sphere60 --grid sphere:2522 -o $W/tf.zip
+      [ -f $W/rec.wav ] || python3 -c "
+import os, struct
+n = 60 * 16000 * 60 * 2
+h = b'RIFF' + struct.pack('<I', 36 + n) + b'WAVEfmt ' + struct.pack('<IHHIIHH', 16, 1, 60, 16000, 16000 * 120, 120, 16) + b'data' + struct.pack('<I', n)
+f = open('$W/rec.wav', 'wb'); f.write(h)
+for _ in range(60): f.write(os.urandom(16000 * 120))
+"
+      for run in cold warm warm; do
+        extra=""; [ $run = cold ] && extra="--no-cache"
+        python3 -c "
+import resource, subprocess, sys, time
+t = time.time(); r = subprocess.run(sys.argv[2:], stdout=open('$W/out.jsonl', 'w'))
+print(sys.argv[1] + ': %.2f s wall, %d KB max RSS, exit %d' % (time.time() - t, resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss, r.returncode))
+" $run "$C/soundloc" localize $W/rec.wav --tf $W/tf.zip --noise-range 0:1 --algorithm gsvd --period 1 --device cuda -q $extra
+        wc -l < $W/out.jsonl
+      done 2>&1 | tee "$OUT/e2e.txt"
+      "$C/soundloc" bench --e2e --tf $W/tf.zip --input $W/rec.wav --algorithm gsvd --period 1 --device cuda 2>&1 | tee -a "$OUT/e2e.txt"
+      "$C/soundloc" bench --e2e --tf $W/tf.zip --input $W/rec.wav --algorithm gsvd --period 50 --device cpu 2>&1 | tee -a "$OUT/e2e.txt" ;;
     f64)
       "$C/soundloc" bench --device cuda --precision f64 --algorithm gsvd --algorithm gevd --batch 64 --repeats 5 --json 2>&1 | tee -a "$OUT/bench.jsonl" ;;
     allalg)
