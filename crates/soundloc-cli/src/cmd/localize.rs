@@ -145,14 +145,15 @@ pub struct RunArgs {
     /// Microphone positions (TOML, metres) for free-field transfer functions.
     #[arg(long)]
     pub geometry: Option<PathBuf>,
-    /// Direction grid for --geometry: ring:STEP_DEG[:ELEV_DEG] or sphere:N.
-    #[arg(long, default_value = "ring:5")]
+    /// Direction grid for --geometry: ring:STEP_DEG[:ELEV_DEG] or sphere:N (with --tf the
+    /// directions are the TF file's: an error).
+    #[arg(long, default_value = "ring:5", conflicts_with = "tf")]
     pub grid: String,
     /// Distance of the grid points for --geometry (m).
-    #[arg(long, default_value_t = 1.0)]
+    #[arg(long, default_value_t = 1.0, conflicts_with = "tf")]
     pub grid_radius: f64,
     /// Speed of sound for --geometry (m/s).
-    #[arg(long, default_value_t = DEFAULT_SPEED_OF_SOUND_M_S)]
+    #[arg(long, default_value_t = DEFAULT_SPEED_OF_SOUND_M_S, conflicts_with = "tf")]
     pub speed_of_sound: f64,
     /// TF_CHANNEL_SELECTION: TF channels to use, comma-separated (0-based). Applied to the
     /// audio too when it has the TF's full channel count.

@@ -76,17 +76,19 @@ pub struct MakeArgs {
     /// Frame advance in samples (ADVANCE).
     #[arg(long, default_value_t = 160)]
     pub hop: usize,
-    /// Analysis window.
-    #[arg(long, value_enum, default_value = "conj")]
-    pub window: WindowArg,
-    /// Channels to use, comma-separated (0-based; default: all).
-    #[arg(long, value_delimiter = ',')]
-    pub channels: Vec<usize>,
+    /// Analysis window function (WINDOW), as `localize --window-function`.
+    #[arg(long, value_enum, default_value = "conj", alias = "window")]
+    pub window_function: WindowArg,
+    /// Input channels to use, comma-separated (0-based; default: all), as `localize
+    /// --input-channels`.
+    #[arg(long, value_delimiter = ',', alias = "channels")]
+    pub input_channels: Vec<usize>,
 }
 
 #[derive(clap::Args, Debug)]
 pub struct InspectArgs {
-    /// A zip, or the real-part file of a text pair (the imaginary one is found by name).
+    /// A zip, or the real-part file of a text pair (the imaginary one is found by name),
+    /// or both as REAL,IMAG.
     pub file: PathBuf,
     /// Print JSON (one object, with every bin) instead of text.
     #[arg(long)]
@@ -116,20 +118,30 @@ fn parse_range(s: &str) -> Result<(f64, f64), String> {
 }
 
 fn make(a: MakeArgs) -> anyhow::Result<ExitCode> {
+    let zip_name = a
+        .output
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("zip"));
+    if a.format == Some(CmFormat::Text) && zip_name {
+        anyhow::bail!(
+            "{}: --format text writes a pair of text files, not a zip: name them without .zip (-o K gives K_r and K_i) or use --format zip",
+            a.output.display()
+        );
+    }
     let audio = read_audio(&a.input)?;
-    let audio = if a.channels.is_empty() {
+    let audio = if a.input_channels.is_empty() {
         audio
     } else {
         audio
-            .select_channels(&a.channels)
-            .with_context(|| format!("{}: --channels", a.input.display()))?
+            .select_channels(&a.input_channels)
+            .with_context(|| format!("{}: --input-channels", a.input.display()))?
     };
     let (cm, frames) = NoiseCm::estimate(
         &audio.channels,
         audio.sample_rate_hz,
         a.fft_length,
         a.hop,
-        a.window.into(),
+        a.window_function.into(),
         a.range,
     )
     .with_context(|| format!("{}", a.input.display()))?;

@@ -68,7 +68,7 @@ pub struct MakeArgs {
     #[arg(long)]
     pub grid: GridSpec,
     /// Distance of the grid points (the modelled sources) from the array centre, metres.
-    #[arg(long, default_value_t = 1.0)]
+    #[arg(long = "grid-radius", default_value_t = 1.0, alias = "radius")]
     pub radius: f64,
     /// FFT length N (the zip holds N/2+1 bins).
     #[arg(long, default_value_t = 512)]
@@ -124,7 +124,7 @@ fn make(a: MakeArgs) -> anyhow::Result<ExitCode> {
         (None, None) => bail!("give --geometry FILE or --builtin"),
     };
     if !(a.radius.is_finite() && a.radius > 0.0) {
-        bail!("--radius {}: must be a positive number of metres", a.radius);
+        bail!("--grid-radius {}: must be a positive number of metres", a.radius);
     }
     let grid = a.grid.build(a.radius);
     let bins = 0..a.fft_length / 2 + 1;

@@ -16,7 +16,8 @@
 //! `X.real` → `X.imag`, `X.re` → `X.im`; for the name without extension,
 //! `…real` → `…imag`, `…Real` → `…Imag`, `…REAL` → `…IMAG`, `…_re` → `…_im`,
 //! `…-re` → `…-im`, `…r` → `…i`, `…R` → `…I` (so `noise_r.dat` → `noise_i.dat`,
-//! `cmr.dat` → `cmi.dat`, `cm_real.txt` → `cm_imag.txt`). Otherwise pass both paths to
+//! `cmr.dat` → `cmi.dat`, `cm_real.txt` → `cm_imag.txt`). Otherwise give both as
+//! `REAL,IMAG` (to `NoiseCm::load`, `--noise-cm`, `noisecm inspect`) or pass both paths to
 //! [`NoiseCm::read_text_pair`].
 //!
 //! ## HARK ≥ 2.1: zip (*unverified layout*)
@@ -296,8 +297,14 @@ impl NoiseCm {
     }
 
     /// Loads a zip (detected by its `PK` signature) or a text pair given its real-part file
-    /// (the imaginary file is found by name, see the module docs).
+    /// (the imaginary file is found by name, see the module docs) or both as `REAL,IMAG`
+    /// (when no file has that whole name).
     pub fn load(path: &Path, expected: Expected) -> Result<Self> {
+        if !path.exists() {
+            if let Some((re, im)) = path.to_str().and_then(|s| s.split_once(',')) {
+                return Self::read_text_pair(Path::new(re), Path::new(im), expected);
+            }
+        }
         let mut head = [0u8; 4];
         let n = std::fs::File::open(path)
             .and_then(|mut f| std::io::Read::read(&mut f, &mut head))

@@ -254,10 +254,10 @@ pub fn find_imag_path(real: &Path) -> Result<PathBuf> {
     Err(Error::format(
         real,
         if tried.is_empty() {
-            "cannot derive the imaginary-part file name (expected names like X_r.dat/X_i.dat, X.real/X.imag); give both files".to_string()
+            "cannot derive the imaginary-part file name (expected names like X_r.dat/X_i.dat, X.real/X.imag); give both as REAL,IMAG".to_string()
         } else {
             format!(
-                "imaginary-part file not found (tried {}); give both files",
+                "imaginary-part file not found (tried {}); give both as REAL,IMAG",
                 tried.join(", ")
             )
         },

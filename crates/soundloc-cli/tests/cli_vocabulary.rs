@@ -1,0 +1,244 @@
+//! One vocabulary across subcommands (old spellings kept as aliases), options that do not
+//! apply refused instead of ignored, and a closed stdout pipe is not an error.
+
+use std::io::{BufRead, BufReader};
+use std::path::PathBuf;
+use std::process::{Command, Stdio};
+
+fn bin() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_soundloc"))
+}
+
+fn tmp(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("soundloc-cli-vocab-{}", std::process::id()));
+    std::fs::create_dir_all(&d).unwrap();
+    d.join(name)
+}
+
+/// An 8-mic ring recording (two talkers), its geometry and a TF zip of it, in a folder of
+/// the test's own (tests run in parallel).
+fn scene(test: &str) -> (PathBuf, PathBuf, PathBuf) {
+    let tmp = |name: &str| tmp(&format!("{test}-{name}"));
+    let s = soundloc::demo::ring8_incoherent(&[30.0, -120.0], 10.0, 4).unwrap();
+    let mut audio = s.render();
+    for c in &mut audio.channels {
+        for v in c.iter_mut() {
+            *v = v.round().clamp(-32768.0, 32767.0);
+        }
+    }
+    let geo = tmp("ring8.toml");
+    std::fs::write(&geo, s.geometry.to_toml_string()).unwrap();
+    let wav = tmp("ring8.wav");
+    audio
+        .write_wav(&wav, soundloc::audio::SampleFormat::Int16)
+        .unwrap();
+    let tf = tmp("ring8.zip");
+    let o = bin()
+        .args([
+            "tf",
+            "make",
+            "--geometry",
+            geo.to_str().unwrap(),
+            "--grid",
+            "ring:5",
+            "--grid-radius",
+            "2",
+            "-o",
+        ])
+        .arg(&tf)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    (wav, geo, tf)
+}
+
+fn fails_with(args: &[&str], must: &[&str]) {
+    let o = bin().args(args).output().unwrap();
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{args:?}: {e}");
+    assert!(o.stdout.is_empty(), "nothing computed: {args:?}");
+    for m in must {
+        assert!(e.contains(m), "{args:?} should say {m:?}: {e}");
+    }
+}
+
+#[test]
+fn grid_options_with_a_tf_file_are_refused_not_ignored() {
+    let (wav, _, tf) = scene("grid_options_with_a_tf_file_are_refused_not_ignored");
+    let (w, t) = (wav.to_str().unwrap(), tf.to_str().unwrap());
+    for opt in [
+        ["--grid", "ring:10"],
+        ["--grid-radius", "3"],
+        ["--speed-of-sound", "340"],
+    ] {
+        fails_with(&["localize", w, "--tf", t, opt[0], opt[1]], &["--tf", opt[0]]);
+    }
+    // Without them it runs.
+    let o = bin().args(["localize", w, "--tf", t, "-q"]).output().unwrap();
+    assert!(o.status.success());
+}
+
+#[test]
+fn old_and_new_spellings_give_the_same_files() {
+    let (wav, geo, tf) = scene("old_and_new_spellings_give_the_same_files");
+    let w = wav.to_str().unwrap();
+    // noisecm make: --window-function / --input-channels, formerly --window / --channels.
+    let (new, old) = (tmp("k_new.zip"), tmp("k_old.zip"));
+    for (out, args) in [
+        (
+            &new,
+            [
+                "--window-function",
+                "hamming",
+                "--input-channels",
+                "0,1,2,3,4,5,6,7",
+            ],
+        ),
+        (&old, ["--window", "hamming", "--channels", "0,1,2,3,4,5,6,7"]),
+    ] {
+        let o = bin()
+            .args(["noisecm", "make", w, "--range", "0:1", "-o"])
+            .arg(out)
+            .args(args)
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    }
+    let inspect = |p: &PathBuf| {
+        bin()
+            .args(["noisecm", "inspect", "--json"])
+            .arg(p)
+            .output()
+            .unwrap()
+            .stdout
+    };
+    let strip = |v: Vec<u8>| {
+        let mut j: serde_json::Value = serde_json::from_slice(&v).unwrap();
+        j.as_object_mut().unwrap().remove("file");
+        j
+    };
+    assert_eq!(strip(inspect(&new)), strip(inspect(&old)));
+    // tf make: --grid-radius, formerly --radius.
+    let old_tf = tmp("ring8_old.zip");
+    let o = bin()
+        .args([
+            "tf",
+            "make",
+            "--geometry",
+            geo.to_str().unwrap(),
+            "--grid",
+            "ring:5",
+            "--radius",
+            "2",
+            "-o",
+        ])
+        .arg(&old_tf)
+        .output()
+        .unwrap();
+    assert!(o.status.success());
+    let desc = |p: &PathBuf| {
+        bin()
+            .args(["tf", "inspect", "--verify", "--json"])
+            .arg(p)
+            .output()
+            .unwrap()
+            .stdout
+    };
+    let (a, b) = (strip(desc(&tf)), strip(desc(&old_tf)));
+    assert_eq!(a, b);
+    assert!((a["radius_min_m"].as_f64().unwrap() - 2.0).abs() < 1e-9, "{a}");
+}
+
+#[test]
+fn noise_cm_text_pairs_are_named_and_found() {
+    let (wav, geo, _) = scene("noise_cm_text_pairs_are_named_and_found");
+    let w = wav.to_str().unwrap();
+    // --format text with a .zip name: refused, nothing written.
+    let z = tmp("k.zip");
+    fails_with(
+        &[
+            "noisecm",
+            "make",
+            w,
+            "--range",
+            "0:1",
+            "--format",
+            "text",
+            "-o",
+            z.to_str().unwrap(),
+        ],
+        &["k.zip", "--format zip"],
+    );
+    assert!(!z.exists() && !tmp("k_r.zip").exists());
+    // A pair under names that do not pair up: the error says how to give both, and that works.
+    let k = tmp("K");
+    let o = bin()
+        .args(["noisecm", "make", w, "--range", "0:1", "-o", k.to_str().unwrap()])
+        .output()
+        .unwrap();
+    assert!(o.status.success());
+    let (re, im) = (tmp("K_r"), tmp("K_i"));
+    let (odd_re, odd_im) = (tmp("real-part.txt"), tmp("imag-part.txt"));
+    std::fs::copy(&re, &odd_re).unwrap();
+    std::fs::copy(&im, &odd_im).unwrap();
+    fails_with(&["noisecm", "inspect", odd_re.to_str().unwrap()], &["REAL,IMAG"]);
+    let pair = format!("{},{}", odd_re.display(), odd_im.display());
+    let a = bin().args(["noisecm", "inspect", &pair]).output().unwrap();
+    let b = bin().args(["noisecm", "inspect"]).arg(&re).output().unwrap();
+    assert!(a.status.success(), "{}", String::from_utf8_lossy(&a.stderr));
+    let body = |v: &[u8]| {
+        String::from_utf8_lossy(v)
+            .lines()
+            .skip(1)
+            .collect::<Vec<_>>()
+            .join("\n")
+    };
+    assert_eq!(body(&a.stdout), body(&b.stdout));
+    // The same pair is accepted by localize --noise-cm.
+    let o = bin()
+        .args([
+            "localize",
+            w,
+            "--geometry",
+            geo.to_str().unwrap(),
+            "--grid",
+            "ring:5",
+            "-q",
+            "--noise-cm",
+            &pair,
+        ])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+}
+
+#[test]
+fn a_closed_stdout_pipe_ends_the_run_quietly() {
+    let (wav, geo, _) = scene("a_closed_stdout_pipe_ends_the_run_quietly");
+    let mut child = bin()
+        .args([
+            "localize",
+            wav.to_str().unwrap(),
+            "--geometry",
+            geo.to_str().unwrap(),
+            "--grid",
+            "ring:5",
+            "--period",
+            "1",
+            "-q",
+        ])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut first = String::new();
+    BufReader::new(child.stdout.take().unwrap())
+        .read_line(&mut first)
+        .unwrap();
+    // The reader is gone (like `| head -1`).
+    let status = child.wait().unwrap();
+    let mut err = String::new();
+    std::io::Read::read_to_string(&mut child.stderr.take().unwrap(), &mut err).unwrap();
+    assert!(first.starts_with("{\"frame\""), "{first}");
+    assert!(status.success() && err.is_empty(), "{status:?}: {err}");
+}
