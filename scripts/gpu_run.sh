@@ -5,7 +5,7 @@
 #   cargo build --release && cargo test --release -p soundloc --test gpu_parity --no-run
 #   scripts/gpu_run.sh --stage        # copies the binaries and the peer into .devcarry/
 # On the device (repo root, $OUT set by the device tool):
-#   scripts/gpu_run.sh [parity] [bench] [stream] [peer] [bigbatch] [f64]   (default: parity bench peer)
+#   scripts/gpu_run.sh [parity] [bench] [stream] [peer] [bigbatch] [f64] [e2e] [multi]   (default: parity bench peer)
 set -uo pipefail
 root="$(cd "$(dirname "$0")/.." && pwd)"
 C="$root/.devcarry"
@@ -74,6 +74,38 @@ print(sys.argv[1] + ': %.2f s wall, %d KB max RSS, exit %d' % (time.time() - t, 
       done 2>&1 | tee "$OUT/e2e.txt"
       "$C/soundloc" bench --e2e --tf $W/tf.zip --input $W/rec.wav --algorithm gsvd --period 1 --device cuda 2>&1 | tee -a "$OUT/e2e.txt"
       "$C/soundloc" bench --e2e --tf $W/tf.zip --input $W/rec.wav --algorithm gsvd --period 50 --device cpu 2>&1 | tee -a "$OUT/e2e.txt" ;;
+    multi)
+      # Several GPUs (issue 14): throughput on 1, 2, 4 GPUs in one call, and a recording
+      # localized on one GPU and on all of them (results must be identical).
+      n=$(nvidia-smi -L | wc -l); echo "GPUs: $n" | tee "$OUT/multi.txt"
+      lists="cuda:0"; [ $n -ge 2 ] && lists="$lists cuda:0,1"; [ $n -ge 4 ] && lists="$lists cuda:0,1,2,3"
+      for d in $lists; do
+        for b in ${MULTI_BATCHES:-1024 4096}; do
+          "$C/soundloc" bench --device $d --algorithm gsvd --batch $b --repeats 5 --json
+        done
+      done 2>&1 | tee -a "$OUT/multi.txt"
+      W=/tmp/sl_multi; mkdir -p $W
+      "$C/soundloc" tf make --builtin sphere60 --grid sphere:642 -o $W/tf.zip
+      python3 -c "
+import os, struct
+n = 20 * 16000 * 60 * 2
+f = open('$W/rec.wav', 'wb')
+f.write(b'RIFF' + struct.pack('<I', 36 + n) + b'WAVEfmt ' + struct.pack('<IHHIIHH', 16, 1, 60, 16000, 16000 * 120, 120, 16) + b'data' + struct.pack('<I', n))
+for _ in range(20): f.write(os.urandom(16000 * 120))
+"
+      for d in cuda:0 cuda:all; do
+        s=$EPOCHREALTIME
+        "$C/soundloc" localize $W/rec.wav --tf $W/tf.zip --noise-range 0:1 --algorithm gsvd --period 1 --device $d -q --no-cache > $W/out-$d.jsonl
+        echo "$d: $(wc -l < $W/out-$d.jsonl) results in $(python3 -c "print(round($EPOCHREALTIME - $s, 2))") s"
+      done 2>&1 | tee -a "$OUT/multi.txt"
+      python3 - "$W/out-cuda:0.jsonl" "$W/out-cuda:all.jsonl" <<'PY' 2>&1 | tee -a "$OUT/multi.txt"
+import json, sys
+a, b = ([json.loads(l) for l in open(p)] for p in sys.argv[1:3])
+same = sum([s['grid_index'] for s in x['sources']] == [s['grid_index'] for s in y['sources']] for x, y in zip(a, b))
+d = max((abs(s['power_db'] - t['power_db']) for x, y in zip(a, b) for s, t in zip(x['sources'], y['sources'])), default=0)
+print(f"1 GPU vs all: {len(a)} and {len(b)} results, identical peaks in {same}, max |dB difference| {d:.2e}")
+PY
+      ;;
     f64)
       "$C/soundloc" bench --device cuda --precision f64 --algorithm gsvd --algorithm gevd --batch 64 --repeats 5 --json 2>&1 | tee -a "$OUT/bench.jsonl" ;;
     allalg)

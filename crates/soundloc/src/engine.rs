@@ -142,6 +142,17 @@ pub fn make_backend<T: Real>(plan: Arc<Plan<T>>, device: DeviceChoice) -> Result
     match device {
         DeviceChoice::Cpu => Ok(Box::new(CpuBackend::new(plan))),
         DeviceChoice::Cuda => crate::backend::cuda::new_backend(plan, 0),
+        DeviceChoice::CudaAll | DeviceChoice::CudaSet(_) => {
+            let ordinals = match device.ordinals() {
+                Some(o) => o,
+                None => (0..crate::backend::cuda::device_count()?).collect(),
+            };
+            let parts = ordinals
+                .into_iter()
+                .map(|i| crate::backend::cuda::new_backend(plan.clone(), i))
+                .collect::<Result<Vec<_>>>()?;
+            Ok(Box::new(crate::backend::multi::MultiBackend::new(parts)?))
+        }
         DeviceChoice::Auto => match crate::backend::cuda::new_backend(plan.clone(), 0) {
             Ok(b) => Ok(b),
             Err(e) => {

@@ -9,8 +9,9 @@ pub struct Args {
     /// Algorithms to run (repeatable; default: gsvd and gevd).
     #[arg(long = "algorithm", value_enum)]
     pub algorithms: Vec<AlgorithmArg>,
-    /// Compute device.
-    #[arg(long, value_enum, default_value = "auto")]
+    /// Compute device: auto, cpu, cuda (GPU 0), cuda:all or cuda:N[,M...] (several GPUs
+    /// share every batch of windows).
+    #[arg(long, default_value = "auto")]
     pub device: DeviceArg,
     /// Precision.
     #[arg(long, value_enum, default_value = "f32")]

@@ -227,8 +227,9 @@ pub struct RunArgs {
     pub hark_stream: Option<String>,
     #[command(flatten)]
     pub live: LiveArgs,
-    /// Compute device.
-    #[arg(long, value_enum, default_value = "auto")]
+    /// Compute device: auto, cpu, cuda (GPU 0), cuda:all or cuda:N[,M...] (several GPUs
+    /// share every batch of windows).
+    #[arg(long, default_value = "auto")]
     pub device: DeviceArg,
     /// Compute precision.
     #[arg(long, value_enum, default_value = "f32")]

@@ -40,25 +40,23 @@ pub enum Command {
     Noisecm(noisecm::Args),
 }
 
-/// Compute device.
-#[derive(ValueEnum, Clone, Copy, Debug, Default)]
-pub enum DeviceArg {
-    /// CUDA when a usable GPU and the CUDA libraries are present, else the CPU.
-    #[default]
-    Auto,
-    /// The CPU.
-    Cpu,
-    /// CUDA GPU 0.
-    Cuda,
+/// `--device`: auto, cpu, cuda (GPU 0), cuda:all or cuda:N[,M...] (several GPUs share the
+/// work).
+#[derive(Clone, Copy, Debug, Default)]
+pub struct DeviceArg(pub soundloc::backend::DeviceChoice);
+
+impl std::str::FromStr for DeviceArg {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        s.parse()
+            .map(DeviceArg)
+            .map_err(|e: soundloc::Error| e.to_string())
+    }
 }
 
 impl From<DeviceArg> for soundloc::backend::DeviceChoice {
     fn from(d: DeviceArg) -> Self {
-        match d {
-            DeviceArg::Auto => Self::Auto,
-            DeviceArg::Cpu => Self::Cpu,
-            DeviceArg::Cuda => Self::Cuda,
-        }
+        d.0
     }
 }
 

@@ -12,6 +12,7 @@
 //! frames, a non-finite sample (`sample 1234 of channel 2 is NaN`, both 0-based), an
 //! unsupported bit depth.
 
+pub mod flac_write;
 pub mod source;
 
 pub use source::{

@@ -16,15 +16,18 @@
 
 pub mod cpu;
 pub mod cuda;
+pub mod multi;
 
 use crate::plan::Plan;
 use crate::real::{Real, C};
 use crate::Result;
 use std::sync::Arc;
 
-/// Which compute device to use.
+/// Which compute device to use. Written (CLI, Python, serde) as `auto`, `cpu`, `cuda`
+/// (= `cuda:0`), `cuda:all` or a list `cuda:0,1,…`; several GPUs share every batch of
+/// windows ([`multi::MultiBackend`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
-#[serde(rename_all = "kebab-case")]
+#[serde(try_from = "String", into = "String")]
 pub enum DeviceChoice {
     /// CUDA when a usable GPU and the CUDA libraries are present, else the CPU.
     #[default]
@@ -33,6 +36,87 @@ pub enum DeviceChoice {
     Cpu,
     /// CUDA device 0 (an error when unavailable).
     Cuda,
+    /// Every GPU present.
+    CudaAll,
+    /// These GPUs: bit i set = `cuda:i` (ordinals 0–63).
+    CudaSet(u64),
+}
+
+impl DeviceChoice {
+    /// The GPU ordinals a CUDA choice names (`None` for `auto`/`cpu`/`cuda:all`).
+    pub fn ordinals(self) -> Option<Vec<usize>> {
+        match self {
+            DeviceChoice::Cuda => Some(vec![0]),
+            DeviceChoice::CudaSet(m) => Some((0..64).filter(|i| m >> i & 1 == 1).collect()),
+            _ => None,
+        }
+    }
+}
+
+impl std::str::FromStr for DeviceChoice {
+    type Err = crate::Error;
+    fn from_str(s: &str) -> Result<Self> {
+        let bad = || {
+            crate::Error::Config(format!(
+                "device {s:?}: expected auto, cpu, cuda, cuda:all or cuda:N[,M...] (GPU ordinals 0-63)"
+            ))
+        };
+        Ok(match s.trim() {
+            "auto" => DeviceChoice::Auto,
+            "cpu" => DeviceChoice::Cpu,
+            "cuda" => DeviceChoice::Cuda,
+            "cuda:all" => DeviceChoice::CudaAll,
+            t => {
+                let list = t.strip_prefix("cuda:").ok_or_else(bad)?;
+                let mut mask = 0u64;
+                for n in list.split(',') {
+                    let i: u32 = n.trim().parse().map_err(|_| bad())?;
+                    if i >= 64 || mask >> i & 1 == 1 {
+                        return Err(bad());
+                    }
+                    mask |= 1 << i;
+                }
+                if mask == 1 {
+                    DeviceChoice::Cuda
+                } else {
+                    DeviceChoice::CudaSet(mask)
+                }
+            }
+        })
+    }
+}
+
+impl std::fmt::Display for DeviceChoice {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            DeviceChoice::Auto => f.write_str("auto"),
+            DeviceChoice::Cpu => f.write_str("cpu"),
+            DeviceChoice::Cuda => f.write_str("cuda"),
+            DeviceChoice::CudaAll => f.write_str("cuda:all"),
+            DeviceChoice::CudaSet(_) => {
+                let l: Vec<String> = self
+                    .ordinals()
+                    .unwrap_or_default()
+                    .iter()
+                    .map(|i| i.to_string())
+                    .collect();
+                write!(f, "cuda:{}", l.join(","))
+            }
+        }
+    }
+}
+
+impl TryFrom<String> for DeviceChoice {
+    type Error = crate::Error;
+    fn try_from(s: String) -> Result<Self> {
+        s.parse()
+    }
+}
+
+impl From<DeviceChoice> for String {
+    fn from(d: DeviceChoice) -> String {
+        d.to_string()
+    }
 }
 
 /// STFT frames of the used bins, laid out `[frame][bin][mic]` (row-major): frame f, used

@@ -122,6 +122,21 @@ pub(crate) struct CudaGpu {
 // current on the calling thread first, and the backend is used by one thread at a time.
 unsafe impl Send for CudaGpu {}
 
+/// Number of GPUs the driver reports (initialises the driver).
+pub(crate) fn device_count() -> Result<usize> {
+    if !driver_present() {
+        return Err(Error::Device(
+            "the NVIDIA driver library (libcuda.so.1) was not found: no CUDA driver installed".into(),
+        ));
+    }
+    drv::init().map_err(|e| dev_err("cuInit", e))?;
+    let count = drv::device::get_count().map_err(|e| dev_err("cuDeviceGetCount", e))?;
+    if count <= 0 {
+        return Err(Error::Device("the CUDA driver reports no GPU".into()));
+    }
+    Ok(count as usize)
+}
+
 /// Name and compute capability of device `ordinal` (initialises the driver).
 pub(crate) fn device_info(ordinal: usize) -> Result<(String, u32, usize)> {
     if !driver_present() {

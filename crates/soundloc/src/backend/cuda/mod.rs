@@ -85,6 +85,11 @@ pub fn probe() -> std::result::Result<String, String> {
     .map_err(|e| e.to_string())
 }
 
+/// Number of GPUs present, or why there are none.
+pub fn device_count() -> Result<usize> {
+    device::device_count()
+}
+
 /// Build a CUDA backend on device `ordinal`, or say why none can be had.
 pub fn new_backend<T: Real>(plan: Arc<Plan<T>>, ordinal: usize) -> Result<Box<dyn Backend<T>>> {
     guarded(|| {
