@@ -16,7 +16,7 @@
 //! | spectrum | [`music`] | subspace × transfer functions → P̄(d), dB |
 //! | peaks | [`peaks`] | spectrum → local maxima, top NUM_SOURCE |
 //! | tracking | [`tracking`] | peaks over time → sources with ids |
-//! | outputs | [`output`] | JSON lines, CSV, .npy, plots, HARK logs and streams |
+//! | outputs | [`output`] | JSON lines, CSV, .npy, plots, HARK logs and streams, ODAS SSL/SST, the live view |
 //!
 //! Beside it: the array description in [`array`](mod@array) (geometry, direction grid, transfer
 //! functions), file formats in [`formats`], a scene simulator in [`sim`], and the compute
