@@ -155,7 +155,7 @@ fn imaginary_file_is_found_by_hark_naming() {
     std::fs::write(&p, "1 0 0 1\n1 0 0 1\n").unwrap();
     let msg = err_text(NoiseCm::load(&p, Expected::default()));
     assert!(
-        msg.contains("noise.dat") && msg.contains("give both files"),
+        msg.contains("noise.dat") && msg.contains("give both as REAL,IMAG"),
         "{msg}"
     );
     let p = d.join("cm_r.dat");
