@@ -443,7 +443,7 @@ fn bad_inputs_fail_with_a_message_naming_the_file() {
         "-o",
         s(&out),
     ]);
-    assert!(e.contains("--radius"), "{e}");
+    assert!(e.contains("--grid-radius"), "{e}");
     assert!(!out.exists());
 
     // noisecm make: missing input, range past the end, bad range, bad channel.
