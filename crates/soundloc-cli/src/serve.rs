@@ -119,15 +119,18 @@ impl LiveServer {
         });
     }
 
+    /// Whether the spectrum of a result at `time_s` is to be sent (spectra are thinned to
+    /// [`MAX_SPECTRA_PER_S`] per second of audio); `true` books it.
+    pub fn spectrum_due(&mut self, time_s: f64) -> bool {
+        let due = time_s - self.last_spectrum_s >= 1.0 / MAX_SPECTRA_PER_S - 1e-9;
+        if due {
+            self.last_spectrum_s = time_s;
+        }
+        due
+    }
+
     /// Send one result and, when given, its spectrum (kept for late pages).
-    pub fn result(&mut self, text: String, spectrum: Option<Vec<u8>>, time_s: f64) {
-        let spectrum = spectrum.filter(|_| {
-            let due = time_s - self.last_spectrum_s >= 1.0 / MAX_SPECTRA_PER_S - 1e-9;
-            if due {
-                self.last_spectrum_s = time_s;
-            }
-            due
-        });
+    pub fn result(&mut self, text: String, spectrum: Option<Vec<u8>>) {
         self.with(|s| {
             let m = Message::text(text);
             s.broadcast(&m);

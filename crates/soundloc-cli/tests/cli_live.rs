@@ -5,6 +5,7 @@
 mod common;
 
 use common::webdriver::Browser;
+use common::{bin, int16, s16le};
 use serde_json::Value;
 use soundloc::audio::{Audio, SampleFormat};
 use std::io::{BufRead, BufReader, Read, Write};
@@ -13,40 +14,12 @@ use std::path::{Path, PathBuf};
 use std::process::{Child, ChildStderr, Command, Stdio};
 use std::time::{Duration, Instant};
 
-fn bin() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_soundloc"))
-}
-
 fn tmp(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("soundloc-cli-live-{}", std::process::id()));
-    std::fs::create_dir_all(&d).unwrap();
-    d.join(name)
+    common::tmp("cli-live", name)
 }
 
-fn int16(mut audio: Audio) -> Audio {
-    for c in &mut audio.channels {
-        for v in c.iter_mut() {
-            *v = v.round().clamp(-32768.0, 32767.0);
-        }
-    }
-    audio
-}
-
-/// The 8-mic ring scene (talkers at 30° and −120°), `repeat` × 3 s: geometry and WAV.
 fn ring_scene(repeat: usize) -> (Audio, PathBuf, PathBuf) {
-    let s = soundloc::demo::ring8_incoherent(&[30.0, -120.0], 10.0, 4).unwrap();
-    let mut audio = int16(s.render());
-    for c in &mut audio.channels {
-        let one = c.clone();
-        for _ in 1..repeat {
-            c.extend_from_slice(&one);
-        }
-    }
-    let geo = tmp("ring8.toml");
-    std::fs::write(&geo, s.geometry.to_toml_string()).unwrap();
-    let wav = tmp(&format!("ring8x{repeat}.wav"));
-    audio.write_wav(&wav, SampleFormat::Int16).unwrap();
-    (audio, geo, wav)
+    common::ring_scene("cli-live", "", repeat)
 }
 
 /// A running `soundloc … --serve 127.0.0.1:0` and the address it printed.
@@ -501,16 +474,6 @@ fn read_messages(l: &TcpListener, n: usize) -> (TcpStream, Vec<String>) {
         msgs.extend(odas_messages(&mut buf));
     }
     (c, msgs)
-}
-
-fn s16le(audio: &Audio, range: std::ops::Range<usize>) -> Vec<u8> {
-    let mut b = Vec::new();
-    for t in range {
-        for c in &audio.channels {
-            b.extend_from_slice(&(c[t] as i16).to_le_bytes());
-        }
-    }
-    b
 }
 
 #[test]

@@ -1,40 +1,16 @@
 //! `soundloc localize` on streams: WAV or raw PCM on standard input, TCP (connecting and
 //! listening); results as windows complete, equal to the same audio read from a file.
 
-use soundloc::audio::{Audio, SampleFormat};
+mod common;
+
+use common::{bin, s16le};
+use soundloc::audio::Audio;
 use std::io::{BufRead, BufReader, Read, Write};
 use std::net::{TcpListener, TcpStream};
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::sync::mpsc;
 use std::time::{Duration, Instant};
-
-fn bin() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_soundloc"))
-}
-
-fn tmp(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("soundloc-cli-stream-{}", std::process::id()));
-    std::fs::create_dir_all(&d).unwrap();
-    d.join(name)
-}
-
-/// The 8-mic ring scene (talkers at 30° and −120°), 3 s, as int16 values, its geometry
-/// file and a WAV of it.
-fn scene() -> (Audio, PathBuf, PathBuf) {
-    let s = soundloc::demo::ring8_incoherent(&[30.0, -120.0], 10.0, 4).unwrap();
-    let mut audio = s.render();
-    for c in &mut audio.channels {
-        for v in c.iter_mut() {
-            *v = v.round().clamp(-32768.0, 32767.0);
-        }
-    }
-    let geo = tmp("ring8.toml");
-    std::fs::write(&geo, s.geometry.to_toml_string()).unwrap();
-    let wav = tmp("ring8.wav");
-    audio.write_wav(&wav, SampleFormat::Int16).unwrap();
-    (audio, geo, wav)
-}
 
 const OPTS: [&str; 9] = [
     "--grid",
@@ -47,6 +23,14 @@ const OPTS: [&str; 9] = [
     "cpu",
     "-q",
 ];
+
+fn tmp(name: &str) -> PathBuf {
+    common::tmp("cli-stream", name)
+}
+
+fn scene() -> (Audio, PathBuf, PathBuf) {
+    common::ring_scene("cli-stream", "", 1)
+}
 
 fn from_file(wav: &Path, geo: &Path) -> String {
     let o = bin()
@@ -61,16 +45,6 @@ fn from_file(wav: &Path, geo: &Path) -> String {
     let s = String::from_utf8(o.stdout).unwrap();
     assert!(s.lines().count() > 10, "{s}");
     s
-}
-
-fn s16le(audio: &Audio, range: std::ops::Range<usize>) -> Vec<u8> {
-    let mut b = Vec::new();
-    for i in range {
-        for c in &audio.channels {
-            b.extend_from_slice(&(c[i] as i16).to_le_bytes());
-        }
-    }
-    b
 }
 
 /// A WAV header with the streaming placeholder size, as `arecord` writes to a pipe.

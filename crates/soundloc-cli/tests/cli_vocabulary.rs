@@ -1,38 +1,22 @@
 //! One vocabulary across subcommands (old spellings kept as aliases), options that do not
 //! apply refused instead of ignored, and a closed stdout pipe is not an error.
 
+mod common;
+
+use common::bin;
 use std::io::{BufRead, BufReader};
 use std::path::PathBuf;
-use std::process::{Command, Stdio};
-
-fn bin() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_soundloc"))
-}
+use std::process::Stdio;
 
 fn tmp(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("soundloc-cli-vocab-{}", std::process::id()));
-    std::fs::create_dir_all(&d).unwrap();
-    d.join(name)
+    common::tmp("cli-vocab", name)
 }
 
-/// An 8-mic ring recording (two talkers), its geometry and a TF zip of it, in a folder of
+/// An 8-mic ring recording (two talkers), its geometry and a TF zip of it, in files of
 /// the test's own (tests run in parallel).
 fn scene(test: &str) -> (PathBuf, PathBuf, PathBuf) {
-    let tmp = |name: &str| tmp(&format!("{test}-{name}"));
-    let s = soundloc::demo::ring8_incoherent(&[30.0, -120.0], 10.0, 4).unwrap();
-    let mut audio = s.render();
-    for c in &mut audio.channels {
-        for v in c.iter_mut() {
-            *v = v.round().clamp(-32768.0, 32767.0);
-        }
-    }
-    let geo = tmp("ring8.toml");
-    std::fs::write(&geo, s.geometry.to_toml_string()).unwrap();
-    let wav = tmp("ring8.wav");
-    audio
-        .write_wav(&wav, soundloc::audio::SampleFormat::Int16)
-        .unwrap();
-    let tf = tmp("ring8.zip");
+    let (_, geo, wav) = common::ring_scene("cli-vocab", &format!("{test}-"), 1);
+    let tf = tmp(&format!("{test}-ring8.zip"));
     let o = bin()
         .args([
             "tf",

@@ -341,14 +341,21 @@ impl Sinks {
         let results = std::mem::take(&mut out.results);
         let table = out.spectrum.take();
         if let Some(v) = &mut self.view {
-            for (i, r) in results.iter().enumerate() {
-                let spectrum = table.as_ref().and_then(|t| {
-                    let row = t.frames.iter().position(|&f| f == r.frame).unwrap_or(i);
-                    let d = t.num_dirs;
-                    t.db.get(row * d..(row + 1) * d)
-                        .map(|db| live::spectrum(r.frame, r.time_s, db))
-                });
-                v.result(live::result(r), spectrum, r.time_s);
+            // Spectrum rows and results are both in frame order: one forward cursor.
+            let mut row = 0;
+            for r in &results {
+                let spectrum = match &table {
+                    Some(t) if v.spectrum_due(r.time_s) => {
+                        while row < t.frames.len() && t.frames[row] < r.frame {
+                            row += 1;
+                        }
+                        let d = t.num_dirs;
+                        (t.frames.get(row) == Some(&r.frame))
+                            .then(|| live::spectrum(r.frame, r.time_s, &t.db[row * d..(row + 1) * d]))
+                    }
+                    _ => None,
+                };
+                v.result(live::result(r), spectrum);
             }
             v.status(status(progress, false), false);
         }

@@ -1,1 +1,60 @@
+//! Helpers shared by the CLI's integration tests: the binary, a per-test temporary folder,
+//! the 8-mic ring scene and raw PCM of it. (Each test binary uses only some of them.)
+#![allow(dead_code)]
+
 pub mod webdriver;
+
+use soundloc::audio::{Audio, SampleFormat};
+use std::path::PathBuf;
+use std::process::Command;
+
+/// The `soundloc` binary under test.
+pub fn bin() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_soundloc"))
+}
+
+/// `name` in a folder of this test process (`tag` keeps test files apart).
+pub fn tmp(tag: &str, name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("soundloc-{tag}-{}", std::process::id()));
+    std::fs::create_dir_all(&d).unwrap();
+    d.join(name)
+}
+
+/// Samples rounded and clipped to int16 values.
+pub fn int16(mut audio: Audio) -> Audio {
+    for c in &mut audio.channels {
+        for v in c.iter_mut() {
+            *v = v.round().clamp(-32768.0, 32767.0);
+        }
+    }
+    audio
+}
+
+/// The 8-mic ring scene (talkers at 30° and −120°, 3 s, repeated `repeat` times) as int16
+/// values, its geometry file and a WAV of it, named with `prefix` in `tag`'s folder.
+pub fn ring_scene(tag: &str, prefix: &str, repeat: usize) -> (Audio, PathBuf, PathBuf) {
+    let s = soundloc::demo::ring8_incoherent(&[30.0, -120.0], 10.0, 4).unwrap();
+    let mut audio = int16(s.render());
+    for c in &mut audio.channels {
+        let one = c.clone();
+        for _ in 1..repeat {
+            c.extend_from_slice(&one);
+        }
+    }
+    let geo = tmp(tag, &format!("{prefix}ring8.toml"));
+    std::fs::write(&geo, s.geometry.to_toml_string()).unwrap();
+    let wav = tmp(tag, &format!("{prefix}ring8x{repeat}.wav"));
+    audio.write_wav(&wav, SampleFormat::Int16).unwrap();
+    (audio, geo, wav)
+}
+
+/// Interleaved s16le bytes of samples `range`.
+pub fn s16le(audio: &Audio, range: std::ops::Range<usize>) -> Vec<u8> {
+    let mut b = Vec::new();
+    for i in range {
+        for c in &audio.channels {
+            b.extend_from_slice(&(c[i] as i16).to_le_bytes());
+        }
+    }
+    b
+}

@@ -112,7 +112,6 @@ pub fn encode(
 pub struct HarkStreamSender {
     net: NetSender,
     advance: i32,
-    buf: Vec<u8>,
 }
 
 impl HarkStreamSender {
@@ -128,7 +127,6 @@ impl HarkStreamSender {
         Ok(HarkStreamSender {
             net: NetSender::start("HARK stream", &peer)?,
             advance,
-            buf: Vec::new(),
         })
     }
 
@@ -163,9 +161,10 @@ impl HarkStreamSender {
         tv_sec: i64,
         tv_usec: i64,
     ) -> Result<()> {
-        self.buf.clear();
-        encode(result, self.advance, count, tv_sec, tv_usec, &mut self.buf)?;
-        self.net.send(self.buf.clone());
+        // Each message is its own buffer: the sender's queue owns it.
+        let mut buf = Vec::new();
+        encode(result, self.advance, count, tv_sec, tv_usec, &mut buf)?;
+        self.net.send(buf);
         Ok(())
     }
 }
