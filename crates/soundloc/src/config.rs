@@ -20,12 +20,19 @@ pub enum Algorithm {
     GevdHark,
     /// HARK's GSVD: left singular vectors of K^{-1} R (the seed paper's algorithm).
     Gsvd,
+    /// Steered response power with the phase transform (SRP-PHAT, as ODAS,
+    /// pyroomacoustics and SpeechBrain ship it): no subspace, no K. See [`crate::srp`].
+    SrpPhat,
 }
 
 impl Algorithm {
     /// Whether this algorithm uses the noise correlation matrix K.
     pub fn uses_noise(self) -> bool {
-        !matches!(self, Algorithm::Sevd)
+        !matches!(self, Algorithm::Sevd | Algorithm::SrpPhat)
+    }
+    /// Whether this is a MUSIC variant (a subspace decomposition per bin).
+    pub fn is_music(self) -> bool {
+        !matches!(self, Algorithm::SrpPhat)
     }
     /// The name used on the command line and in outputs.
     pub fn name(self) -> &'static str {
@@ -34,14 +41,23 @@ impl Algorithm {
             Algorithm::Gevd => "gevd",
             Algorithm::GevdHark => "gevd-hark",
             Algorithm::Gsvd => "gsvd",
+            Algorithm::SrpPhat => "srp-phat",
         }
     }
-    /// All algorithms, in a fixed order.
-    pub const ALL: [Algorithm; 4] = [
+    /// The MUSIC variants, in a fixed order.
+    pub const MUSIC: [Algorithm; 4] = [
         Algorithm::Sevd,
         Algorithm::Gevd,
         Algorithm::GevdHark,
         Algorithm::Gsvd,
+    ];
+    /// All algorithms, in a fixed order.
+    pub const ALL: [Algorithm; 5] = [
+        Algorithm::Sevd,
+        Algorithm::Gevd,
+        Algorithm::GevdHark,
+        Algorithm::Gsvd,
+        Algorithm::SrpPhat,
     ];
 }
 
@@ -150,6 +166,15 @@ pub struct LocalizeConfig {
     /// Diagonal loading added to K (relative to its mean diagonal) before it is used;
     /// 0 = none, and a K that is not positive definite is an error.
     pub diagonal_loading: f64,
+    /// Per-bin normalisation (NormMUSIC, Salvati et al. 2014, as pyroomacoustics'
+    /// `NormMUSIC`): each bin's pseudo-spectrum is divided by its maximum over the
+    /// directions before the bins are summed, so every bin votes with weight w_k (the
+    /// eigenvalue weight g_k cancels). Off in HARK.
+    pub normalize_bins: bool,
+    /// Sub-grid refinement of every peak (see [`crate::peaks::refine`]): the reported
+    /// direction is the maximum of a quadratic fitted to the dB spectrum at the peak and
+    /// its grid neighbours, within one grid step. Off in HARK (grid directions only).
+    pub refine: bool,
 }
 
 impl Default for LocalizeConfig {
@@ -173,6 +198,8 @@ impl Default for LocalizeConfig {
             eigenvalue_weight: true,
             denominator: Denominator::Squared,
             diagonal_loading: 0.0,
+            normalize_bins: false,
+            refine: false,
         }
     }
 }

@@ -568,16 +568,25 @@ impl<T: Real> Engine<T> {
             })
             .collect();
         let want = self.options.want_spectrum;
+        let refine = self.plan.config.refine;
         self.backend
-            .process(self.ring.spectra(), &local, want, &mut self.batch)?;
+            .process(self.ring.spectra(), &local, want || refine, &mut self.batch)?;
         self.windows_run += windows.len();
-        for (w, peaks) in windows.iter().zip(&self.batch.peaks) {
+        let nd = self.plan.num_dirs;
+        for (wi, (w, peaks)) in windows.iter().zip(&self.batch.peaks).enumerate() {
             let mut r = LocalizationResult {
                 frame: self.report_frame(w.frame),
                 time_s: self.frame_time(w.frame),
                 sources: peaks
                     .iter()
-                    .map(|p| source(&self.plan.grid, p.dir, p.power_db))
+                    .map(|p| {
+                        let mut s = source(&self.plan.grid, p.dir, p.power_db);
+                        if refine {
+                            let db = &self.batch.spectrum_db[wi * nd..(wi + 1) * nd];
+                            refine_source(&mut s, &self.plan.grid, &self.plan.peak_table, db);
+                        }
+                        s
+                    })
                     .collect(),
             };
             if let Some(t) = &mut self.tracker {
@@ -617,6 +626,15 @@ impl<T: Real> Engine<T> {
             stage_times: self.backend.stage_times(),
         })
     }
+}
+
+/// Move `s` (a grid peak) to its refined direction ([`crate::peaks::refine`]); the grid
+/// index stays; x/y/z become the refined unit vector.
+pub fn refine_source(s: &mut Source, grid: &crate::array::Grid, table: &crate::peaks::PeakTable, db: &[f32]) {
+    let r = crate::peaks::refine::refine(grid, table, db, s.grid_index);
+    s.azimuth_deg = r.azimuth_deg;
+    s.elevation_deg = r.elevation_deg;
+    [s.x, s.y, s.z] = r.unit;
 }
 
 /// A result source for grid direction `dir`: unit direction vector, azimuth, elevation.

@@ -57,6 +57,7 @@ pub mod plan;
 pub mod real;
 pub mod result;
 pub mod sim;
+pub mod srp;
 pub mod stft;
 pub mod subspace;
 pub mod tracking;

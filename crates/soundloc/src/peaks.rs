@@ -6,6 +6,8 @@
 //! lies in [MIN_DEG, MAX_DEG] are kept, sorted by power (strongest first), and the top
 //! MAXNUM_OUT_PEAKS are output (−1 = NUM_SOURCE, 0 = all).
 
+pub mod refine;
+
 use crate::array::Grid;
 use crate::backend::Peak;
 use crate::config::LocalizeConfig;

@@ -4,7 +4,8 @@
 //!
 //! - the used bins k ∈ [⌊f_lo·N/fs⌋, ⌊f_hi·N/fs⌋) and the analysis window;
 //! - the steering vectors a_{d,k} of the used bins, laid out `[bin][dir][mic]` so that one
-//!   bin's D × M block feeds a GEMM, and their norms ‖a‖² = Re(aᴴa), `[bin][dir]`;
+//!   bin's D × M block feeds a GEMM, and their norms ‖a‖² = Re(aᴴa), `[bin][dir]` (for
+//!   SRP-PHAT the phase-only ã = a/|a| elementwise, see [`crate::srp`]);
 //! - the spectrum weights w_k;
 //! - per bin, from K (in f64, once per K): K ← K / max|Re K_ij| (HARK's scaling), then the
 //!   whitening matrix W_k of the algorithm (K⁻¹ for GSVD, L⁻¹ with K = L Lᴴ for GEVD,
@@ -117,6 +118,7 @@ impl<T: Real> Plan<T> {
         // Steering [bin][dir][mic] and norms.
         let mut steering = vec![C::new(T::zero(), T::zero()); nb * d * m];
         let mut norm2 = vec![T::zero(); nb * d];
+        let phase_only = config.algorithm == Algorithm::SrpPhat;
         steering
             .par_chunks_mut(d * m)
             .zip(norm2.par_chunks_mut(d))
@@ -127,8 +129,18 @@ impl<T: Real> Plan<T> {
                     let mut acc = 0.0f64;
                     for mic in 0..m {
                         let a = tf.get(dir, mic, bin);
-                        acc += (a.re as f64).powi(2) + (a.im as f64).powi(2);
-                        s[dir * m + mic] = C::new(T::of_f64(a.re as f64), T::of_f64(a.im as f64));
+                        let (mut re, mut im) = (a.re as f64, a.im as f64);
+                        if phase_only {
+                            // SRP-PHAT steers with the phase alone: ã = a/|a|.
+                            let n = re.hypot(im);
+                            (re, im) = if n > 0.0 && n.is_finite() {
+                                (re / n, im / n)
+                            } else {
+                                (0.0, 0.0)
+                            };
+                        }
+                        acc += re * re + im * im;
+                        s[dir * m + mic] = C::new(T::of_f64(re), T::of_f64(im));
                     }
                     n2[dir] = T::of_f64(acc);
                 }
@@ -424,7 +436,7 @@ fn bin_whitening<T: Real>(
         v
     };
     match alg {
-        Algorithm::Sevd => Ok((Vec::new(), Vec::new(), Vec::new())),
+        Algorithm::Sevd | Algorithm::SrpPhat => Ok((Vec::new(), Vec::new(), Vec::new())),
         Algorithm::Gsvd => {
             let kinv = llt.inverse();
             Ok((row_major(&kinv), Vec::new(), Vec::new()))

@@ -127,8 +127,49 @@ pub struct Room {
     pub origin_m: [f64; 3],
     /// Wall reflection coefficient β (amplitude), 0..=1.
     pub reflection: f64,
-    /// Highest reflection order kept (1: first order, 2: up to second order).
+    /// Highest reflection order kept (1: first order, 2: up to second order, …
+    /// [`MAX_REFLECTION_ORDER`] at most).
     pub max_order: u32,
+}
+
+/// Highest reflection order a [`Room`] may ask for (≈ 10⁴ images per source).
+pub const MAX_REFLECTION_ORDER: u32 = 24;
+
+/// Above this many images per source, the reflections (order ≥ 1) are rendered through
+/// a time-domain impulse response of windowed-sinc taps instead of exact phase ramps.
+const EXACT_IMAGES_MAX: usize = 64;
+
+/// Half-length of the windowed-sinc fractional-delay taps (samples).
+const SINC_HALF: i64 = 16;
+
+impl Room {
+    /// A room of `size_m` (corner at `origin_m`) whose walls give a reverberation time of
+    /// `rt60_s` seconds by Sabine's formula: RT60 = 0.161·V / (S·α) with V the volume,
+    /// S the wall area and α = 1 − β² the absorption, so β = √(1 − α). The order is the
+    /// one whose images arrive about RT60/2 after the direct sound (where the tail is
+    /// ≈ 30 dB down), capped at [`MAX_REFLECTION_ORDER`].
+    pub fn with_rt60(size_m: [f64; 3], origin_m: [f64; 3], rt60_s: f64) -> Result<Room> {
+        let [x, y, z] = size_m;
+        if !(size_m.iter().all(|v| v.is_finite() && *v > 0.0) && rt60_s.is_finite() && rt60_s > 0.0) {
+            return Err(Error::Config(format!("room {size_m:?} m with RT60 {rt60_s} s")));
+        }
+        let volume = x * y * z;
+        let area = 2.0 * (x * y + y * z + x * z);
+        let alpha = 0.161 * volume / (area * rt60_s);
+        if alpha >= 1.0 {
+            return Err(Error::Config(format!(
+                "RT60 {rt60_s} s is shorter than a room of {size_m:?} m can have (absorption {alpha:.2} > 1)"
+            )));
+        }
+        let mean_dim = (x + y + z) / 3.0;
+        let order = (0.5 * rt60_s * SPEED_OF_SOUND_M_S / mean_dim).ceil() as u32;
+        Ok(Room {
+            size_m,
+            origin_m,
+            reflection: (1.0 - alpha).sqrt(),
+            max_order: order.clamp(1, MAX_REFLECTION_ORDER),
+        })
+    }
 }
 
 /// Everything to render: sources, sensor noise, an optional room.
@@ -232,8 +273,11 @@ impl Scene {
                     room.reflection
                 ));
             }
-            if room.max_order > 6 {
-                return bad(format!("reflection order {} > 6", room.max_order));
+            if room.max_order > MAX_REFLECTION_ORDER {
+                return bad(format!(
+                    "reflection order {} > {MAX_REFLECTION_ORDER}",
+                    room.max_order
+                ));
             }
             let inside = |p: &[f64; 3]| {
                 (0..3).all(|a| p[a] >= room.origin_m[a] && p[a] <= room.origin_m[a] + room.size_m[a])
@@ -469,7 +513,20 @@ pub fn render_parts(
         if !spectra.is_empty() {
             let mut y = vec![Complex::new(0.0, 0.0); nbins];
             for (si, spec) in &spectra {
-                for &(d, a) in &paths[*si][m] {
+                let all = &paths[*si][m];
+                // Many images: the reflections go through a windowed-sinc impulse response.
+                let exact = if all.len() > EXACT_IMAGES_MAX + 1 {
+                    let mut h = reflections_response(&all[1..], len);
+                    let mut hs = fwd.make_output_vec();
+                    let _ = fwd.process(&mut h, &mut hs);
+                    for ((yk, sk), hk) in y.iter_mut().zip(spec).zip(&hs) {
+                        *yk += sk * hk;
+                    }
+                    &all[..1]
+                } else {
+                    &all[..]
+                };
+                for &(d, a) in exact {
                     if a == 0.0 {
                         continue;
                     }
@@ -508,6 +565,32 @@ pub fn render_parts(
         sample_rate_hz,
         channels,
     }
+}
+
+/// The impulse response (length `len`) of the given paths (delay in samples, amplitude):
+/// each a Hann-windowed sinc of ±[`SINC_HALF`] taps centred on its fractional delay.
+fn reflections_response(paths: &[(f64, f64)], len: usize) -> Vec<f64> {
+    let mut h = vec![0.0f64; len];
+    for &(d, a) in paths {
+        if a == 0.0 || !d.is_finite() {
+            continue;
+        }
+        let base = d.floor() as i64;
+        for t in base - SINC_HALF + 1..=base + SINC_HALF {
+            if t < 0 || t as usize >= len {
+                continue;
+            }
+            let x = t as f64 - d;
+            let sinc = if x.abs() < 1e-12 {
+                1.0
+            } else {
+                (PI * x).sin() / (PI * x)
+            };
+            let w = 0.5 + 0.5 * (PI * x / SINC_HALF as f64).cos();
+            h[t as usize] += a * sinc * w;
+        }
+    }
+    h
 }
 
 /// Sample range over which the group is active, clamped to `0..n`.

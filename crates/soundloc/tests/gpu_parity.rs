@@ -338,7 +338,7 @@ fn scene_ring_array_every_algorithm() {
         return;
     };
     let sd = scene(Geometry::circle(8, 0.0365, 0.0), Grid::ring(5.0, 0.0, 1.0), 7);
-    for alg in Algorithm::ALL {
+    for alg in Algorithm::MUSIC {
         let cfg = scene_config(alg, 50, 10);
         sd.check(&mode, &format!("ring8 {}", alg.name()), &cfg, 4);
     }
@@ -351,7 +351,7 @@ fn scene_ring_array_every_algorithm() {
         sd.check(&mode, &format!("ring8 {} unsquared", alg.name()), &cfg, 4);
     }
     // Fewer frames than microphones (rank-deficient R; the Jacobi kernel uses its factor form).
-    for alg in Algorithm::ALL {
+    for alg in Algorithm::MUSIC {
         let cfg = scene_config(alg, 6, 9);
         sd.check(&mode, &format!("ring8 {} W6 (W < M)", alg.name()), &cfg, 5);
     }
@@ -376,7 +376,7 @@ fn scene_sphere_array_60_mics() {
     };
     let (mics, dirs) = if mode.is_emulator() { (16, 200) } else { (60, 2522) };
     let sd = scene(Geometry::sphere(mics, 0.1), Grid::sphere(dirs, 1.0), 11);
-    for alg in Algorithm::ALL {
+    for alg in Algorithm::MUSIC {
         let cfg = scene_config(alg, 50, 25);
         sd.check(&mode, &format!("sphere{mics} {}", alg.name()), &cfg, 8);
     }
@@ -387,7 +387,7 @@ fn seed_config_random_data_every_algorithm() {
     let Some(mode) = mode("seed_config_random_data_every_algorithm") else {
         return;
     };
-    for alg in Algorithm::ALL {
+    for alg in Algorithm::MUSIC {
         let env = |k: &str, d: usize| std::env::var(k).ok().and_then(|v| v.parse().ok()).unwrap_or(d);
         let cfg = if mode.is_emulator() {
             BenchConfig {

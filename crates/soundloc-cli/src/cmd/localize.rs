@@ -124,6 +124,14 @@ pub struct AnalysisArgs {
     /// Diagonal loading of K, relative to its mean diagonal (0 = none).
     #[arg(long, default_value_t = 0.0)]
     pub diagonal_loading: f64,
+    /// Per-bin normalisation (NormMUSIC): every bin's spectrum is scaled to a maximum of
+    /// 1 before the bins are summed, so loud bins do not outvote the rest.
+    #[arg(long)]
+    pub normalize_bins: bool,
+    /// Sub-grid refinement: report each peak at the maximum of a quadratic fitted to the
+    /// spectrum around it, not at the grid point.
+    #[arg(long)]
+    pub refine: bool,
 }
 
 /// `soundloc localize`: an input, and what to do with it.
@@ -288,6 +296,8 @@ impl AnalysisArgs {
                 DenominatorArg::Unsquared => Denominator::Unsquared,
             },
             diagonal_loading: self.diagonal_loading,
+            normalize_bins: self.normalize_bins,
+            refine: self.refine,
         }
     }
 }

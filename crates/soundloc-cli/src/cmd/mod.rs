@@ -81,6 +81,8 @@ pub enum AlgorithmArg {
     GevdHark,
     /// HARK's GSVD (left singular vectors of K^-1 R; the seed paper's algorithm).
     Gsvd,
+    /// Steered response power with the phase transform (no subspace, no noise matrix).
+    SrpPhat,
 }
 
 impl From<AlgorithmArg> for soundloc::Algorithm {
@@ -90,6 +92,7 @@ impl From<AlgorithmArg> for soundloc::Algorithm {
             AlgorithmArg::Gevd => Self::Gevd,
             AlgorithmArg::GevdHark => Self::GevdHark,
             AlgorithmArg::Gsvd => Self::Gsvd,
+            AlgorithmArg::SrpPhat => Self::SrpPhat,
         }
     }
 }

@@ -7,10 +7,11 @@
 
 use super::{Backend, BatchOutput, Spectra, StageTimes, WindowSpec};
 use crate::correlation::correlate;
-use crate::music::{accumulate_bin, bin_gain, to_db, SpectrumScratch};
+use crate::music::{accumulate_bin, bin_gain, normalize_bin, to_db, SpectrumScratch};
 use crate::peaks::find_peaks;
 use crate::plan::Plan;
 use crate::real::{Real, C};
+use crate::srp::{self, correlate_phat, SrpScratch};
 use crate::subspace::{decompose, Decomposition, Workspace};
 use crate::Result;
 use rayon::prelude::*;
@@ -64,31 +65,45 @@ impl<T: Real> Backend<T> for CpuBackend<T> {
         super::check_batch("cpu backend", plan, spectra, windows)?;
         let nw = windows.len();
         let mm = m * m;
-        // 1. Correlation matrices, [window][bin][M×M].
+        let alg = plan.config.algorithm;
+        let srp = !alg.is_music();
+        // 1. Correlation matrices, [window][bin] (phase-transformed for SRP-PHAT).
         let t = Instant::now();
         self.r.resize(nw * nb * mm, C::new(T::zero(), T::zero()));
-        self.r.par_chunks_mut(mm).enumerate().for_each(|(i, r)| {
-            correlate(spectra, &windows[i / nb], i % nb, r);
-        });
+        if srp {
+            self.r
+                .par_chunks_mut(mm)
+                .enumerate()
+                .for_each_init(Vec::new, |x, (i, r)| {
+                    correlate_phat(spectra, &windows[i / nb], i % nb, x, r);
+                });
+        } else {
+            self.r.par_chunks_mut(mm).enumerate().for_each(|(i, r)| {
+                correlate(spectra, &windows[i / nb], i % nb, r);
+            });
+        }
         self.times.correlation_ms += ms(t);
 
-        // 2. Decompositions, [window][bin].
+        // 2. Decompositions, [window][bin] (none for SRP-PHAT).
         let t = Instant::now();
-        self.decs.resize_with(nw * nb, || Decomposition::new(m));
         let r = &self.r;
-        let alg = plan.config.algorithm;
-        self.decs.par_iter_mut().enumerate().try_for_each_init(
-            || Workspace::new(m),
-            |ws, (i, dec)| {
-                decompose(
-                    alg,
-                    &r[i * mm..(i + 1) * mm],
-                    plan.whitening_matrix(i % nb),
-                    ws,
-                    dec,
-                )
-            },
-        )?;
+        if srp {
+            self.decs.clear();
+        } else {
+            self.decs.resize_with(nw * nb, || Decomposition::new(m));
+            self.decs.par_iter_mut().enumerate().try_for_each_init(
+                || Workspace::new(m),
+                |ws, (i, dec)| {
+                    decompose(
+                        alg,
+                        &r[i * mm..(i + 1) * mm],
+                        plan.whitening_matrix(i % nb),
+                        ws,
+                        dec,
+                    )
+                },
+            )?;
+        }
         self.times.decomposition_ms += ms(t);
 
         // 3. Broadband spectrum per window: Σ_k w_k g_k P_k(d), then dB.
@@ -98,10 +113,28 @@ impl<T: Real> Backend<T> for CpuBackend<T> {
         let decs = &self.decs;
         self.contrib.clear();
         self.contrib.resize(nw * nb * d, T::zero());
-        self.contrib.par_chunks_mut(d).enumerate().for_each_init(
-            || SpectrumScratch::new(plan),
-            |sc, (i, acc)| accumulate_bin(plan, i % nb, &decs[i], sc, acc),
-        );
+        let normalize = plan.config.normalize_bins;
+        if srp {
+            self.contrib.par_chunks_mut(d).enumerate().for_each_init(
+                || SrpScratch::new(plan),
+                |sc, (i, acc)| {
+                    srp::accumulate_bin(plan, i % nb, &r[i * mm..(i + 1) * mm], sc, acc);
+                    if normalize {
+                        normalize_bin(acc, plan.weights[i % nb]);
+                    }
+                },
+            );
+        } else {
+            self.contrib.par_chunks_mut(d).enumerate().for_each_init(
+                || SpectrumScratch::new(plan),
+                |sc, (i, acc)| {
+                    accumulate_bin(plan, i % nb, &decs[i], sc, acc);
+                    if normalize {
+                        normalize_bin(acc, plan.weights[i % nb]);
+                    }
+                },
+            );
+        }
         let contrib = &self.contrib;
         let spectra_lin: Vec<Vec<T>> = (0..nw)
             .into_par_iter()
@@ -133,8 +166,12 @@ impl<T: Real> Backend<T> for CpuBackend<T> {
             for s in &db {
                 out.spectrum_db.extend(s.iter().map(|&v| v as f32));
             }
-            for dec in decs.iter().take(nw * nb) {
-                out.bin_weight.push(bin_gain(plan, dec).to_f64() as f32);
+            if srp {
+                out.bin_weight.resize(nw * nb, 1.0);
+            } else {
+                for dec in decs.iter().take(nw * nb) {
+                    out.bin_weight.push(bin_gain(plan, dec).to_f64() as f32);
+                }
             }
         }
         self.times.peaks_ms += ms(t);

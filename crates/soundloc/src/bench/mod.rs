@@ -9,6 +9,7 @@
 //! compute per second of audio at PERIOD 50 and PERIOD 1 (2 and 100 localizations per
 //! second of audio at hop 160), the real-time factor, and the stage split.
 
+pub mod accuracy;
 pub mod e2e;
 pub mod stream;
 

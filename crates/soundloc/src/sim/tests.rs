@@ -373,3 +373,50 @@ fn tone_and_white_noise() {
     let f = band_fraction(&w, fs, 0.0, 4000.0);
     assert!((f - 0.5).abs() < 0.03, "{f}");
 }
+
+#[test]
+fn rt60_room_follows_sabine() {
+    let room = Room::with_rt60([6.0, 5.0, 3.0], [-3.0, -2.0, -1.2], 0.4).unwrap();
+    // V = 90 m³, S = 126 m²: α = 0.161·90/(126·0.4) = 0.2875, β = √(1 − α).
+    assert!((room.reflection - (1.0f64 - 0.2875).sqrt()).abs() < 1e-4);
+    // Images up to ≈ RT60/2 after the direct sound: ⌈0.2·343/4.667⌉ = 15.
+    assert_eq!(room.max_order, 15);
+    assert!(Room::with_rt60([2.0, 2.0, 2.0], [0.0; 3], 0.01).is_err());
+    assert!(Room::with_rt60([2.0, 2.0, 2.0], [0.0; 3], -1.0).is_err());
+}
+
+#[test]
+fn windowed_sinc_reflections_match_exact_delays_in_band() {
+    // One path of fractional delay: its response's spectrum equals a·e^{−j2πkd/L} to
+    // well under 1 % below 0.8·Nyquist, where the rendered bands live.
+    let len = 4096;
+    let (d, a) = (123.37, 0.8);
+    let mut h = reflections_response(&[(d, a)], len);
+    let mut planner = RealFftPlanner::<f64>::new();
+    let fwd = planner.plan_fft_forward(len);
+    let mut spec = fwd.make_output_vec();
+    fwd.process(&mut h, &mut spec).unwrap();
+    let mut worst = 0.0f64;
+    for (k, v) in spec.iter().enumerate().take(len / 2 * 8 / 10) {
+        let exact = Complex::from_polar(a, -2.0 * PI * k as f64 * d / len as f64);
+        worst = worst.max((v - exact).norm() / a);
+    }
+    assert!(worst < 1e-2, "worst relative error {worst}");
+}
+
+#[test]
+fn reverberant_room_renders_and_adds_a_tail() {
+    // A high-order room takes the impulse-response path; the reflections add energy and
+    // the direct sound still arrives first.
+    let g = Geometry::circle(4, 0.05, 0.0);
+    let room = Room::with_rt60([5.0, 4.0, 3.0], [-2.5, -2.0, -1.5], 0.3).unwrap();
+    assert!(image_sources([1.0, 0.0, 0.0], Some(&room)).len() > EXACT_IMAGES_MAX + 1);
+    let mut s =
+        Scene::new().with_source(SceneSource::new([1.0, 0.0, 0.0], Signal::WhiteNoise).with_gain(100.0));
+    let dry = render(&s, &g, 16000, 1.0, 3);
+    s.room = Some(room);
+    s.validate(&g, 16000).unwrap();
+    let wet = render(&s, &g, 16000, 1.0, 3);
+    let p = |a: &Audio| a.channels[0].iter().map(|v| (*v as f64).powi(2)).sum::<f64>();
+    assert!(p(&wet) > 1.3 * p(&dry), "wet {} dry {}", p(&wet), p(&dry));
+}

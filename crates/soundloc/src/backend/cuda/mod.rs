@@ -140,6 +140,17 @@ fn guarded<R>(f: impl FnOnce() -> Result<R>) -> Result<R> {
 }
 
 fn variant_for<T: Real>(plan: &Plan<T>) -> Result<Variant> {
+    if !plan.config.algorithm.is_music() || plan.config.normalize_bins {
+        return Err(Error::Device(format!(
+            "{}{} runs on the CPU only (no CUDA kernels for it yet)",
+            plan.config.algorithm.name(),
+            if plan.config.normalize_bins {
+                " with per-bin normalisation"
+            } else {
+                ""
+            }
+        )));
+    }
     Variant::for_mics(plan.num_mics).ok_or_else(|| {
         Error::Device(format!(
             "the CUDA backend handles up to 256 microphones, the array has {}",
@@ -936,12 +947,18 @@ fn layout<T: Real>(plan: &Plan<T>, gpu: &dyn Gpu) -> Result<Layout> {
         (Algorithm::GevdHark, _) => (1, 2),
         (Algorithm::Gsvd, true) => (1, 0),
         (Algorithm::Gsvd, false) => (0, 1),
+        (Algorithm::SrpPhat, _) => {
+            return Err(variant_for(plan)
+                .err()
+                .unwrap_or_else(|| Error::Device("srp-phat".into())))
+        }
     };
     let valmode = match plan.config.algorithm {
         Algorithm::Sevd => 0,
         Algorithm::Gevd => 1,
         Algorithm::GevdHark => 2,
         Algorithm::Gsvd => 3,
+        Algorithm::SrpPhat => 0,
     };
     let want_v = !squared;
     let ne = if squared { ns } else { m };
