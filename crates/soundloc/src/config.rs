@@ -147,6 +147,10 @@ pub struct LocalizeConfig {
     pub period: usize,
     /// Signal subspace dimension Ns (`NUM_SOURCE`, 2); must be < number of mics.
     pub num_sources: usize,
+    /// Signal-subspace dimension used by the decomposition when it should differ from
+    /// `num_sources` (reverberation and residual noise take more than one dimension per
+    /// talker); `None` = `num_sources`, as HARK ties them.
+    pub subspace_dim: Option<usize>,
     /// Peaks reported per result (`MAXNUM_OUT_PEAKS`): -1 = `num_sources`, 0 = all.
     pub max_peaks: i64,
     /// Azimuth range kept, in degrees (`MIN_DEG`, -180).
@@ -189,6 +193,7 @@ impl Default for LocalizeConfig {
             window_type: WindowType::Future,
             period: 50,
             num_sources: 2,
+            subspace_dim: None,
             max_peaks: -1,
             min_deg: -180.0,
             max_deg: 180.0,
@@ -212,6 +217,10 @@ impl LocalizeConfig {
         let lo = (self.lower_freq_hz * n / fs).floor().max(0.0) as usize;
         let hi = (self.upper_freq_hz * n / fs).floor().max(0.0) as usize;
         lo..hi.min(self.nfft / 2 + 1)
+    }
+    /// The signal-subspace dimension Ns the decomposition uses.
+    pub fn signal_dim(&self) -> usize {
+        self.subspace_dim.unwrap_or(self.num_sources)
     }
     /// Peaks reported per result after resolving `max_peaks` (usize::MAX = all).
     pub fn peaks_out(&self) -> usize {

@@ -177,10 +177,39 @@ impl LocalizerSpec {
             Some(a) => (a, None),
             None if self.noise_given() => (
                 Algorithm::Gevd,
-                Some("a noise source was given: using the textbook GEVD (choose with --algorithm)".into()),
+                Some(
+                    "a noise source was given: using the robust default, the textbook GEVD with two \
+                     more signal-subspace dimensions than --num-sources (at most M/2) and sub-grid refinement \
+                     (choose with --algorithm, --subspace-dim, --refine)"
+                        .into(),
+                ),
             ),
             None => (Algorithm::Sevd, None),
         }
+    }
+
+    /// The analysis that runs for an array of `num_mics` microphones: `analysis` with the
+    /// resolved algorithm and, for the robust default (a noise source given, no algorithm
+    /// named), the settings the accuracy study chose (`soundloc bench --accuracy`,
+    /// docs/accuracy.md): a signal subspace of `num_sources` + 2, at most M/2 (unless
+    /// `subspace_dim` is set) and sub-grid refinement. An algorithm named explicitly runs as
+    /// asked (HARK-faithful).
+    pub fn resolved_analysis(&self, num_mics: usize) -> (LocalizeConfig, Option<String>) {
+        let (algorithm, note) = self.resolved_algorithm();
+        let mut c = LocalizeConfig {
+            algorithm,
+            ..self.analysis.clone()
+        };
+        if self.algorithm.is_none() && self.noise_given() {
+            if c.subspace_dim.is_none() {
+                let ns = (c.num_sources + 2).min(num_mics / 2).max(c.num_sources);
+                if ns < num_mics {
+                    c.subspace_dim = Some(ns);
+                }
+            }
+            c.refine = true;
+        }
+        (c, note)
     }
 
     /// Load the transfer functions of the array for an analysis config: only the bins it
@@ -284,17 +313,17 @@ impl Localizer {
         tf: TransferFunctions,
         noise: Option<NoiseMatrices>,
     ) -> Result<Self> {
-        let (algorithm, note) = spec.resolved_algorithm();
         let full_mics = tf.num_mics;
         let tf = if spec.channels.is_empty() {
             tf
         } else {
             tf.select_channels(&spec.channels)?
         };
+        let (analysis, note) = spec.resolved_analysis(tf.num_mics);
+        let algorithm = analysis.algorithm;
         let config = LocalizeConfig {
-            algorithm,
             sample_rate_hz: tf.sample_rate_hz,
-            ..spec.analysis.clone()
+            ..analysis
         };
         let channels = ChannelMap {
             input_channels: spec.input_channels.clone(),

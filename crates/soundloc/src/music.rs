@@ -38,8 +38,8 @@ impl<T: Real> SpectrumScratch<T> {
     /// Scratch for a plan.
     pub fn new(plan: &Plan<T>) -> Self {
         let cols = match plan.config.denominator {
-            Denominator::Squared => plan.config.num_sources,
-            Denominator::Unsquared => plan.num_mics - plan.config.num_sources,
+            Denominator::Squared => plan.config.signal_dim(),
+            Denominator::Unsquared => plan.num_mics - plan.config.signal_dim(),
         };
         SpectrumScratch {
             proj: faer::Mat::zeros(plan.num_dirs, cols),
@@ -66,7 +66,7 @@ pub fn accumulate_bin<T: Real>(
 ) {
     let m = plan.num_mics;
     let d = plan.num_dirs;
-    let ns = plan.config.num_sources;
+    let ns = plan.config.signal_dim();
     let (st_all, n2_all) = plan.denominator_steering();
     let st = &st_all[b * d * m..(b + 1) * d * m];
     let n2_den = &n2_all[b * d..(b + 1) * d];
@@ -194,7 +194,7 @@ mod tests {
             plan.num_mics,
             plan.num_dirs,
             plan.num_bins(),
-            plan.config.num_sources,
+            plan.config.signal_dim(),
         );
         let (st, _) = plan.denominator_steering();
         let mut worst = 0.0f64;

@@ -83,6 +83,15 @@ impl<T: Real> Plan<T> {
                 config.num_sources
             )));
         }
+        if let Some(ns) = config.subspace_dim {
+            if ns == 0 || ns >= m {
+                return Err(Error::Config(format!(
+                    "subspace-dim must be between 1 and M-1 = {} for {} microphones, got {ns}",
+                    m.saturating_sub(1),
+                    m
+                )));
+            }
+        }
         if tf.nfft != config.nfft {
             return Err(Error::Mismatch(format!(
                 "transfer functions are for a {}-point FFT but the analysis uses {} (set --fft-length {})",

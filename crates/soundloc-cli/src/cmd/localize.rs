@@ -124,6 +124,11 @@ pub struct AnalysisArgs {
     /// Diagonal loading of K, relative to its mean diagonal (0 = none).
     #[arg(long, default_value_t = 0.0)]
     pub diagonal_loading: f64,
+    /// Signal-subspace dimension of the decomposition when it should differ from
+    /// --num-sources (reverberant rooms: one or two more than the talkers); default:
+    /// --num-sources, as HARK.
+    #[arg(long)]
+    pub subspace_dim: Option<usize>,
     /// Per-bin normalisation (NormMUSIC): every bin's spectrum is scaled to a maximum of
     /// 1 before the bins are summed, so loud bins do not outvote the rest.
     #[arg(long)]
@@ -277,6 +282,7 @@ impl AnalysisArgs {
             },
             period: self.period,
             num_sources: self.num_sources,
+            subspace_dim: self.subspace_dim,
             max_peaks: self.max_peaks,
             min_deg: self.min_deg,
             max_deg: self.max_deg,

@@ -213,6 +213,22 @@ pub fn variants(period: usize) -> Vec<Variant> {
             c.lower_freq_hz = 300.0;
             c.upper_freq_hz = 4000.0
         }),
+        v("gevd Ns=3 W=25", &|c| {
+            c.num_sources = 3;
+            c.window = 25
+        }),
+        v("gevd Ns=3 W=100", &|c| {
+            c.num_sources = 3;
+            c.window = 100
+        }),
+        v("gevd Ns=3 no eigen weight", &|c| {
+            c.num_sources = 3;
+            c.eigenvalue_weight = false
+        }),
+        v("gevd Ns=3 loading 1e-2", &|c| {
+            c.num_sources = 3;
+            c.diagonal_loading = 1e-2
+        }),
         v("gevd normalized refined", &|c| {
             c.normalize_bins = true;
             c.refine = true

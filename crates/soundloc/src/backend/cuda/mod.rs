@@ -939,7 +939,7 @@ fn layout<T: Real>(plan: &Plan<T>, gpu: &dyn Gpu) -> Result<Layout> {
     let m = plan.num_mics;
     let nb = plan.num_bins();
     let d = plan.num_dirs;
-    let ns = plan.config.num_sources;
+    let ns = plan.config.signal_dim();
     let squared = plan.config.denominator == Denominator::Squared;
     let (left, right) = match (plan.config.algorithm, squared) {
         (Algorithm::Sevd, _) => (0, 0),
