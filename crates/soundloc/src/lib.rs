@@ -47,6 +47,7 @@ pub mod demo;
 pub mod engine;
 pub mod error;
 pub mod formats;
+pub mod frames;
 pub mod input;
 pub mod localizer;
 pub mod music;

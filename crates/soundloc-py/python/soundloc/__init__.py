@@ -35,8 +35,9 @@ from typing import List, Optional
 import numpy as np
 
 from ._native import Localizer as _Native, __version__
+from . import doa
 
-__all__ = ["Localizer", "Results", "__version__"]
+__all__ = ["Localizer", "Results", "doa", "__version__"]
 
 
 @dataclass

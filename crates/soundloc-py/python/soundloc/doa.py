@@ -1,0 +1,171 @@
+"""A drop-in for pyroomacoustics' ``doa`` module: ``MUSIC``, ``NormMUSIC`` and ``SRP``
+(SRP-PHAT) with pyroomacoustics' constructor and ``locate_sources``, computed by soundloc.
+
+    import soundloc.doa
+    doa = soundloc.doa.algorithms["MUSIC"](L, fs, nfft, c=343.0, num_src=2)
+    doa.locate_sources(X, freq_range=[300.0, 3500.0])    # X: (M, nfft/2+1, snapshots)
+    doa.azimuth_recon, doa.grid.values
+
+Same conventions as pyroomacoustics: ``L`` is (2 or 3, M) microphone positions in metres;
+``azimuth`` (radians from +x toward +y) and ``colatitude`` (radians from +z) define the
+grid; ``dim=2`` searches the plane, ``dim=3`` the Cartesian product of azimuth ×
+colatitude (or, without them, a sphere of ``n_grid`` points). Far field only (plane
+waves): a source distance is not modelled. ``grid.values`` is the spatial spectrum in
+pyroomacoustics' own scale (MUSIC: mean over bins of 1/aᴴ(I − EsEsᴴ)a; NormMUSIC: each
+bin normalised to a maximum of 1 first; SRP: mean over bins and microphone pairs of
+Re aᴴ R̃ a with R̃ the phase-transformed correlation), so existing plotting code works.
+Peaks: local maxima of the grid (left/right on a circle, the 6 nearest directions on a
+sphere), strongest first.
+"""
+
+from types import SimpleNamespace
+
+import numpy as np
+
+from ._native import FramesLocalizer as _Frames
+
+__all__ = ["MUSIC", "NormMUSIC", "SRP", "algorithms"]
+
+# Plane waves: sources this far away (metres) differ from a plane wave by far less than
+# single-precision rounding for arrays up to a metre across.
+_FAR_M = 1.0e4
+
+
+class _Grid:
+    """The search grid with pyroomacoustics' attribute names."""
+
+    def __init__(self, azimuth, colatitude):
+        self.azimuth = np.asarray(azimuth, dtype=float)
+        self.colatitude = None if colatitude is None else np.asarray(colatitude, dtype=float)
+        col = np.full_like(self.azimuth, np.pi / 2) if self.colatitude is None else self.colatitude
+        self.x = np.sin(col) * np.cos(self.azimuth)
+        self.y = np.sin(col) * np.sin(self.azimuth)
+        self.z = np.cos(col)
+        self.n_points = self.azimuth.size
+        self.values = np.zeros(self.n_points)
+        self.dim = 2 if self.colatitude is None else 3
+
+    def points(self):
+        return np.stack([self.x, self.y, self.z], axis=1)
+
+
+class _DOA:
+    _algorithm = "sevd"
+    _normalize = False
+
+    def __init__(self, L, fs, nfft, c=343.0, num_src=1, mode="far", r=None, azimuth=None,
+                 colatitude=None, n_grid=None, dim=2, device="auto", precision="f32", **kwargs):
+        L = np.asarray(L, dtype=float)
+        if L.ndim != 2 or L.shape[0] not in (2, 3):
+            raise ValueError(f"L must be (2 or 3, M) microphone positions, got shape {L.shape}")
+        if mode != "far":
+            raise ValueError("soundloc.doa models plane waves only (mode='far')")
+        if dim not in (2, 3):
+            raise ValueError("The dimension must be 2 or 3.")
+        if nfft % 2:
+            raise ValueError("Signal length must be even.")
+        self.L = L if L.shape[0] == 3 else np.vstack([L, np.zeros((1, L.shape[1]))])
+        self.M = L.shape[1]
+        self.fs, self.nfft, self.c = int(fs), int(nfft), float(c)
+        self.num_src = int(num_src)
+        self.max_bin = self.nfft // 2 + 1
+        self.dim = dim
+        self.device, self.precision = device, precision
+        if azimuth is None:
+            if dim == 2:
+                n = 360 if n_grid is None else int(n_grid)
+                azimuth = np.linspace(0, 2 * np.pi, n, endpoint=False)
+            else:
+                n = 180 * 90 if n_grid is None else int(n_grid)
+                # The Fibonacci sphere of pyroomacoustics' GridSphere, point for point.
+                i = np.arange(n)
+                z = (i * (2.0 / n) - 1) + 1.0 / n
+                phi = i * np.pi * (3.0 - np.sqrt(5.0))
+                self.grid = _Grid(np.mod(phi, 2 * np.pi), np.arccos(z))
+        if not hasattr(self, "grid"):
+            azimuth = np.asarray(azimuth, dtype=float)
+            if dim == 2:
+                self.grid = _Grid(azimuth, None)
+            elif colatitude is None:
+                self.grid = _Grid(azimuth, np.full_like(azimuth, np.pi / 2))
+            else:
+                A, C = np.meshgrid(np.unique(azimuth), np.unique(colatitude))
+                self.grid = _Grid(A.flatten(), C.flatten())
+        self.azimuth_recon = None
+        self.colatitude_recon = None
+        self.src_idx = None
+        self.freq_bins = None
+        self._native = _Frames(
+            np.ascontiguousarray(self.L.T), np.ascontiguousarray(self.grid.points() * _FAR_M),
+            self.fs, self.nfft, self.c, self._algorithm, self._normalize, False, precision, device,
+        )
+
+    def locate_sources(self, X, num_src=None, freq_range=(500.0, 4000.0), freq_bins=None, freq_hz=None):
+        """Localize from X, the rfft of each microphone: (M, nfft/2 + 1, snapshots)."""
+        if num_src is not None:
+            self.num_src = int(num_src)
+        X = np.ascontiguousarray(X, dtype=np.complex128)
+        if X.ndim != 3 or X.shape[0] != self.M:
+            raise ValueError("Number of signals (rows) does not match the number of microphones.")
+        if X.shape[1] != self.max_bin:
+            raise ValueError("Mismatch in FFT length.")
+        if freq_bins is not None:
+            bins = np.asarray(freq_bins, dtype=np.int64)
+        elif freq_hz is not None:
+            bins = np.array([int(np.round(f / self.fs * self.nfft)) for f in freq_hz], dtype=np.int64)
+        else:
+            lo, hi = (int(np.round(f / self.fs * self.nfft)) for f in freq_range)
+            bins = np.arange(lo, hi, dtype=np.int64)
+        bins = np.unique(bins[(bins >= 0) & (bins < self.max_bin)])
+        if bins.size == 0:
+            raise ValueError("no frequency bin in the requested range")
+        self.freq_bins = bins
+        self.num_freq = bins.size
+        lo, hi = int(bins[0]), int(bins[-1]) + 1
+        weights = np.isin(np.arange(lo, hi), bins).astype(float)
+        weights = [] if weights.all() else weights.tolist()
+        db, peaks = self._native.process(X, (lo, hi), weights, self.num_src)
+        self.grid.values = self._scale(10.0 ** (db.astype(np.float64) / 10.0) - 1.0)
+        self.src_idx = np.asarray(peaks, dtype=np.int64)
+        self.azimuth_recon = self.grid.azimuth[self.src_idx]
+        if self.dim == 3:
+            self.colatitude_recon = self.grid.colatitude[self.src_idx]
+        return self
+
+    def _scale(self, p):
+        # soundloc's MUSIC term is ‖a‖²/den = M/den, summed over bins.
+        return p / (self.M * self.num_freq)
+
+
+class MUSIC(_DOA):
+    """MUSIC (pyroomacoustics.doa.MUSIC); ``frequency_normalization=True`` is NormMUSIC."""
+
+    def __init__(self, *args, frequency_normalization=False, **kwargs):
+        self._normalize = bool(frequency_normalization)
+        self.frequency_normalization = self._normalize
+        super().__init__(*args, **kwargs)
+
+    def _scale(self, p):
+        return p / self.num_freq if self._normalize else super()._scale(p)
+
+
+class NormMUSIC(MUSIC):
+    """MUSIC with per-bin normalisation (pyroomacoustics.doa.NormMUSIC)."""
+
+    def __init__(self, *args, **kwargs):
+        kwargs["frequency_normalization"] = True
+        super().__init__(*args, **kwargs)
+
+
+class SRP(_DOA):
+    """SRP-PHAT (pyroomacoustics.doa.SRP)."""
+
+    _algorithm = "srp-phat"
+
+    def _scale(self, p):
+        # soundloc: Σ_k Re(ãᴴR̃ã)/M²; pyroomacoustics: Σ_k Re(ãᴴR̃ã)/(F·M(M−1)/2).
+        pairs = self.M * (self.M - 1) / 2
+        return p * self.M ** 2 / (self.num_freq * pairs)
+
+
+algorithms = {"MUSIC": MUSIC, "NormMUSIC": NormMUSIC, "SRP": SRP}
