@@ -229,6 +229,10 @@ pub fn variants(period: usize) -> Vec<Variant> {
             c.num_sources = 3;
             c.diagonal_loading = 1e-2
         }),
+        v("robust default (gevd Ns=4 refined)", &|c| {
+            c.subspace_dim = Some(4);
+            c.refine = true
+        }),
         v("gevd normalized refined", &|c| {
             c.normalize_bins = true;
             c.refine = true
