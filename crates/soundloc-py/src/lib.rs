@@ -120,7 +120,8 @@ impl PyLocalizer {
         window=50, period=50, window_type="future", freq_range=(500.0, 2800.0), nfft=512, hop=160, fs=16000,
         noise=None, noise_range=None, noise_cm=None, noise_segments=None, noise_preceding=None,
         track=false, tracker_thresh_db=0.0, device="auto", precision="f32", channels=None,
-        input_channels=None, spectrum=true, grid_radius=1.0, speed_of_sound=343.0, channels_first=false))]
+        input_channels=None, spectrum=true, grid_radius=1.0, speed_of_sound=343.0, channels_first=false,
+        subspace_dim=None, normalize_bins=false, refine=false))]
     #[allow(clippy::too_many_arguments)]
     fn new(
         py: Python<'_>,
@@ -152,6 +153,9 @@ impl PyLocalizer {
         grid_radius: f64,
         speed_of_sound: f64,
         channels_first: bool,
+        subspace_dim: Option<usize>,
+        normalize_bins: bool,
+        refine: bool,
     ) -> PyResult<Self> {
         let grid_spec: Option<GridSpec> = match grid {
             Some(g) => match g.extract::<String>() {
@@ -189,6 +193,10 @@ impl PyLocalizer {
             .transpose()?;
         let a = &mut spec.analysis;
         a.num_sources = num_sources;
+        a.subspace_dim = subspace_dim;
+        a.normalize_bins = normalize_bins;
+        // The robust default (a noise source, no algorithm) turns refinement on itself.
+        a.refine = refine;
         a.max_peaks = max_peaks;
         a.window = window;
         a.period = period;

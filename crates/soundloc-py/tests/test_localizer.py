@@ -64,6 +64,20 @@ def test_known_directions():
     assert np.all(best == r.grid_index[:, 0])
 
 
+def test_srp_phat_normmusic_and_refinement():
+    x = scene()
+    for kw in (dict(algorithm="srp-phat"), dict(normalize_bins=True), dict(refine=True, subspace_dim=3)):
+        r = localizer(**kw).localize(x, FS)
+        for row in r.azimuth_deg:
+            for t in TALKERS:
+                assert min(angle(a, t) for a in row) <= 5.0, (kw, row, t)
+    # Refined directions leave the 5° grid; grid directions stay on it.
+    refined = localizer(refine=True).localize(x, FS).azimuth_deg
+    assert np.any(np.abs(refined / 5.0 - np.round(refined / 5.0)) > 1e-3)
+    with pytest.raises(ValueError, match="subspace-dim"):
+        localizer(subspace_dim=8).localize(x, FS)
+
+
 def test_dtypes_layouts_and_random_blocks_give_the_same_results():
     x = scene(seconds=1.5, seed=2)
     loc = localizer(window_type="past", period=7)

@@ -14,8 +14,10 @@ Arguments (HARK LocalizeMUSIC name / pyroomacoustics name):
     tf: HARK transfer-function zip or HGTF file; or geometry: (M, 3) mic positions in metres
         (pyroomacoustics' ``L`` transposed) with grid: "ring:STEP_DEG[:ELEV]", "sphere:N" or
         a (D, 3) array of unit directions; fs (SAMPLING_RATE, for geometry=).
-    algorithm: "sevd" | "gevd" | "gevd-hark" | "gsvd" (MUSIC_ALGORITHM); default sevd, or
-        the textbook gevd when a noise source is given.
+    algorithm: "sevd" | "gevd" | "gevd-hark" | "gsvd" | "srp-phat" (MUSIC_ALGORITHM); default
+        sevd, or the robust gevd (subspace num_sources+2, refinement) when a noise source is given.
+    subspace_dim (signal subspace when it should differ from num_sources), normalize_bins
+        (NormMUSIC), refine (sub-grid peak directions).
     num_sources (NUM_SOURCE / num_src), max_peaks (MAXNUM_OUT_PEAKS), window (WINDOW, frames),
     period (PERIOD), window_type "past"|"middle"|"future" (WINDOW_TYPE), freq_range
         (LOWER/UPPER_BOUND_FREQUENCY, Hz; pyroomacoustics' freq_range), nfft (LENGTH),
