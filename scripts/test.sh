@@ -23,7 +23,7 @@ cargo test --release --workspace --features soundloc-cli/capture "$@"
 
 venv=target/pyvenv
 [ -x "$venv/bin/python" ] || python3 -m venv "$venv"
-"$venv/bin/python" -m pip install -q --disable-pip-version-check "maturin>=1.5,<2" numpy pytest "pyroomacoustics>=0.8"
+"$venv/bin/python" -m pip install -q --disable-pip-version-check "maturin>=1.5,<2" numpy pytest "pyroomacoustics>=0.8" "ray[data]>=2.9"
 rm -rf target/wheels
 "$venv/bin/maturin" build --release -q -m crates/soundloc-py/Cargo.toml -o target/wheels -i "$venv/bin/python"
 "$venv/bin/python" -m pip install -q --disable-pip-version-check --force-reinstall --no-deps target/wheels/soundloc-*.whl

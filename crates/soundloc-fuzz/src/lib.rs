@@ -145,6 +145,7 @@ fn hgtf_seed() -> Vec<u8> {
 fn results() -> Vec<LocalizationResult> {
     (0..3)
         .map(|f| LocalizationResult {
+            num_active: None,
             frame: f * 50,
             time_s: f as f64 * 0.5,
             sources: vec![Source {

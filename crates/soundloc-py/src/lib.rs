@@ -310,6 +310,44 @@ impl PyLocalizer {
         results(py, &mut out, self.lock()?.grid().len())
     }
 
+    /// Localize a WAV/FLAC file and write its results to `output` as the CLI does
+    /// (`format` "jsonl" or "csv"; the file is written whole or not at all). Returns the
+    /// number of results. The GIL is released throughout.
+    #[pyo3(signature = (input, output, format="jsonl"))]
+    fn localize_file(
+        &mut self,
+        py: Python<'_>,
+        input: PathBuf,
+        output: PathBuf,
+        format: &str,
+    ) -> PyResult<usize> {
+        let csv = match format {
+            "jsonl" => false,
+            "csv" => true,
+            f => {
+                return Err(PyValueError::new_err(format!(
+                    "format {f:?}: expected \"jsonl\" or \"csv\""
+                )))
+            }
+        };
+        let mut inner = self.lock()?;
+        let loc = &mut *inner;
+        py.allow_threads(|| -> soundloc::Result<usize> {
+            let audio = soundloc::audio::read_audio(&input)?;
+            loc.check_input(audio.sample_rate_hz, audio.num_channels())
+                .map_err(|e| soundloc::Error::Config(format!("{}: {e}", input.display())))?;
+            loc.reset()?;
+            let run = loc.localize(&audio.channels)?;
+            if csv {
+                soundloc::output::csv::write_csv_file(&output, &run.results)?;
+            } else {
+                soundloc::output::jsonl::write_jsonl_file(&output, &run.results)?;
+            }
+            Ok(run.results.len())
+        })
+        .map_err(err)
+    }
+
     /// Push a block of any length; returns the results its samples completed.
     #[pyo3(signature = (x, channels_first=None))]
     fn push<'py>(
@@ -673,8 +711,26 @@ impl PyFrames {
     }
 }
 
+/// Read a WAV or FLAC file: (samples × channels float32 array in the file's raw units,
+/// e.g. int16 values for 16-bit files, sampling rate in Hz).
+#[pyfunction]
+fn read_audio(py: Python<'_>, path: PathBuf) -> PyResult<(Bound<'_, PyArray2<f32>>, u32)> {
+    let a = py
+        .allow_threads(|| soundloc::audio::read_audio(&path))
+        .map_err(err)?;
+    let (n, c) = (a.channels.first().map_or(0, |v| v.len()), a.channels.len());
+    let mut x = Array2::<f32>::zeros((n, c));
+    for (j, ch) in a.channels.iter().enumerate() {
+        for (i, v) in ch.iter().enumerate() {
+            x[(i, j)] = *v;
+        }
+    }
+    Ok((x.into_pyarray(py), a.sample_rate_hz))
+}
+
 #[pymodule]
 fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_function(wrap_pyfunction!(read_audio, m)?)?;
     m.add_class::<PyLocalizer>()?;
     m.add_class::<PyFrames>()?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;

@@ -575,6 +575,7 @@ impl<T: Real> Engine<T> {
         let nd = self.plan.num_dirs;
         for (wi, (w, peaks)) in windows.iter().zip(&self.batch.peaks).enumerate() {
             let mut r = LocalizationResult {
+                num_active: self.batch.source_count.get(wi).map(|&c| c as usize),
                 frame: self.report_frame(w.frame),
                 time_s: self.frame_time(w.frame),
                 sources: peaks

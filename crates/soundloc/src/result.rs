@@ -33,4 +33,9 @@ pub struct LocalizationResult {
     pub time_s: f64,
     /// Sources, strongest first.
     pub sources: Vec<Source>,
+    /// Estimated number of active sources in this window ([`crate::subspace::count`]: MDL
+    /// on the eigenvalues per bin, median over the bins); `None` where not estimated
+    /// (SRP-PHAT, the CUDA backend, results read from files that lack it).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub num_active: Option<usize>,
 }

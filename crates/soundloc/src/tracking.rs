@@ -361,6 +361,7 @@ impl SourceTracker {
         let mut sources: Vec<Source> = self.tracks.iter().map(|t| t.source.clone()).collect();
         sort_strongest_first(&mut sources);
         LocalizationResult {
+            num_active: result.num_active,
             frame,
             time_s: result.time_s,
             sources,

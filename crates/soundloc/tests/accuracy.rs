@@ -178,3 +178,43 @@ fn robust_default_finds_both_talkers_where_textbook_gevd_misses_one() {
 /// Found with `soundloc bench --accuracy`-style runs: the textbook GEVD finds one talker
 /// in 1 of 6 windows, the robust default both in every window.
 const ROBUST_SEED: u64 = 13;
+
+#[test]
+fn source_count_is_right_on_clear_scenes() {
+    let talkers: [&[f64]; 3] = [&[30.0], &[30.0, -120.0], &[30.0, -120.0, 150.0]];
+    for (n, az) in talkers.iter().enumerate() {
+        let sc = ring8_incoherent(az, 15.0, 21 + n as u64).unwrap();
+        let audio = sc.render();
+        for algorithm in [Algorithm::Sevd, Algorithm::Gevd] {
+            let cfg = LocalizeConfig {
+                algorithm,
+                period: 25,
+                ..Default::default()
+            };
+            let run = localize_scene::<f32>(&sc, &audio, &cfg, DeviceChoice::Cpu).unwrap();
+            let counts: Vec<usize> = run
+                .results
+                .iter()
+                .filter(|r| r.time_s >= sc.talk_start_s)
+                .map(|r| r.num_active.expect("the CPU backend estimates the count"))
+                .collect();
+            let right = counts.iter().filter(|&&c| c == n + 1).count();
+            assert!(
+                right * 10 >= counts.len() * 8,
+                "{algorithm:?}, {} talker(s): counts {counts:?}",
+                n + 1
+            );
+            // Before the talkers start only sensor noise is present.
+            let before: Vec<usize> = run
+                .results
+                .iter()
+                .filter(|r| r.time_s + 0.5 < sc.talk_start_s)
+                .filter_map(|r| r.num_active)
+                .collect();
+            assert!(
+                before.iter().all(|&c| c == 0),
+                "{algorithm:?}: noise-only counts {before:?}"
+            );
+        }
+    }
+}

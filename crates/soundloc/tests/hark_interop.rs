@@ -364,11 +364,13 @@ fn src(id: Option<i64>, x: f64, y: f64, z: f64) -> Source {
 fn log_results() -> Vec<LocalizationResult> {
     vec![
         LocalizationResult {
+            num_active: None,
             frame: 0,
             time_s: 0.0,
             sources: vec![],
         },
         LocalizationResult {
+            num_active: None,
             frame: 50,
             time_s: 0.5,
             sources: vec![
@@ -377,6 +379,7 @@ fn log_results() -> Vec<LocalizationResult> {
             ],
         },
         LocalizationResult {
+            num_active: None,
             frame: 100,
             time_s: 1.0,
             sources: vec![

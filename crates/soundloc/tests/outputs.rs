@@ -10,6 +10,7 @@ use soundloc::{LocalizationResult, Source};
 fn results() -> Vec<LocalizationResult> {
     (0..5)
         .map(|c| LocalizationResult {
+            num_active: None,
             frame: c * 50,
             time_s: c as f64 * 0.5,
             sources: (0..c % 3)

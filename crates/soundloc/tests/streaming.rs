@@ -229,8 +229,9 @@ fn whole_file_reference(
     let mut results = Vec::new();
     for chunk in windows.chunks(7) {
         backend.process(&spectra, chunk, false, &mut out).unwrap();
-        for (w, peaks) in chunk.iter().zip(&out.peaks) {
+        for (i, (w, peaks)) in chunk.iter().zip(&out.peaks).enumerate() {
             results.push(LocalizationResult {
+                num_active: out.source_count.get(i).map(|&c| c as usize),
                 frame: w.frame,
                 time_s: w.frame as f64 * config.hop as f64 / config.sample_rate_hz as f64,
                 sources: peaks

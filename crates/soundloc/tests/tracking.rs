@@ -22,6 +22,7 @@ fn peak(az_deg: f64, el_deg: f64, power_db: f64) -> Source {
 
 fn result(frame: usize, sources: Vec<Source>) -> LocalizationResult {
     LocalizationResult {
+        num_active: None,
         frame,
         time_s: frame as f64 * 0.01,
         sources,

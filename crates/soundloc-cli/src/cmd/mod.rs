@@ -1,5 +1,6 @@
 //! Subcommands.
 
+pub mod batch;
 pub mod bench;
 pub mod demo;
 pub mod input;
@@ -27,6 +28,10 @@ pub enum Command {
     /// Localize sound sources in a recording, on standard input or from a TCP peer.
     #[command(allow_negative_numbers = true)]
     Localize(Box<localize::Args>),
+    /// Localize many recordings, one result file each (a list or --manifest; --shard K/N;
+    /// a rerun skips what is done).
+    #[command(allow_negative_numbers = true)]
+    Batch(Box<batch::Args>),
     /// Localize a live microphone array (built with the `capture` feature).
     #[command(allow_negative_numbers = true)]
     Listen(Box<listen::Args>),
@@ -102,6 +107,7 @@ pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
         Command::Bench(a) => bench::run(a),
         Command::Demo(a) => demo::run(a),
         Command::Localize(a) => localize::run(*a),
+        Command::Batch(a) => batch::run(*a),
         Command::Listen(a) => listen::run(*a),
         Command::Tf(a) => tf::run(a),
         Command::Noisecm(a) => noisecm::run(a),

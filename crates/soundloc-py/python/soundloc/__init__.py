@@ -36,10 +36,10 @@ from typing import List, Optional
 
 import numpy as np
 
-from ._native import Localizer as _Native, __version__
-from . import doa
+from ._native import Localizer as _Native, __version__, read_audio
+from . import archive, doa
 
-__all__ = ["Localizer", "Results", "doa", "__version__"]
+__all__ = ["Localizer", "Results", "archive", "doa", "read_audio", "__version__"]
 
 
 @dataclass
@@ -91,6 +91,11 @@ class Localizer:
     def localize(self, x, fs=None, channels_first=None) -> Results:
         """Localize a whole recording (the stream is reset first)."""
         return Results(**self._n.localize(x, fs=fs, channels_first=channels_first))
+
+    def localize_file(self, input, output, format="jsonl") -> int:
+        """Localize a WAV/FLAC file and write its results as ``soundloc localize -o`` does
+        (``format`` "jsonl" or "csv", whole or not at all); returns the number of results."""
+        return self._n.localize_file(str(input), str(output), format)
 
     def push(self, block, channels_first=None) -> Results:
         """Push a block of any length; returns the results it completed."""

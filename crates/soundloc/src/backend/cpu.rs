@@ -12,7 +12,7 @@ use crate::peaks::find_peaks;
 use crate::plan::Plan;
 use crate::real::{Real, C};
 use crate::srp::{self, correlate_phat, SrpScratch};
-use crate::subspace::{decompose, Decomposition, Workspace};
+use crate::subspace::{count, decompose, Decomposition, Workspace};
 use crate::Result;
 use rayon::prelude::*;
 use std::sync::Arc;
@@ -157,8 +157,25 @@ impl<T: Real> Backend<T> for CpuBackend<T> {
             .collect();
         self.times.spectrum_ms += ms(t);
 
-        // 4. Peaks.
+        // 4. Peaks, and the number of active sources (MDL per bin, median over bins).
         let t = Instant::now();
+        out.source_count.clear();
+        if !srp {
+            // Overlapping frames are not independent snapshots: N = W·hop/N_fft of them.
+            let c = &plan.config;
+            let overlap = c.hop.min(c.nfft) as f64 / c.nfft as f64;
+            for w in 0..nw {
+                let snapshots = ((windows[w].len as f64 * overlap).round() as usize).max(1);
+                let per_bin: Vec<usize> = (0..nb)
+                    .filter(|&b| plan.weights[b] != T::zero())
+                    .map(|b| {
+                        let v: Vec<f64> = decs[w * nb + b].values.iter().map(|&x| Real::to_f64(x)).collect();
+                        count::mdl(&v, snapshots)
+                    })
+                    .collect();
+                out.source_count.push(count::median(per_bin) as u32);
+            }
+        }
         out.peaks = db.iter().map(|s| find_peaks(s, &plan.peak_table)).collect();
         out.spectrum_db.clear();
         out.bin_weight.clear();

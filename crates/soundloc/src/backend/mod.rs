@@ -237,6 +237,9 @@ pub struct BatchOutput {
     /// √(largest eigen/singular value) per window and used bin `[window][bin]` (the
     /// eigenvalue weight g_k), filled only with the spectrum.
     pub bin_weight: Vec<f32>,
+    /// Estimated number of active sources per window ([`crate::subspace::count`]); empty
+    /// when the backend does not estimate it.
+    pub source_count: Vec<u32>,
 }
 
 /// Wall time spent per stage, in milliseconds, summed over calls since the last reset.

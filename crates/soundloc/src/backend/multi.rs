@@ -98,6 +98,7 @@ impl<T: Real> Backend<T> for MultiBackend<T> {
         out.peaks.clear();
         out.spectrum_db.clear();
         out.bin_weight.clear();
+        out.source_count.clear();
         for (o, r) in self.outs.iter_mut().zip(&cut) {
             if r.is_empty() {
                 continue;
@@ -105,6 +106,7 @@ impl<T: Real> Backend<T> for MultiBackend<T> {
             out.peaks.append(&mut o.peaks);
             out.spectrum_db.append(&mut o.spectrum_db);
             out.bin_weight.append(&mut o.bin_weight);
+            out.source_count.append(&mut o.source_count);
         }
         Ok(())
     }

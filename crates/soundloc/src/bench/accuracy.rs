@@ -249,6 +249,10 @@ pub struct Tally {
     pub pairs: usize,
     /// Sum of the hits' errors, degrees.
     pub err_sum_deg: f64,
+    /// Results whose estimated source count (`num_active`) equals the talker count.
+    pub count_right: usize,
+    /// Results with a source-count estimate.
+    pub counted: usize,
 }
 
 impl Tally {
@@ -312,6 +316,12 @@ pub fn run(
                 secs.push(t.elapsed().as_secs_f64());
                 count = run.results.len();
                 let score = sc.score(&run.results, tolerance_deg);
+                let est: Vec<usize> = run
+                    .results
+                    .iter()
+                    .filter(|r| r.time_s >= sc.talk_start_s)
+                    .filter_map(|r| r.num_active)
+                    .collect();
                 let pairs = score.windows * c.talkers;
                 let hits = (score.hit_rate * pairs as f64).round() as usize;
                 tallies.push(Tally {
@@ -322,6 +332,8 @@ pub fn run(
                     } else {
                         0.0
                     },
+                    count_right: est.iter().filter(|&&n| n == c.talkers).count(),
+                    counted: est.len(),
                 });
             }
             let n = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
@@ -338,6 +350,8 @@ pub fn run(
             y.hits += x.hits;
             y.pairs += x.pairs;
             y.err_sum_deg += x.err_sum_deg;
+            y.count_right += x.count_right;
+            y.counted += x.counted;
             seconds[vi] += s[vi];
         }
         localizations += n;
@@ -399,6 +413,8 @@ impl Study {
                 t.hits += x.hits;
                 t.pairs += x.pairs;
                 t.err_sum_deg += x.err_sum_deg;
+                t.count_right += x.count_right;
+                t.counted += x.counted;
             }
         }
         t
@@ -412,11 +428,11 @@ impl Study {
         for g in &gs {
             s += &format!(" {} |", g.name);
         }
-        s += " mean err (hits) | cost vs first |\n|---|";
+        s += " mean err (hits) | source count right (all) | cost vs first |\n|---|";
         for _ in &gs {
             s += "---:|";
         }
-        s += "---:|---:|\n";
+        s += "---:|---:|---:|\n";
         for (vi, name) in self.variants.iter().enumerate() {
             s += &format!("| {name} |");
             for g in &gs {
@@ -428,8 +444,13 @@ impl Study {
                 }
             }
             let all = self.pooled(vi, |_| true);
+            let count = if all.counted == 0 {
+                "–".to_string()
+            } else {
+                format!("{:.1}%", 100.0 * all.count_right as f64 / all.counted as f64)
+            };
             s += &format!(
-                " {:.2}° | {:.2}× |\n",
+                " {:.2}° | {count} | {:.2}× |\n",
                 all.err_sum_deg / all.hits.max(1) as f64,
                 self.seconds[vi] / self.seconds[0].max(1e-12)
             );

@@ -192,6 +192,7 @@ pub fn parse_text(text: &str, path: &Path, frame_period_s: f64) -> Result<Vec<Lo
             sources.push(source_from_xyz(id, x, y, z));
         }
         out.push(LocalizationResult {
+            num_active: None,
             frame,
             time_s: frame as f64 * frame_period_s,
             sources,
@@ -249,6 +250,7 @@ pub fn parse_xml(text: &str, path: &Path, frame_period_s: f64) -> Result<Vec<Loc
             sources.push(source_from_xyz(id, x, y, z));
         }
         out.push(LocalizationResult {
+            num_active: None,
             frame,
             time_s: frame as f64 * frame_period_s,
             sources,

@@ -108,11 +108,13 @@ mod tests {
     fn header_rows_and_empty_results() {
         let results = vec![
             LocalizationResult {
+                num_active: None,
                 frame: 0,
                 time_s: 0.0,
                 sources: vec![],
             },
             LocalizationResult {
+                num_active: None,
                 frame: 50,
                 time_s: 0.5,
                 sources: vec![src(Some(7), 30.0, 27.5, 6), src(None, -90.5, 12.25, 54)],

@@ -92,6 +92,7 @@ pub fn to_json_line(result: &LocalizationResult) -> String {
 pub fn from_json_line(line: &str) -> std::result::Result<LocalizationResult, serde_json::Error> {
     let r: ResultIn = serde_json::from_str(line)?;
     Ok(LocalizationResult {
+        num_active: None,
         frame: r.frame,
         time_s: nan(r.time_s),
         sources: r
@@ -182,6 +183,7 @@ mod tests {
     pub(crate) fn sample_results() -> Vec<LocalizationResult> {
         vec![
             LocalizationResult {
+                num_active: None,
                 frame: 0,
                 time_s: 0.0,
                 sources: vec![
@@ -208,6 +210,7 @@ mod tests {
                 ],
             },
             LocalizationResult {
+                num_active: None,
                 frame: 50,
                 time_s: 0.5,
                 sources: vec![],

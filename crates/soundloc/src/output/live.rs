@@ -176,6 +176,7 @@ mod tests {
     #[test]
     fn result_and_spectrum_encode_what_they_are_given() {
         let r = LocalizationResult {
+            num_active: None,
             frame: 7,
             time_s: 0.07,
             sources: vec![Source {

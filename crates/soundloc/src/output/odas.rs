@@ -174,6 +174,7 @@ mod tests {
 
     fn result(frame: usize, sources: Vec<Source>) -> LocalizationResult {
         LocalizationResult {
+            num_active: None,
             frame,
             time_s: 0.0,
             sources,

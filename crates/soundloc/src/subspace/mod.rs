@@ -16,7 +16,8 @@
 //! Every E is orthonormal, so the MUSIC denominator may use the signal-subspace
 //! complement (see [`crate::music`]).
 
-pub mod gevd;
+pub mod count;
+mod gevd;
 pub mod gevd_hark;
 pub mod gsvd;
 pub mod sevd;

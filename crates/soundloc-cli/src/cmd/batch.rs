@@ -1,0 +1,181 @@
+//! `soundloc batch`: many recordings, one result file each — for archives on plain
+//! clusters (SLURM arrays, GNU parallel): a manifest or a list of inputs, `--shard K/N`,
+//! and resumable runs (inputs whose result file exists are skipped).
+
+use super::input::{spawn_reader, InputArgs};
+use super::localize::{drive, FormatArg, RunArgs};
+use anyhow::{anyhow, bail, Context};
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    /// Recordings (WAV/FLAC).
+    pub inputs: Vec<PathBuf>,
+    /// A manifest: one recording per line (blank lines and lines starting with # are
+    /// skipped; relative paths are relative to the manifest's folder).
+    #[arg(long)]
+    pub manifest: Option<PathBuf>,
+    /// Folder for the results, one file per recording named after it (rec.wav →
+    /// rec.jsonl, or rec.csv with --format csv); created if missing.
+    #[arg(long)]
+    pub out_dir: PathBuf,
+    /// Only share K of N (0-based): the inputs whose position in the list is K modulo N,
+    /// e.g. --shard $SLURM_ARRAY_TASK_ID/$SLURM_ARRAY_TASK_COUNT.
+    #[arg(long)]
+    pub shard: Option<String>,
+    /// Localize inputs whose result file already exists again (default: skip them, so a
+    /// rerun resumes where an interrupted one stopped; files are written whole or not at all).
+    #[arg(long)]
+    pub overwrite: bool,
+    #[command(flatten)]
+    pub run: RunArgs,
+}
+
+/// Parse `K/N` with K < N.
+pub fn parse_shard(s: &str) -> anyhow::Result<(usize, usize)> {
+    let bad = || anyhow!("--shard {s:?}: expected K/N with 0 <= K < N, e.g. 0/4");
+    let (k, n) = s.split_once('/').ok_or_else(bad)?;
+    let k: usize = k.trim().parse().map_err(|_| bad())?;
+    let n: usize = n.trim().parse().map_err(|_| bad())?;
+    if n == 0 || k >= n {
+        return Err(bad());
+    }
+    Ok((k, n))
+}
+
+/// The inputs named on the command line and in the manifest, in order.
+fn inputs(a: &Args) -> anyhow::Result<Vec<PathBuf>> {
+    let mut v = a.inputs.clone();
+    if let Some(m) = &a.manifest {
+        let text = std::fs::read_to_string(m)
+            .with_context(|| format!("{}: cannot read the manifest", m.display()))?;
+        let base = m.parent().unwrap_or(Path::new("."));
+        for line in text.lines() {
+            let t = line.trim();
+            if t.is_empty() || t.starts_with('#') {
+                continue;
+            }
+            let p = PathBuf::from(t);
+            v.push(if p.is_absolute() { p } else { base.join(p) });
+        }
+    }
+    if v.is_empty() {
+        bail!("no inputs: name recordings or give --manifest FILE");
+    }
+    Ok(v)
+}
+
+pub fn run(mut a: Args) -> anyhow::Result<ExitCode> {
+    let r = &a.run;
+    let per_input_only = [
+        ("-o/--output", r.output.is_some()),
+        ("--spectrum", r.spectrum.is_some()),
+        ("--plot", r.plot.is_some()),
+        ("--summary", r.summary.is_some()),
+        ("--log-text", r.log_text.is_some()),
+        ("--log-xml", r.log_xml.is_some()),
+        ("--hark-stream", r.hark_stream.is_some()),
+        ("--serve", r.live.serve.is_some()),
+        ("--odas-ssl", r.live.odas_ssl.is_some()),
+        ("--odas-sst", r.live.odas_sst.is_some()),
+    ];
+    if let Some((flag, _)) = per_input_only.iter().find(|(_, set)| *set) {
+        bail!("{flag} is not available with batch: each recording's results go to --out-dir");
+    }
+    let all = inputs(&a)?;
+    let (k, n) = match &a.shard {
+        Some(s) => parse_shard(s)?,
+        None => (0, 1),
+    };
+    let ext = match a.run.format {
+        FormatArg::Jsonl => "jsonl",
+        FormatArg::Csv => "csv",
+    };
+    // Result names must not collide (over the whole list, so shards agree).
+    let mut seen: HashMap<PathBuf, &Path> = HashMap::new();
+    let mut jobs = Vec::new();
+    for (i, p) in all.iter().enumerate() {
+        let stem = p
+            .file_stem()
+            .ok_or_else(|| anyhow!("{}: not a file name", p.display()))?;
+        let out = a.out_dir.join(stem).with_extension(ext);
+        if let Some(prev) = seen.insert(out.clone(), p) {
+            bail!(
+                "{} and {} would both write {}: rename one or run them separately",
+                prev.display(),
+                p.display(),
+                out.display()
+            );
+        }
+        if i % n == k {
+            jobs.push((p.clone(), out));
+        }
+    }
+    std::fs::create_dir_all(&a.out_dir)
+        .with_context(|| format!("{}: cannot create the folder", a.out_dir.display()))?;
+    let quiet = a.run.quiet;
+    let (mut done, mut skipped, mut failed) = (0usize, 0usize, Vec::new());
+    for (p, out) in jobs {
+        if !a.overwrite && out.exists() {
+            skipped += 1;
+            continue;
+        }
+        a.run.output = Some(out.clone());
+        let input = InputArgs {
+            input: p.display().to_string(),
+            raw: None,
+            raw_channels: None,
+            rate: None,
+            max_buffer: 10.0,
+            realtime: false,
+        };
+        let res = input.open(true).and_then(|inp| {
+            let (fmt, rx) = spawn_reader(inp.source, false, input.max_buffer, false, false);
+            drive(&a.run, &inp.name, false, fmt, rx)
+        });
+        match res {
+            Ok(code) if code == ExitCode::SUCCESS => {
+                done += 1;
+                if !quiet {
+                    eprintln!("soundloc: {} -> {}", p.display(), out.display());
+                }
+            }
+            Ok(_) => failed.push(format!("{}: did not finish", p.display())),
+            Err(e) => {
+                eprintln!("soundloc: error: {}: {e:#}", p.display());
+                failed.push(p.display().to_string());
+            }
+        }
+    }
+    if !quiet || !failed.is_empty() {
+        eprintln!(
+            "soundloc: batch{}: {done} localized, {skipped} skipped (result exists), {} failed",
+            a.shard
+                .as_deref()
+                .map(|s| format!(" shard {s}"))
+                .unwrap_or_default(),
+            failed.len()
+        );
+    }
+    Ok(if failed.is_empty() {
+        ExitCode::SUCCESS
+    } else {
+        ExitCode::from(1)
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn shard_parsing() {
+        assert_eq!(parse_shard("0/4").unwrap(), (0, 4));
+        assert_eq!(parse_shard(" 3 / 4 ").unwrap(), (3, 4));
+        for bad in ["4/4", "1/0", "x/2", "2", "-1/3"] {
+            assert!(parse_shard(bad).is_err(), "{bad}");
+        }
+    }
+}
