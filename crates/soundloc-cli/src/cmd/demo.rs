@@ -63,9 +63,15 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
                 algorithm: alg,
                 ..Default::default()
             };
+            // SRP-PHAT has no CUDA kernels yet: it runs on the CPU whatever --device says.
+            let device: soundloc::backend::DeviceChoice = if alg.is_music() {
+                a.device.into()
+            } else {
+                soundloc::backend::DeviceChoice::Cpu
+            };
             let run = match a.precision {
-                PrecisionArg::F32 => localize_scene::<f32>(s, &audio, &config, a.device.into())?,
-                PrecisionArg::F64 => localize_scene::<f64>(s, &audio, &config, a.device.into())?,
+                PrecisionArg::F32 => localize_scene::<f32>(s, &audio, &config, device)?,
+                PrecisionArg::F64 => localize_scene::<f64>(s, &audio, &config, device)?,
             };
             let score = s.score(&run.results, s.grid_step_deg + 1e-6);
             let detected: Vec<String> = run
