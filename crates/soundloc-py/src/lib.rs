@@ -728,8 +728,66 @@ fn read_audio(py: Python<'_>, path: PathBuf) -> PyResult<(Bound<'_, PyArray2<f32
     Ok((x.into_pyarray(py), a.sample_rate_hz))
 }
 
+/// A HARK transfer-function file (zip or HGTF) as numpy: `tf` complex64 (directions,
+/// mics, bins) for the absolute bins `first_bin ..`, `directions` (D, 3) as stored,
+/// `mics` (M, 3) metres, `nfft`, `fs`.
+#[pyfunction]
+fn read_tf<'py>(py: Python<'py>, path: PathBuf) -> PyResult<Bound<'py, PyDict>> {
+    let tf = py
+        .allow_threads(|| soundloc::array::TransferFunctions::load(&path))
+        .map_err(err)?;
+    let (d, m, b) = (tf.grid.len(), tf.num_mics, tf.num_bins);
+    let data: Vec<numpy::Complex32> = tf
+        .data
+        .iter()
+        .map(|z| numpy::Complex32::new(z.re, z.im))
+        .collect();
+    let arr = numpy::ndarray::Array3::from_shape_vec((d, m, b), data)
+        .map_err(|e| PyValueError::new_err(format!("{}: {e}", path.display())))?;
+    let rows = |v: &[[f64; 3]]| Array2::from_shape_fn((v.len(), 3), |(i, j)| v[i][j]);
+    let out = PyDict::new(py);
+    out.set_item("tf", arr.into_pyarray(py))?;
+    out.set_item("first_bin", tf.first_bin)?;
+    out.set_item("nfft", tf.nfft)?;
+    out.set_item("fs", tf.sample_rate_hz)?;
+    out.set_item("directions", rows(&tf.grid.points).into_pyarray(py))?;
+    out.set_item("mics", rows(&tf.mic_positions).into_pyarray(py))?;
+    Ok(out)
+}
+
+/// A HARK noise correlation file (zip, or a text pair given as its real-part file or
+/// "REAL,IMAG") as complex128 (nfft/2 + 1, M, M), and nfft.
+#[pyfunction]
+fn read_noise_cm<'py>(
+    py: Python<'py>,
+    path: PathBuf,
+) -> PyResult<(Bound<'py, numpy::PyArray3<numpy::Complex64>>, usize)> {
+    use soundloc::formats::noise_cm::{Expected, NoiseCm};
+    let k = py
+        .allow_threads(|| NoiseCm::load(&path, Expected::default()))
+        .map_err(err)?;
+    let (f, m) = (k.nfft / 2 + 1, k.num_mics);
+    let data: Vec<numpy::Complex64> = k.data.iter().map(|z| numpy::Complex64::new(z.re, z.im)).collect();
+    let arr = numpy::ndarray::Array3::from_shape_vec((f, m, m), data)
+        .map_err(|e| PyValueError::new_err(format!("{}: {e}", path.display())))?;
+    Ok((arr.into_pyarray(py), k.nfft))
+}
+
+/// A HARK source-location log (text or XML) as JSON lines (parsed in Python).
+#[pyfunction]
+#[pyo3(signature = (path, frame_period_s=0.01))]
+fn read_source_log_json(py: Python<'_>, path: PathBuf, frame_period_s: f64) -> PyResult<Vec<String>> {
+    let r = py
+        .allow_threads(|| soundloc::formats::source_log::read(&path, frame_period_s))
+        .map_err(err)?;
+    Ok(r.iter().map(soundloc::output::jsonl::to_json_line).collect())
+}
+
 #[pymodule]
 fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_function(wrap_pyfunction!(read_tf, m)?)?;
+    m.add_function(wrap_pyfunction!(read_noise_cm, m)?)?;
+    m.add_function(wrap_pyfunction!(read_source_log_json, m)?)?;
     m.add_function(wrap_pyfunction!(read_audio, m)?)?;
     m.add_class::<PyLocalizer>()?;
     m.add_class::<PyFrames>()?;

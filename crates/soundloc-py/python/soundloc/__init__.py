@@ -36,10 +36,20 @@ from typing import List, Optional
 
 import numpy as np
 
-from ._native import Localizer as _Native, __version__, read_audio
+from ._native import Localizer as _Native, __version__, read_audio, read_noise_cm, read_tf
+from ._native import read_source_log_json as _read_source_log_json
 from . import archive, doa
 
-__all__ = ["Localizer", "Results", "archive", "doa", "read_audio", "__version__"]
+__all__ = ["Localizer", "Results", "archive", "doa", "read_audio", "read_noise_cm", "read_source_log",
+           "read_tf", "__version__"]
+
+
+def read_source_log(path, frame_period_s=0.01):
+    """A HARK source-location log (text or XML) as a list of results: dicts with frame,
+    time_s and sources (azimuth_deg, elevation_deg, x, y, z, power_db, id)."""
+    import json
+
+    return [json.loads(line) for line in _read_source_log_json(str(path), frame_period_s)]
 
 
 @dataclass
