@@ -164,12 +164,14 @@ impl<T: Real> Backend<T> for CpuBackend<T> {
             // Overlapping frames are not independent snapshots: N = W·hop/N_fft of them.
             let c = &plan.config;
             let overlap = c.hop.min(c.nfft) as f64 / c.nfft as f64;
+            let mut v = Vec::with_capacity(m);
             for w in 0..nw {
                 let snapshots = ((windows[w].len as f64 * overlap).round() as usize).max(1);
                 let per_bin: Vec<usize> = (0..nb)
                     .filter(|&b| plan.weights[b] != T::zero())
                     .map(|b| {
-                        let v: Vec<f64> = decs[w * nb + b].values.iter().map(|&x| Real::to_f64(x)).collect();
+                        v.clear();
+                        v.extend(decs[w * nb + b].values.iter().map(|&x| Real::to_f64(x)));
                         count::mdl(&v, snapshots)
                     })
                     .collect();
