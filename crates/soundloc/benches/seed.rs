@@ -3,7 +3,7 @@
 //! `soundloc bench` prints the full report (batched throughput, PERIOD 50/1, stage split).
 
 use criterion::{criterion_group, criterion_main, Criterion};
-use soundloc::backend::{cpu::CpuBackend, Backend, BatchOutput};
+use soundloc::backend::{cpu::CpuBackend, Backend, BatchOutput, Job};
 use soundloc::bench::{inputs, BenchConfig};
 use soundloc::Algorithm;
 
@@ -21,7 +21,7 @@ fn seed(c: &mut Criterion) {
         let mut out = BatchOutput::default();
         g.bench_function(alg.name(), |b| {
             b.iter(|| {
-                be.process(&inp.spectra, &inp.windows[..1], false, &mut out)
+                be.process(&[Job::once(&inp.spectra, &inp.windows[..1])], false, &mut out)
                     .expect("process")
             })
         });

@@ -6,7 +6,7 @@
 
 use crate::array::freefield::free_field;
 use crate::array::{Geometry, Grid, TransferFunctions};
-use crate::backend::{Backend, BatchOutput, DeviceChoice, Peak, Spectra, WindowSpec};
+use crate::backend::{Backend, BatchOutput, DeviceChoice, Job, Peak, Spectra, WindowSpec};
 use crate::config::{LocalizeConfig, Precision};
 use crate::engine::make_backend;
 use crate::plan::Plan;
@@ -97,7 +97,7 @@ impl<T: Real> Prepared<T> {
             len: s,
         };
         self.backend
-            .process(&self.spectra, &[window], true, &mut self.out)?;
+            .process(&[Job::once(&self.spectra, &[window])], true, &mut self.out)?;
         Ok(FramesResult {
             spectrum_db: self.out.spectrum_db.clone(),
             peaks: self.out.peaks.first().cloned().unwrap_or_default(),

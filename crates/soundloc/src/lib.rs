@@ -64,7 +64,7 @@ pub mod subspace;
 pub mod tracking;
 
 pub use config::{Algorithm, LocalizeConfig, Precision, WindowFunction, WindowType};
-pub use engine::{Localization, Output, SpectrumTable, TrackingSpec};
+pub use engine::{Localization, Output, SpectrumTable, StreamGroup, TrackingSpec};
 pub use error::{Error, Result};
 pub use input::{Block, ChannelMap};
 pub use localizer::{ArraySpec, Localizer, LocalizerSpec, NoiseSource};

@@ -169,7 +169,7 @@ pub fn to_db<T: Real>(p: T) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::backend::{cpu::CpuBackend, Backend, BatchOutput};
+    use crate::backend::{cpu::CpuBackend, Backend, BatchOutput, Job};
     use crate::bench::{inputs, BenchConfig};
     use crate::config::Algorithm;
     use crate::correlation::correlate;
@@ -189,7 +189,7 @@ mod tests {
         let plan = &*inp.plan;
         let mut be = CpuBackend::new(inp.plan.clone());
         let mut out = BatchOutput::default();
-        be.process(&inp.spectra, &inp.windows, true, &mut out).unwrap();
+        be.process(&[Job::once(&inp.spectra, &inp.windows)], true, &mut out).unwrap();
         let (m, d, nb, ns) = (
             plan.num_mics,
             plan.num_dirs,

@@ -49,42 +49,14 @@ pub fn phase<T: Real>(z: C<T>) -> C<T> {
 }
 
 /// R̃ = (1/W) Σ x̃ x̃ᴴ over the window's frames of used bin `bin`, row-major M × M into
-/// `out` (exactly Hermitian). `x` is scratch of at least W·M values.
-pub fn correlate_phat<T: Real>(
-    spectra: &Spectra<T>,
-    w: &WindowSpec,
-    bin: usize,
-    x: &mut Vec<C<T>>,
-    out: &mut [C<T>],
-) {
+/// `out` (exactly Hermitian): a direct step of [`crate::correlation::running`] with the
+/// phase transform.
+pub fn correlate_phat<T: Real>(spectra: &Spectra<T>, w: &WindowSpec, bin: usize, out: &mut [C<T>]) {
+    use crate::correlation::running::{run_bin, Step};
     let m = spectra.num_mics;
-    let nb = spectra.num_bins;
-    debug_assert_eq!(out.len(), m * m);
-    x.clear();
-    for f in w.start..w.start + w.len {
-        let row = &spectra.data[(f * nb + bin) * m..(f * nb + bin + 1) * m];
-        x.extend(row.iter().map(|&z| phase(z)));
-    }
-    let xm = MatRef::from_row_major_slice(x, w.len, m);
-    // Rᵀ = X̃ᴴ X̃ column-major = R row-major.
-    let mut r = faer::MatMut::from_column_major_slice_mut(out, m, m);
-    let inv_w = T::one() / T::of_f64(w.len.max(1) as f64);
-    faer::linalg::matmul::matmul(
-        r.as_mut(),
-        Accum::Replace,
-        xm.adjoint(),
-        xm,
-        C::new(inv_w, T::zero()),
-        Par::Seq,
-    );
-    for i in 0..m {
-        for j in i..m {
-            let v = (out[i * m + j] + out[j * m + i].conj()) * C::new(T::of_f64(0.5), T::zero());
-            out[i * m + j] = v;
-            out[j * m + i] = v.conj();
-        }
-        out[i * m + i].im = T::zero();
-    }
+    let (mut re, mut im) = (vec![0.0; m * m], vec![0.0; m * m]);
+    let job = crate::backend::Job::once(spectra, std::slice::from_ref(w));
+    run_bin(&mut re, &mut im, Step::Direct, &job, w, bin, true, &mut Vec::new(), out);
 }
 
 /// Adds w_k·P_k(d) = w_k·Re(ãᴴ R̃ ã)/M² for every direction d of used bin `b` to `acc`.
@@ -145,7 +117,7 @@ mod tests {
             len: w,
         };
         let mut r = vec![C::new(0.0, 0.0); m * m];
-        correlate_phat(&sp, &win, 0, &mut Vec::new(), &mut r);
+        correlate_phat(&sp, &win, 0, &mut r);
         let a: Vec<C<f64>> = (0..m)
             .map(|_| phase(C::new(rng.gen_range(-1.0..1.0), rng.gen_range(-1.0..1.0))))
             .collect();

@@ -13,7 +13,7 @@
 use soundloc::array::freefield::{free_field, DEFAULT_SPEED_OF_SOUND_M_S};
 use soundloc::array::{Geometry, Grid, TransferFunctions};
 use soundloc::backend::cpu::CpuBackend;
-use soundloc::backend::{cuda, Backend, BatchOutput, Spectra, WindowSpec};
+use soundloc::backend::{cuda, Backend, BatchOutput, Job, Spectra, WindowSpec};
 use soundloc::bench::{inputs, BenchConfig};
 use soundloc::config::{Algorithm, Denominator, LocalizeConfig, WindowType};
 use soundloc::correlation::schedule;
@@ -85,7 +85,8 @@ fn run<T: Real>(b: &mut dyn Backend<T>, spectra: &Spectra<T>, windows: &[WindowS
     };
     let mut out = BatchOutput::default();
     for chunk in windows.chunks(batch.max(1)) {
-        b.process(spectra, chunk, true, &mut out).expect("process");
+        b.process(&[Job::once(spectra, chunk)], true, &mut out)
+            .expect("process");
         assert_eq!(out.peaks.len(), chunk.len());
         r.db.extend_from_slice(&out.spectrum_db);
         r.bin_weight.extend_from_slice(&out.bin_weight);

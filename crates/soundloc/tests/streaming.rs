@@ -6,7 +6,7 @@
 use rand::{Rng, SeedableRng};
 use soundloc::array::TransferFunctions;
 use soundloc::backend::cpu::CpuBackend;
-use soundloc::backend::{Backend, BatchOutput, DeviceChoice};
+use soundloc::backend::{Backend, BatchOutput, DeviceChoice, Job, StreamId};
 use soundloc::correlation::schedule;
 use soundloc::demo::{ring8_drone, DemoScene};
 use soundloc::noise::NoiseMatrices;
@@ -227,8 +227,15 @@ fn whole_file_reference(
     let mut backend = CpuBackend::new(plan.clone());
     let mut out = BatchOutput::default();
     let mut results = Vec::new();
+    let stream = StreamId::fresh();
     for chunk in windows.chunks(7) {
-        backend.process(&spectra, chunk, false, &mut out).unwrap();
+        let job = Job {
+            stream,
+            first: 0,
+            spectra: &spectra,
+            windows: chunk,
+        };
+        backend.process(&[job], false, &mut out).unwrap();
         for (i, (w, peaks)) in chunk.iter().zip(&out.peaks).enumerate() {
             results.push(LocalizationResult {
                 num_active: out.source_count.get(i).map(|&c| c as usize),

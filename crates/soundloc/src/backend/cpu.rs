@@ -3,28 +3,41 @@
 //! pay for nested threading.
 //!
 //! Each batch runs the stages one after another over all (window, bin) pairs, which keeps
-//! every core busy even for a single window (73 bins) and gives exact stage times.
+//! every core busy even for a single window (73 bins) and gives exact stage times. The
+//! correlation keeps each stream's running sums between calls
+//! ([`crate::correlation::running`]): at PERIOD 1 a window costs two outer products per
+//! bin instead of W.
 
-use super::{Backend, BatchOutput, Spectra, StageTimes, WindowSpec};
-use crate::correlation::correlate;
+use super::{Backend, BatchOutput, Job, StageTimes, StreamId};
+use crate::correlation::running::{run_bin, RunningCorrelation, Step};
 use crate::music::{accumulate_bin, bin_gain, normalize_bin, to_db, SpectrumScratch};
 use crate::peaks::find_peaks;
 use crate::plan::Plan;
 use crate::real::{Real, C};
-use crate::srp::{self, correlate_phat, SrpScratch};
+use crate::srp::{self, SrpScratch};
 use crate::subspace::{count, decompose, Decomposition, Workspace};
 use crate::Result;
 use rayon::prelude::*;
+use std::collections::HashMap;
 use std::sync::Arc;
 use std::time::Instant;
+
+/// Bytes of running sums kept for streams between calls; the least recently used stream's
+/// are dropped beyond it (it restarts with a direct sum).
+const KEEP_BYTES: usize = 256 << 20;
 
 /// Runs the pipeline's numeric stages on the CPU.
 pub struct CpuBackend<T: Real> {
     plan: Arc<Plan<T>>,
     times: StageTimes,
     r: Vec<C<T>>,
+    /// R of one job, `[bin][window][M×M]` (bins run in parallel).
+    r_bins: Vec<C<T>>,
     decs: Vec<Decomposition<T>>,
     contrib: Vec<T>,
+    /// Running sums per stream, with the call count of their last use.
+    running: HashMap<StreamId, (RunningCorrelation, u64)>,
+    calls: u64,
 }
 
 impl<T: Real> CpuBackend<T> {
@@ -34,8 +47,50 @@ impl<T: Real> CpuBackend<T> {
             plan,
             times: StageTimes::default(),
             r: Vec::new(),
+            r_bins: Vec::new(),
             decs: Vec::new(),
             contrib: Vec::new(),
+            running: HashMap::new(),
+            calls: 0,
+        }
+    }
+
+    /// R of every window of `job` into `self.r` from window `w0` on, `[window][bin]`.
+    fn correlate_job(&mut self, job: &Job<'_, T>, w0: usize, phat: bool) {
+        let (m, nb) = (self.plan.num_mics, self.plan.num_bins());
+        let mm = m * m;
+        let nw = job.windows.len();
+        let mut rc = match self.running.remove(&job.stream) {
+            Some((rc, _)) => rc,
+            None => RunningCorrelation::new(m, nb),
+        };
+        let steps: Vec<Step> = job.windows.iter().map(|w| rc.step(w, job.first)).collect();
+        self.r_bins.resize(nb * nw * mm, C::new(T::zero(), T::zero()));
+        let bins: Vec<(&mut [f64], &mut [f64])> = rc.bins_mut().collect();
+        bins.into_par_iter()
+            .zip(self.r_bins.par_chunks_mut(nw * mm))
+            .enumerate()
+            .for_each_init(Vec::new, |y, (b, ((re, im), rb))| {
+                for (wi, (w, st)) in job.windows.iter().zip(&steps).enumerate() {
+                    run_bin(re, im, *st, job, w, b, phat, y, &mut rb[wi * mm..(wi + 1) * mm]);
+                }
+            });
+        for b in 0..nb {
+            for wi in 0..nw {
+                let dst = ((w0 + wi) * nb + b) * mm;
+                self.r[dst..dst + mm].copy_from_slice(&self.r_bins[(b * nw + wi) * mm..(b * nw + wi + 1) * mm]);
+            }
+        }
+        if job.stream.is_kept() {
+            self.running.insert(job.stream, (rc, self.calls));
+            // Drop the least recently used streams' sums beyond the budget.
+            let per = 2 * nb * mm * 8;
+            while self.running.len() * per > KEEP_BYTES {
+                let Some(oldest) = self.running.iter().min_by_key(|(_, (_, t))| *t).map(|(k, _)| *k) else {
+                    break;
+                };
+                self.running.remove(&oldest);
+            }
         }
     }
 }
@@ -53,34 +108,25 @@ impl<T: Real> Backend<T> for CpuBackend<T> {
         16
     }
 
-    fn process(
-        &mut self,
-        spectra: &Spectra<T>,
-        windows: &[WindowSpec],
-        want_spectrum: bool,
-        out: &mut BatchOutput,
-    ) -> Result<()> {
-        let plan = &*self.plan;
+    fn process(&mut self, jobs: &[Job<'_, T>], want_spectrum: bool, out: &mut BatchOutput) -> Result<()> {
+        super::check_jobs("cpu backend", &self.plan, jobs)?;
+        self.calls += 1;
+        let plan = self.plan.clone();
+        let plan = &*plan;
         let (m, nb, d) = (plan.num_mics, plan.num_bins(), plan.num_dirs);
-        super::check_batch("cpu backend", plan, spectra, windows)?;
-        let nw = windows.len();
+        let nw = super::count_windows(jobs);
+        let lens: Vec<usize> = jobs.iter().flat_map(|j| j.windows.iter().map(|w| w.len)).collect();
         let mm = m * m;
         let alg = plan.config.algorithm;
         let srp = !alg.is_music();
-        // 1. Correlation matrices, [window][bin] (phase-transformed for SRP-PHAT).
+        // 1. Correlation matrices, [window][bin] (phase-transformed for SRP-PHAT), from
+        // each stream's running sums.
         let t = Instant::now();
         self.r.resize(nw * nb * mm, C::new(T::zero(), T::zero()));
-        if srp {
-            self.r
-                .par_chunks_mut(mm)
-                .enumerate()
-                .for_each_init(Vec::new, |x, (i, r)| {
-                    correlate_phat(spectra, &windows[i / nb], i % nb, x, r);
-                });
-        } else {
-            self.r.par_chunks_mut(mm).enumerate().for_each(|(i, r)| {
-                correlate(spectra, &windows[i / nb], i % nb, r);
-            });
+        let mut w0 = 0;
+        for job in jobs {
+            self.correlate_job(job, w0, srp);
+            w0 += job.windows.len();
         }
         self.times.correlation_ms += ms(t);
 
@@ -166,7 +212,7 @@ impl<T: Real> Backend<T> for CpuBackend<T> {
             let overlap = c.hop.min(c.nfft) as f64 / c.nfft as f64;
             let mut v = Vec::with_capacity(m);
             for w in 0..nw {
-                let snapshots = ((windows[w].len as f64 * overlap).round() as usize).max(1);
+                let snapshots = ((lens[w] as f64 * overlap).round() as usize).max(1);
                 let per_bin: Vec<usize> = (0..nb)
                     .filter(|&b| plan.weights[b] != T::zero())
                     .map(|b| {

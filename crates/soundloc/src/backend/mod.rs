@@ -152,7 +152,64 @@ impl<T: Real> Spectra<T> {
     }
 }
 
-/// One correlation window: frames `start .. start + len` of a [`Spectra`], producing the
+/// Names one stream's frames across `process` calls, so that a backend may keep what it
+/// already has of them (a device-resident frame ring, a running correlation): frame `f` of
+/// stream `s` is the same data in every call. A stream takes a fresh id when it starts,
+/// after a reset and after a gap; [`StreamId::ONCE`] marks frames nobody will hand in again.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub struct StreamId(u64);
+
+impl StreamId {
+    /// Frames of a one-off call: nothing is kept for them.
+    pub const ONCE: StreamId = StreamId(0);
+
+    /// A new id, never handed out before in this process.
+    pub fn fresh() -> StreamId {
+        static NEXT: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(1);
+        StreamId(NEXT.fetch_add(1, std::sync::atomic::Ordering::Relaxed))
+    }
+
+    /// Whether a backend may keep this stream's frames for later calls.
+    pub fn is_kept(self) -> bool {
+        self != StreamId::ONCE
+    }
+}
+
+/// The windows of one stream in a batch: `spectra` frame 0 is the stream's frame `first`,
+/// window starts are stream frames (absolute), and `spectra` holds every frame the windows
+/// read (plus, when present, the frames just before them: a backend with a running
+/// correlation subtracts those that leave).
+#[derive(Debug, Clone, Copy)]
+pub struct Job<'a, T: Real> {
+    /// Whose frames these are.
+    pub stream: StreamId,
+    /// Stream frame of `spectra` frame 0.
+    pub first: usize,
+    /// The frames.
+    pub spectra: &'a Spectra<T>,
+    /// The windows, in result order; `start` is a stream frame ≥ `first`.
+    pub windows: &'a [WindowSpec],
+}
+
+impl<'a, T: Real> Job<'a, T> {
+    /// Windows over `spectra` alone (starts are `spectra` frames), kept by no backend.
+    pub fn once(spectra: &'a Spectra<T>, windows: &'a [WindowSpec]) -> Self {
+        Job {
+            stream: StreamId::ONCE,
+            first: 0,
+            spectra,
+            windows,
+        }
+    }
+
+    /// `spectra`'s frame index of stream frame `f`.
+    #[inline]
+    pub fn local(&self, f: usize) -> usize {
+        f - self.first
+    }
+}
+
+/// One correlation window: frames `start .. start + len` of a stream, producing the
 /// result for frame `frame` (the result frame c of [`crate::correlation`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub struct WindowSpec {
@@ -164,14 +221,37 @@ pub struct WindowSpec {
     pub len: usize,
 }
 
-/// Check that a batch fits a plan: `spectra` has the plan's mics and bins and holds every
-/// frame of every window. `who` names the backend in the message.
-pub fn check_batch<T: Real>(
-    who: &str,
-    plan: &Plan<T>,
-    spectra: &Spectra<T>,
-    windows: &[WindowSpec],
-) -> Result<()> {
+/// Check that a batch fits a plan: each job's spectra have the plan's mics and bins and
+/// hold every frame of its windows. `who` names the backend in the message.
+pub fn check_jobs<T: Real>(who: &str, plan: &Plan<T>, jobs: &[Job<'_, T>]) -> Result<()> {
+    for j in jobs {
+        if let Some(w) = j.windows.iter().find(|w| w.start < j.first) {
+            return Err(crate::Error::Mismatch(format!(
+                "{who}: window at frame {} starts before the first frame given ({})",
+                w.start, j.first
+            )));
+        }
+        let local: Vec<WindowSpec> = j
+            .windows
+            .iter()
+            .map(|w| WindowSpec {
+                start: w.start - j.first,
+                ..*w
+            })
+            .collect();
+        check_batch(who, plan, j.spectra, &local)?;
+    }
+    Ok(())
+}
+
+/// Total number of windows of `jobs`.
+pub fn count_windows<T: Real>(jobs: &[Job<'_, T>]) -> usize {
+    jobs.iter().map(|j| j.windows.len()).sum()
+}
+
+/// Check that one spectra block fits a plan and holds every frame of `windows` (starts
+/// are `spectra` frames). `who` names the backend in the message.
+fn check_batch<T: Real>(who: &str, plan: &Plan<T>, spectra: &Spectra<T>, windows: &[WindowSpec]) -> Result<()> {
     let (m, nb) = (plan.num_mics, plan.num_bins());
     if spectra.num_mics != m || spectra.num_bins != nb {
         return Err(crate::Error::Mismatch(format!(
@@ -261,15 +341,12 @@ pub trait Backend<T: Real>: Send {
     fn device_name(&self) -> String;
     /// Largest number of windows one `process` call accepts.
     fn max_windows_per_batch(&self) -> usize;
-    /// Run correlation → decomposition → spectrum → peaks for `windows` over `spectra`.
-    /// `out` is overwritten.
-    fn process(
-        &mut self,
-        spectra: &Spectra<T>,
-        windows: &[WindowSpec],
-        want_spectrum: bool,
-        out: &mut BatchOutput,
-    ) -> Result<()>;
+    /// Run correlation → decomposition → spectrum → peaks for every window of `jobs` (one
+    /// job per stream; several streams sharing the plan go in one call). `out` is
+    /// overwritten with one entry per window, jobs in order, windows in order. What a
+    /// backend keeps of a stream between calls (frames on the device, a running
+    /// correlation) changes where the work runs, never the results beyond rounding.
+    fn process(&mut self, jobs: &[Job<'_, T>], want_spectrum: bool, out: &mut BatchOutput) -> Result<()>;
     /// Replace the plan (e.g. after the noise matrix K changed online); the shapes (mics,
     /// bins, directions) must be unchanged.
     fn set_plan(&mut self, plan: Arc<Plan<T>>) -> Result<()>;

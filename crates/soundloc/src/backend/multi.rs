@@ -4,7 +4,7 @@
 //! are joined in window order — so results equal one device's. A new plan (K changed)
 //! reaches every device.
 
-use super::{Backend, BatchOutput, Spectra, StageTimes, WindowSpec};
+use super::{Backend, BatchOutput, Job, StageTimes};
 use crate::plan::Plan;
 use crate::real::Real;
 use crate::Result;
@@ -30,6 +30,25 @@ impl<T: Real> MultiBackend<T> {
     pub fn num_devices(&self) -> usize {
         self.parts.len()
     }
+}
+
+/// The windows `r` of the flattened window list of `jobs` (jobs in order, windows in
+/// order), as jobs.
+pub fn sub_jobs<'a, T: Real>(jobs: &[Job<'a, T>], r: std::ops::Range<usize>) -> Vec<Job<'a, T>> {
+    let mut out = Vec::new();
+    let mut at = 0;
+    for j in jobs {
+        let n = j.windows.len();
+        let (lo, hi) = (r.start.max(at), r.end.min(at + n));
+        if lo < hi {
+            out.push(Job {
+                windows: &j.windows[lo - at..hi - at],
+                ..*j
+            });
+        }
+        at += n;
+    }
+    out
 }
 
 /// Cut `n` windows into contiguous shares proportional to `caps` (each ≤ its cap when
@@ -66,23 +85,18 @@ impl<T: Real> Backend<T> for MultiBackend<T> {
         self.parts.iter().map(|p| p.max_windows_per_batch()).sum()
     }
 
-    fn process(
-        &mut self,
-        spectra: &Spectra<T>,
-        windows: &[WindowSpec],
-        want_spectrum: bool,
-        out: &mut BatchOutput,
-    ) -> Result<()> {
+    fn process(&mut self, jobs: &[Job<'_, T>], want_spectrum: bool, out: &mut BatchOutput) -> Result<()> {
         let caps: Vec<usize> = self.parts.iter().map(|p| p.max_windows_per_batch()).collect();
-        let cut = shares(windows.len(), &caps);
+        let cut = shares(super::count_windows(jobs), &caps);
+        let parts: Vec<Vec<Job<'_, T>>> = cut.iter().map(|r| sub_jobs(jobs, r.clone())).collect();
         let results: Vec<Result<()>> = std::thread::scope(|s| {
             let handles: Vec<_> = self
                 .parts
                 .iter_mut()
                 .zip(self.outs.iter_mut())
-                .zip(&cut)
-                .filter(|(_, r)| !r.is_empty())
-                .map(|((p, o), r)| s.spawn(move || p.process(spectra, &windows[r.clone()], want_spectrum, o)))
+                .zip(&parts)
+                .filter(|(_, j)| !j.is_empty())
+                .map(|((p, o), j)| s.spawn(move || p.process(j, want_spectrum, o)))
                 .collect();
             handles
                 .into_iter()
@@ -173,7 +187,7 @@ mod tests {
             let inp = inputs::<f32>(&cfg).unwrap();
             let mut one = CpuBackend::new(inp.plan.clone());
             let mut want = BatchOutput::default();
-            one.process(&inp.spectra, &inp.windows, true, &mut want).unwrap();
+            one.process(&[Job::once(&inp.spectra, &inp.windows)], true, &mut want).unwrap();
             let parts: Vec<Box<dyn Backend<f32>>> = vec![
                 Box::new(CpuBackend::new(inp.plan.clone())),
                 Box::new(CpuBackend::new(inp.plan.clone())),
@@ -181,17 +195,64 @@ mod tests {
             let mut two = MultiBackend::new(parts).unwrap();
             assert_eq!(two.max_windows_per_batch(), 2 * one.max_windows_per_batch());
             let mut got = BatchOutput::default();
-            two.process(&inp.spectra, &inp.windows, true, &mut got).unwrap();
+            two.process(&[Job::once(&inp.spectra, &inp.windows)], true, &mut got).unwrap();
             assert_eq!(got, want, "{alg:?}");
             assert_eq!(got.peaks.len(), 7);
             // A new plan reaches both; a smaller batch (one device idle) still matches.
             two.set_plan(inp.plan.clone()).unwrap();
-            one.process(&inp.spectra, &inp.windows[..1], false, &mut want)
+            one.process(&[Job::once(&inp.spectra, &inp.windows[..1])], false, &mut want)
                 .unwrap();
-            two.process(&inp.spectra, &inp.windows[..1], false, &mut got)
+            two.process(&[Job::once(&inp.spectra, &inp.windows[..1])], false, &mut got)
                 .unwrap();
             assert_eq!(got, want);
         }
+    }
+
+    #[test]
+    fn several_streams_in_one_call_split_across_devices_equal_one() {
+        let cfg = BenchConfig {
+            algorithm: Algorithm::Gevd,
+            num_mics: 6,
+            num_dirs: 120,
+            batch: 9,
+            ..BenchConfig::default()
+        };
+        let inp = inputs::<f32>(&cfg).unwrap();
+        let (s1, s2) = (crate::backend::StreamId::fresh(), crate::backend::StreamId::fresh());
+        let jobs = [
+            Job {
+                stream: s1,
+                first: 0,
+                spectra: &inp.spectra,
+                windows: &inp.windows[..4],
+            },
+            Job {
+                stream: s2,
+                first: 0,
+                spectra: &inp.spectra,
+                windows: &inp.windows[4..],
+            },
+        ];
+        let mut one = CpuBackend::new(inp.plan.clone());
+        let mut want = BatchOutput::default();
+        one.process(&jobs, true, &mut want).unwrap();
+        // Each stream alone gives the same rows.
+        let mut alone = BatchOutput::default();
+        one.process(&jobs[1..], true, &mut alone).unwrap();
+        assert_eq!(alone.peaks[..], want.peaks[4..]);
+        let parts: Vec<Box<dyn Backend<f32>>> = vec![
+            Box::new(CpuBackend::new(inp.plan.clone())),
+            Box::new(CpuBackend::new(inp.plan.clone())),
+        ];
+        let mut two = MultiBackend::new(parts).unwrap();
+        let mut got = BatchOutput::default();
+        two.process(&jobs, true, &mut got).unwrap();
+        assert_eq!(got, want);
+        assert_eq!(got.peaks.len(), 9);
+        let cut = sub_jobs(&jobs, 3..6);
+        assert_eq!(cut.len(), 2);
+        assert_eq!((cut[0].windows.len(), cut[1].windows.len()), (1, 2));
+        assert_eq!(cut[1].stream, s2);
     }
 
     #[test]

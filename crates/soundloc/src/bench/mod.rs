@@ -14,7 +14,7 @@ pub mod e2e;
 pub mod stream;
 
 use crate::array::{Grid, TransferFunctions};
-use crate::backend::{BatchOutput, DeviceChoice, Spectra, StageTimes, WindowSpec};
+use crate::backend::{BatchOutput, DeviceChoice, Job, Spectra, StageTimes, WindowSpec};
 use crate::config::{Algorithm, LocalizeConfig};
 use crate::engine::make_backend;
 use crate::noise::NoiseMatrices;
@@ -202,20 +202,20 @@ pub fn run<T: Real>(cfg: &BenchConfig) -> Result<BenchReport> {
     let mut out = BatchOutput::default();
     let one = &inp.windows[..1];
     // Warm-up (module load, kernel compile, allocation).
-    backend.process(&inp.spectra, one, false, &mut out)?;
-    backend.process(&inp.spectra, &inp.windows, false, &mut out)?;
+    backend.process(&[Job::once(&inp.spectra, one)], false, &mut out)?;
+    backend.process(&[Job::once(&inp.spectra, &inp.windows)], false, &mut out)?;
     let reps = cfg.repeats.max(1);
     let mut t1 = Vec::with_capacity(reps);
     for _ in 0..reps {
         let t = Instant::now();
-        backend.process(&inp.spectra, one, false, &mut out)?;
+        backend.process(&[Job::once(&inp.spectra, one)], false, &mut out)?;
         t1.push(t.elapsed().as_secs_f64() * 1e3);
     }
     backend.reset_stage_times();
     let mut tb = Vec::with_capacity(reps);
     for _ in 0..reps {
         let t = Instant::now();
-        backend.process(&inp.spectra, &inp.windows, false, &mut out)?;
+        backend.process(&[Job::once(&inp.spectra, &inp.windows)], false, &mut out)?;
         tb.push(t.elapsed().as_secs_f64() * 1e3);
     }
     let st = backend.stage_times();

@@ -47,9 +47,10 @@
 
 mod device;
 mod emu;
+mod frames;
 mod kernels;
 
-use super::{Backend, BatchOutput, Peak, Spectra, StageTimes, WindowSpec};
+use super::{Backend, BatchOutput, Job, Peak, StageTimes, StreamId};
 use crate::config::{Algorithm, Denominator};
 use crate::plan::Plan;
 use crate::real::{Real, C};
@@ -315,7 +316,10 @@ pub struct CudaBackend<T: Real> {
     h_out: Pinned,
     h_spec: Pinned,
     h_bw: Pinned,
-    chunk_ev: [Event; 2],
+    /// Staging buffers 0 and 1 reusable; the window table is up.
+    chunk_ev: [Event; 3],
+    /// Where streams' frames are in `d_x`.
+    arena: frames::FrameArena,
     events: Vec<Event>,
 }
 
@@ -383,12 +387,13 @@ impl<T: Real> CudaBackend<T> {
             h_out: Pinned::default(),
             h_spec: Pinned::default(),
             h_bw: Pinned::default(),
-            chunk_ev: [0, 0],
+            chunk_ev: [0, 0, 0],
+            arena: frames::FrameArena::default(),
             events: Vec::new(),
         };
         b.load_functions()?;
         b.upload_plan(None)?;
-        b.chunk_ev = [b.gpu.event()?, b.gpu.event()?];
+        b.chunk_ev = [b.gpu.event()?, b.gpu.event()?, b.gpu.event()?];
         b.size_batches()?;
         Ok(b)
     }
@@ -1041,28 +1046,16 @@ fn layout<T: Real>(plan: &Plan<T>, gpu: &dyn Gpu) -> Result<Layout> {
     })
 }
 
-impl<T: Real> Backend<T> for CudaBackend<T> {
-    fn device_name(&self) -> String {
-        format!("{} ({})", self.gpu.describe(), T::NAME)
-    }
-
-    fn max_windows_per_batch(&self) -> usize {
-        self.max_batch
-    }
-
-    fn process(
-        &mut self,
-        spectra: &Spectra<T>,
-        windows: &[WindowSpec],
-        want_spectrum: bool,
-        out: &mut BatchOutput,
-    ) -> Result<()> {
+impl<T: Real> CudaBackend<T> {
+    /// [`Backend::process`] without the clean-up on error.
+    fn run_jobs(&mut self, jobs: &[Job<'_, T>], want_spectrum: bool, out: &mut BatchOutput) -> Result<()> {
         let (m, nb, d) = (self.lay.m, self.lay.nb, self.lay.d);
-        super::check_batch("cuda backend", &self.plan, spectra, windows)?;
+        super::check_jobs("cuda backend", &self.plan, jobs)?;
         out.peaks.clear();
         out.spectrum_db.clear();
         out.bin_weight.clear();
-        let nw = windows.len();
+        out.source_count.clear();
+        let nw = super::count_windows(jobs);
         if nw == 0 {
             return Ok(());
         }
@@ -1071,16 +1064,27 @@ impl<T: Real> Backend<T> for CudaBackend<T> {
         let l = self.lay.clone();
         let kout = l.peak_kout;
         let row = (1 + kout) * 16;
-        let f0 = windows.iter().map(|w| w.start).min().unwrap_or(0);
-        let f1 = windows.iter().map(|w| w.start + w.len).max().unwrap_or(0);
-        let nframes = f1 - f0;
         let fbytes = nb * m * cs;
         let sb = self.sub_batch;
         let nsb = nw.div_ceil(sb);
         let nwb_max = sb.min(nw);
 
+        // Where each job's frames go on the device; only frames not there yet go up.
+        let needs: Vec<(StreamId, std::ops::Range<usize>)> = jobs
+            .iter()
+            .map(|j| {
+                let lo = j.windows.iter().map(|w| w.start).min().unwrap_or(j.first);
+                let hi = j.windows.iter().map(|w| w.start + w.len).max().unwrap_or(lo);
+                (j.stream, lo..hi)
+            })
+            .collect();
+        let place = self.arena.place(&needs);
+        if place.arena_frames * fbytes > self.d_x.bytes {
+            self.ensure(Scratch::X, place.arena_frames * fbytes)?;
+            self.arena.set_capacity(self.d_x.bytes / fbytes);
+        }
+
         // Device buffers.
-        self.ensure(Scratch::X, nframes * fbytes)?;
         self.ensure(Scratch::Win, nw * 8)?;
         self.ensure(Scratch::R, nwb_max * nb * m * m * cs)?;
         self.ensure(Scratch::E, nwb_max * nb * l.ne * m * cs)?;
@@ -1108,10 +1112,11 @@ impl<T: Real> Backend<T> for CudaBackend<T> {
         }
         self.ensure(Scratch::Out, nw * row)?;
         // Pinned host buffers.
+        let up_frames: usize = place.uploads.iter().map(|u| u.frames.len()).sum();
         let chunk_frames = (STAGE_BYTES / fbytes).max(1);
-        let stage_bytes = chunk_frames.min(nframes) * fbytes;
+        let stage_bytes = chunk_frames.min(up_frames.max(1)) * fbytes;
         self.ensure_pinned(HostBuf::Stage0, stage_bytes)?;
-        if nframes > chunk_frames {
+        if up_frames > chunk_frames {
             self.ensure_pinned(HostBuf::Stage1, stage_bytes)?;
         }
         let h_win = self.ensure_pinned(HostBuf::Win, nw * 8)?;
@@ -1125,19 +1130,43 @@ impl<T: Real> Backend<T> for CudaBackend<T> {
             self.events.push(e);
         }
 
-        // Window table (first frame relative to the upload, length).
+        // Window table (first frame in the arena, length), and for every window the
+        // number of uploaded frames (in upload order) after which its frames are all there.
         // SAFETY: h_win holds nw * 8 bytes.
         let tab = unsafe { std::slice::from_raw_parts_mut(h_win as *mut i32, 2 * nw) };
-        for (i, w) in windows.iter().enumerate() {
-            tab[2 * i] = (w.start - f0) as i32;
-            tab[2 * i + 1] = w.len as i32;
+        let mut ready = Vec::with_capacity(nw);
+        let mut before = vec![usize::MAX; jobs.len()];
+        let mut cum = 0;
+        for u in &place.uploads {
+            before[u.job] = cum;
+            cum += u.frames.len();
+        }
+        let mut i = 0;
+        for (j, job) in jobs.iter().enumerate() {
+            let up = place.uploads.iter().find(|u| u.job == j);
+            for w in job.windows {
+                tab[2 * i] = (place.base[j] + (w.start - place.lo[j])) as i32;
+                tab[2 * i + 1] = w.len as i32;
+                let end = w.start + w.len;
+                ready.push(match up {
+                    Some(u) if end > u.frames.start => before[j] + (end - u.frames.start),
+                    _ => 0,
+                });
+                i += 1;
+            }
         }
         // SAFETY: pinned source, device buffer sized above; ordered before the frame chunks.
         unsafe { self.gpu.htod(self.d_win.ptr, h_win, nw * 8, Stream::Copy)? };
+        let win_ev = self.chunk_ev[2];
+        self.gpu.record(win_ev, Stream::Copy)?;
 
         // The factor form (fewer, better-conditioned columns) when every window has fewer
         // frames than microphones and only the signal vectors are needed.
-        let maxlen = windows.iter().map(|w| w.len).max().unwrap_or(0);
+        let maxlen = jobs
+            .iter()
+            .flat_map(|j| j.windows.iter().map(|w| w.len))
+            .max()
+            .unwrap_or(0);
         let mode = if l.squared && maxlen < m && self.factor_ok {
             let ncf = maxlen + (maxlen & 1);
             DecMode {
@@ -1157,55 +1186,63 @@ impl<T: Real> Backend<T> for CudaBackend<T> {
             }
         };
 
-        // Frames needed by sub-batches 0..=k (prefix maximum of window ends).
+        // Uploaded frames needed by sub-batches 0..=k (prefix maximum).
         let mut need = Vec::with_capacity(nsb);
         let mut mx = 0usize;
         for k in 0..nsb {
-            for w in &windows[k * sb..(k * sb + sb).min(nw)] {
-                mx = mx.max(w.start + w.len - f0);
+            for r in &ready[k * sb..(k * sb + sb).min(nw)] {
+                mx = mx.max(*r);
             }
             need.push(mx);
         }
 
         // Upload in chunks through the two staging buffers; launch each sub-batch as soon
         // as its frames are on their way.
-        let src = as_bytes(&spectra.data[f0 * nb * m..f1 * nb * m]);
         let events = self.events.clone();
         let mut next = 0usize;
-        let mut c0 = 0usize;
+        self.gpu.wait(Stream::Compute, win_ev)?;
+        while next < nsb && need[next] == 0 {
+            self.launch_sub_batch(next, nw, kout, want_spectrum, &mode, &events[5 * next..5 * next + 5])?;
+            next += 1;
+        }
+        let mut done = 0usize;
         let mut ci = 0usize;
-        while c0 < nframes {
-            let c1 = nframes.min(c0 + chunk_frames);
-            let st = ci % 2;
-            let ev = self.chunk_ev[st];
-            if ci >= 2 {
-                self.gpu.sync_event(ev)?;
+        for u in &place.uploads {
+            let job = &jobs[u.job];
+            let mut f = u.frames.start;
+            while f < u.frames.end {
+                let n = chunk_frames.min(u.frames.end - f);
+                let st = ci % 2;
+                let ev = self.chunk_ev[st];
+                if ci >= 2 {
+                    self.gpu.sync_event(ev)?;
+                }
+                let bytes = n * fbytes;
+                let stage = self.h_stage[st].ptr;
+                let lf = job.local(f);
+                let part = as_bytes(&job.spectra.data[lf * nb * m..(lf + n) * nb * m]);
+                copy_to_pinned(part, stage);
+                let at = u.at + (f - u.frames.start);
+                // SAFETY: the staging buffer holds `bytes`; it is not rewritten before `ev`
+                // (recorded next) completes; the arena holds frame `at + n`.
+                unsafe {
+                    self.gpu
+                        .htod(self.d_x.ptr + (at * fbytes) as u64, stage, bytes, Stream::Copy)?
+                };
+                self.gpu.record(ev, Stream::Copy)?;
+                done += n;
+                f += n;
+                ci += 1;
+                let mut waited = false;
+                while next < nsb && need[next] <= done {
+                    if !waited {
+                        self.gpu.wait(Stream::Compute, ev)?;
+                        waited = true;
+                    }
+                    self.launch_sub_batch(next, nw, kout, want_spectrum, &mode, &events[5 * next..5 * next + 5])?;
+                    next += 1;
+                }
             }
-            let bytes = (c1 - c0) * fbytes;
-            let stage = self.h_stage[st].ptr;
-            let part = &src[c0 * fbytes..c1 * fbytes];
-            copy_to_pinned(part, stage);
-            // SAFETY: the staging buffer holds `bytes`; it is not rewritten before `ev`
-            // (recorded next) completes.
-            unsafe {
-                self.gpu
-                    .htod(self.d_x.ptr + (c0 * fbytes) as u64, stage, bytes, Stream::Copy)?
-            };
-            self.gpu.record(ev, Stream::Copy)?;
-            while next < nsb && need[next] <= c1 {
-                self.gpu.wait(Stream::Compute, ev)?;
-                self.launch_sub_batch(
-                    next,
-                    nw,
-                    kout,
-                    want_spectrum,
-                    &mode,
-                    &events[5 * next..5 * next + 5],
-                )?;
-                next += 1;
-            }
-            c0 = c1;
-            ci += 1;
         }
         debug_assert_eq!(next, nsb);
         self.gpu.sync(Stream::Compute)?;
@@ -1294,6 +1331,25 @@ impl<T: Real> Backend<T> for CudaBackend<T> {
             }
         }
         Ok(())
+    }
+}
+
+impl<T: Real> Backend<T> for CudaBackend<T> {
+    fn device_name(&self) -> String {
+        format!("{} ({})", self.gpu.describe(), T::NAME)
+    }
+
+    fn max_windows_per_batch(&self) -> usize {
+        self.max_batch
+    }
+
+    fn process(&mut self, jobs: &[Job<'_, T>], want_spectrum: bool, out: &mut BatchOutput) -> Result<()> {
+        let r = self.run_jobs(jobs, want_spectrum, out);
+        if r.is_err() {
+            // Frames may be half up: trust nothing the arena says it holds.
+            self.arena.forget();
+        }
+        r
     }
 
     fn set_plan(&mut self, plan: Arc<Plan<T>>) -> Result<()> {

@@ -21,7 +21,7 @@
 //! the frames of a preceding-frames K); a large block is processed in pieces of
 //! [`CHUNK_FRAMES`] frames.
 
-use crate::backend::{cpu::CpuBackend, Backend, BatchOutput, DeviceChoice, StageTimes, WindowSpec};
+use crate::backend::{cpu::CpuBackend, Backend, BatchOutput, DeviceChoice, Job, StageTimes, StreamId, WindowSpec};
 use crate::correlation::WindowScheduler;
 use crate::input::{Block, ChannelMap};
 use crate::noise::policy::{InitialNoise, KSource, NoisePolicy, NoiseUpdate};
@@ -30,111 +30,19 @@ use crate::plan::Plan;
 use crate::real::Real;
 use crate::result::{LocalizationResult, Source};
 use crate::stft::{FrameRing, Stft, StftStream};
-use crate::tracking::{IntervalExtender, IntervalExtenderConfig, SourceTracker, TrackerConfig};
+use crate::tracking::{IntervalExtender, IntervalExtenderConfig, SourceTracker};
 use crate::{Error, Result};
 use std::collections::VecDeque;
 use std::sync::Arc;
 
+mod group;
+mod types;
+
+pub use group::StreamGroup;
+pub use types::{Localization, Output, SpectrumTable, StreamOptions, TrackingSpec};
+
 /// Frames of input processed per step inside one [`Engine::push`].
 pub const CHUNK_FRAMES: usize = 4096;
-
-/// The broadband spectrum of every result, dB, `[result][dir]`.
-#[derive(Debug, Clone, PartialEq)]
-pub struct SpectrumTable {
-    /// Result frame c of each row.
-    pub frames: Vec<usize>,
-    /// Time of each row in seconds.
-    pub times_s: Vec<f64>,
-    /// Number of directions (columns).
-    pub num_dirs: usize,
-    /// 10·log10(P̄ + 1), `[result][dir]`.
-    pub db: Vec<f32>,
-    /// Number of used bins.
-    pub num_bins: usize,
-    /// g_k (eigenvalue weight, or 1) per result and used bin, `[result][bin]`.
-    pub bin_weight: Vec<f32>,
-}
-
-impl SpectrumTable {
-    fn empty(num_dirs: usize, num_bins: usize) -> Self {
-        SpectrumTable {
-            frames: Vec::new(),
-            times_s: Vec::new(),
-            num_dirs,
-            db: Vec::new(),
-            num_bins,
-            bin_weight: Vec::new(),
-        }
-    }
-
-    /// Append another table's rows.
-    pub fn append(&mut self, other: SpectrumTable) {
-        self.frames.extend(other.frames);
-        self.times_s.extend(other.times_s);
-        self.db.extend(other.db);
-        self.bin_weight.extend(other.bin_weight);
-    }
-}
-
-/// What `push` and `flush` append to: results in time order, spectrum rows (one per
-/// window, in window order, when the engine was asked for spectra) and notes for the user
-/// (a noise range cut at the end of the input, an unused segment).
-#[derive(Debug, Clone, Default)]
-pub struct Output {
-    /// Results, in increasing frame order.
-    pub results: Vec<LocalizationResult>,
-    /// Spectrum rows, when asked for.
-    pub spectrum: Option<SpectrumTable>,
-    /// Things the user should know.
-    pub notes: Vec<String>,
-}
-
-impl Output {
-    /// Take everything out, leaving it empty.
-    pub fn take(&mut self) -> Output {
-        std::mem::take(self)
-    }
-}
-
-/// Everything one batch localization produces.
-#[derive(Debug, Clone)]
-pub struct Localization {
-    /// One result per correlation window, in time order.
-    pub results: Vec<LocalizationResult>,
-    /// The spectrum, when asked for.
-    pub spectrum: Option<SpectrumTable>,
-    /// Notes for the user.
-    pub notes: Vec<String>,
-    /// The device that computed it.
-    pub device: String,
-    /// Time per stage in ms.
-    pub stage_times: StageTimes,
-}
-
-/// Tracking options: HARK's SourceTracker and SourceIntervalExtender.
-#[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize, serde::Deserialize)]
-#[serde(default, deny_unknown_fields)]
-pub struct TrackingSpec {
-    /// SourceTracker parameters.
-    pub tracker: TrackerConfig,
-    /// SourceIntervalExtender PREROLL_LENGTH in frames (0 = off; delays results by it).
-    pub preroll: usize,
-}
-
-/// How a stream is run (beside the plan): noise policy, tracking, channel map, spectra.
-#[derive(Debug, Clone, PartialEq)]
-pub struct StreamOptions {
-    /// The K the stream starts with.
-    pub initial_noise: InitialNoise,
-    /// Online K updates.
-    pub noise_update: NoiseUpdate,
-    /// Tracking (None = off).
-    pub tracking: Option<TrackingSpec>,
-    /// Input channels → microphones.
-    pub channels: ChannelMap,
-    /// Produce spectrum rows.
-    pub want_spectrum: bool,
-}
 
 /// Build the backend for a device choice. `Auto` uses CUDA when a usable GPU and the
 /// libraries are present, else the CPU.
@@ -166,7 +74,8 @@ pub fn make_backend<T: Real>(plan: Arc<Plan<T>>, device: DeviceChoice) -> Result
 /// The stream engine for one array (see the [module docs](self)).
 pub struct Engine<T: Real> {
     plan: Arc<Plan<T>>,
-    backend: Box<dyn Backend<T>>,
+    /// None: a stream of a [`StreamGroup`], which runs its windows.
+    backend: Option<Box<dyn Backend<T>>>,
     stft: StftStream<T>,
     ring: FrameRing<T>,
     scheduler: WindowScheduler,
@@ -189,6 +98,11 @@ pub struct Engine<T: Real> {
     /// Per microphone, the first sample and whether any later one differed: a constant
     /// (silent or DC-only) input is reported at flush.
     constant: Vec<(Option<f32>, bool)>,
+    /// This stream's frames to the backend (fresh after a reset or a gap).
+    stream: StreamId,
+    /// Start of the last window run: its frames stay while windows overlap by more than
+    /// half, so a backend's running correlation can subtract the frames that leave.
+    last_start: Option<usize>,
 }
 
 impl<T: Real> Engine<T> {
@@ -233,8 +147,10 @@ impl<T: Real> Engine<T> {
             batch: BatchOutput::default(),
             origin: 0,
             constant: Vec::new(),
+            stream: StreamId::fresh(),
+            last_start: None,
             plan,
-            backend,
+            backend: Some(backend),
         })
     }
 
@@ -266,12 +182,14 @@ impl<T: Real> Engine<T> {
 
     /// The backend's device description.
     pub fn device_name(&self) -> String {
-        self.backend.device_name()
+        self.backend
+            .as_ref()
+            .map_or_else(|| "a stream group's device".into(), |b| b.device_name())
     }
 
     /// Stage times since the start (or the last reset).
     pub fn stage_times(&self) -> StageTimes {
-        self.backend.stage_times()
+        self.backend.as_ref().map(|b| b.stage_times()).unwrap_or_default()
     }
 
     /// Frames between a result's frame c and the last frame of its window: W − 1 for
@@ -323,6 +241,8 @@ impl<T: Real> Engine<T> {
         self.ring.reset();
         self.scheduler.reset();
         self.pending.clear();
+        self.stream = StreamId::fresh();
+        self.last_start = None;
         out.notes.push(format!(
             "input gap: {:.3} s of audio lost at {at:.3} s (the input came faster than it was localized); \
              windows across it skipped{}",
@@ -358,8 +278,13 @@ impl<T: Real> Engine<T> {
     }
 
     fn install(&mut self, noise: &NoiseMatrices) -> Result<()> {
+        let Some(backend) = self.backend.as_mut() else {
+            return Err(Error::Config(
+                "the streams of a group share its noise matrix K: it cannot change for one of them".into(),
+            ));
+        };
         let plan = Arc::new(self.plan.with_noise(noise)?);
-        self.backend.set_plan(plan.clone())?;
+        backend.set_plan(plan.clone())?;
         self.plan = plan;
         Ok(())
     }
@@ -446,10 +371,23 @@ impl<T: Real> Engine<T> {
         if self.finished {
             return Ok(());
         }
+        self.end_input(out)?;
+        self.run_pending(out)?;
+        self.finish(out)
+    }
+
+    /// First half of [`flush`](Self::flush): no more input; windows held for a noise
+    /// range that ran past the end become runnable.
+    fn end_input(&mut self, out: &mut Output) -> Result<()> {
         self.finished = true;
         let notes = self.noise.finish(self.stft.samples_received(), self.ring.end())?;
         out.notes.extend(notes);
-        self.run_pending(out)?;
+        Ok(())
+    }
+
+    /// Second half of [`flush`](Self::flush), once every window ran: the tracker's delayed
+    /// results, warnings about the input, an error when no window ran at all.
+    fn finish(&mut self, out: &mut Output) -> Result<()> {
         if let Some(e) = &mut self.extender {
             out.results.extend(e.finish());
         }
@@ -500,7 +438,11 @@ impl<T: Real> Engine<T> {
         self.finished = false;
         self.origin = 0;
         self.constant.clear();
-        self.backend.reset_stage_times();
+        self.stream = StreamId::fresh();
+        self.last_start = None;
+        if let Some(b) = self.backend.as_mut() {
+            b.reset_stage_times();
+        }
         if self.noise.initial().is_some() && self.current != Some(KSource::Initial) {
             let (k, _) = self.noise.matrices(&KSource::Initial, &self.ring, 0)?;
             self.install(&k)?;
@@ -522,16 +464,28 @@ impl<T: Real> Engine<T> {
         self.scheduler.due(after, &mut due);
         self.pending.extend(due);
         self.run_pending(out)?;
-        let next = self.pending.front().map_or(self.scheduler.next_start(), |w| {
+        self.release_frames();
+        Ok(())
+    }
+
+    /// Drop the frames no window still needs (those of windows waiting to run stay, and,
+    /// while windows overlap by more than half, those of the last window run).
+    fn release_frames(&mut self) {
+        let mut next = self.pending.front().map_or(self.scheduler.next_start(), |w| {
             w.start.min(self.scheduler.next_start())
         });
+        let c = &self.plan.config;
+        if let Some(s) = self.last_start.filter(|_| 2 * c.period < c.window) {
+            next = next.min(s);
+        }
         self.ring.drop_before(self.noise.keep_frames_from(next));
-        Ok(())
     }
 
     /// Run pending windows in batches that share a K, switching K between them.
     fn run_pending(&mut self, out: &mut Output) -> Result<()> {
-        let batch = self.backend.max_windows_per_batch().max(1);
+        let Some(batch) = self.backend.as_ref().map(|b| b.max_windows_per_batch().max(1)) else {
+            return Ok(()); // a group's stream: the group runs them
+        };
         while let Some(&w) = self.pending.front() {
             let Some(src) = self.noise.choose(&w) else {
                 return Ok(()); // K not known yet: hold
@@ -559,23 +513,51 @@ impl<T: Real> Engine<T> {
     }
 
     fn run_windows(&mut self, windows: &[WindowSpec], out: &mut Output) -> Result<()> {
-        let first = self.ring.first();
-        let local: Vec<WindowSpec> = windows
-            .iter()
-            .map(|w| WindowSpec {
-                start: w.start - first,
-                ..*w
-            })
-            .collect();
+        let want = self.wants_spectrum();
+        let mut batch = std::mem::take(&mut self.batch);
+        let job = Job {
+            stream: self.stream,
+            first: self.ring.first(),
+            spectra: self.ring.spectra(),
+            windows,
+        };
+        let r = match self.backend.as_mut() {
+            Some(b) => b.process(&[job], want, &mut batch),
+            None => Err(Error::Config("a group's stream runs its windows through the group".into())),
+        };
+        let r = r.and_then(|()| self.deliver(windows, &batch, 0, out));
+        self.batch = batch;
+        r
+    }
+
+    /// The job that hands `windows` (of this stream, absolute frames) to a backend.
+    fn job<'a>(&'a self, windows: &'a [WindowSpec]) -> Job<'a, T> {
+        Job {
+            stream: self.stream,
+            first: self.ring.first(),
+            spectra: self.ring.spectra(),
+            windows,
+        }
+    }
+
+    /// Whether windows run for this stream ask for the spectrum.
+    fn wants_spectrum(&self) -> bool {
+        self.options.want_spectrum || self.plan.config.refine
+    }
+
+    /// Turn rows `at ..` of `batch` (the output for `windows`) into results: peaks,
+    /// refinement, tracking, spectrum rows.
+    fn deliver(&mut self, windows: &[WindowSpec], batch: &BatchOutput, at: usize, out: &mut Output) -> Result<()> {
+        self.windows_run += windows.len();
+        self.last_start = windows.last().map(|w| w.start);
         let want = self.options.want_spectrum;
         let refine = self.plan.config.refine;
-        self.backend
-            .process(self.ring.spectra(), &local, want || refine, &mut self.batch)?;
-        self.windows_run += windows.len();
-        let nd = self.plan.num_dirs;
-        for (wi, (w, peaks)) in windows.iter().zip(&self.batch.peaks).enumerate() {
+        let (nd, nb) = (self.plan.num_dirs, self.plan.num_bins());
+        for (i, w) in windows.iter().enumerate() {
+            let wi = at + i;
+            let peaks = &batch.peaks[wi];
             let mut r = LocalizationResult {
-                num_active: self.batch.source_count.get(wi).map(|&c| c as usize),
+                num_active: batch.source_count.get(wi).map(|&c| c as usize),
                 frame: self.report_frame(w.frame),
                 time_s: self.frame_time(w.frame),
                 sources: peaks
@@ -583,7 +565,7 @@ impl<T: Real> Engine<T> {
                     .map(|p| {
                         let mut s = source(&self.plan.grid, p.dir, p.power_db);
                         if refine {
-                            let db = &self.batch.spectrum_db[wi * nd..(wi + 1) * nd];
+                            let db = &batch.spectrum_db[wi * nd..(wi + 1) * nd];
                             refine_source(&mut s, &self.plan.grid, &self.plan.peak_table, db);
                         }
                         s
@@ -599,10 +581,11 @@ impl<T: Real> Engine<T> {
             }
         }
         if want {
-            let (nd, nb) = (self.plan.num_dirs, self.plan.num_bins());
+            let n = windows.len();
             let t = out.spectrum.get_or_insert_with(|| SpectrumTable::empty(nd, nb));
-            t.db.extend_from_slice(&self.batch.spectrum_db);
-            t.bin_weight.extend_from_slice(&self.batch.bin_weight);
+            t.db.extend_from_slice(&batch.spectrum_db[at * nd..(at + n) * nd]);
+            t.bin_weight
+                .extend_from_slice(&batch.bin_weight[at * nb..(at + n) * nb]);
             for w in windows {
                 t.frames.push(self.report_frame(w.frame));
                 t.times_s.push(self.frame_time(w.frame));
@@ -623,8 +606,8 @@ impl<T: Real> Engine<T> {
             results: out.results,
             spectrum: out.spectrum,
             notes: out.notes,
-            device: self.backend.device_name(),
-            stage_times: self.backend.stage_times(),
+            device: self.device_name(),
+            stage_times: self.stage_times(),
         })
     }
 }

@@ -13,7 +13,9 @@
 //!
 //! Scaling (HARK quirk, keeps single precision well conditioned): R ← R / (max_ij |Re R_ij| + 1).
 
-use crate::backend::{Spectra, WindowSpec};
+pub mod running;
+
+use crate::backend::{Job, Spectra, WindowSpec};
 use crate::config::WindowType;
 use crate::real::{Real, C};
 
@@ -119,45 +121,13 @@ impl WindowScheduler {
 }
 
 /// R = (1/W) Σ x xᴴ over frames `w.start .. w.start + w.len` of used bin `bin`, row-major
-/// M × M into `out`, then HARK's scaling. Returns the scale divisor max|Re R_ij| + 1.
+/// M × M into `out`, then HARK's scaling. Returns the scale divisor max|Re R_ij| + 1. One
+/// window on its own: a direct [`running`] step, summed in f64.
 pub fn correlate<T: Real>(spectra: &Spectra<T>, w: &WindowSpec, bin: usize, out: &mut [C<T>]) -> T {
     let m = spectra.num_mics;
-    let nb = spectra.num_bins;
-    debug_assert_eq!(out.len(), m * m);
-    // X: the window's W × M block of this bin (row stride = one frame).
-    let first = (w.start * nb + bin) * m;
-    let last = ((w.start + w.len - 1) * nb + bin) * m + m;
-    let x = faer::MatRef::from_row_major_slice_with_stride(&spectra.data[first..last], w.len, m, nb * m);
-    // Rᵀ = Xᴴ X, i.e. R_ij = Σ_f x_i conj(x_j); written column-major into `out`, which is
-    // then R in row-major order.
-    let mut r = faer::MatMut::from_column_major_slice_mut(out, m, m);
-    let inv_w = T::one() / T::of_f64(w.len as f64);
-    faer::linalg::matmul::matmul(
-        r.as_mut(),
-        faer::Accum::Replace,
-        x.adjoint(),
-        x,
-        C::new(inv_w, T::zero()),
-        faer::Par::Seq,
-    );
-    let mut mx = T::zero();
-    for v in out.iter() {
-        if v.re.abs() > mx {
-            mx = v.re.abs();
-        }
-    }
-    let s = mx + T::one();
-    let inv_s = T::one() / s;
-    for i in 0..m {
-        for j in i..m {
-            // Average the two triangles: exactly Hermitian.
-            let v = (out[i * m + j] + out[j * m + i].conj()) * C::new(inv_s * T::of_f64(0.5), T::zero());
-            out[i * m + j] = v;
-            out[j * m + i] = v.conj();
-        }
-        out[i * m + i].im = T::zero();
-    }
-    s
+    let (mut re, mut im) = (vec![0.0; m * m], vec![0.0; m * m]);
+    let job = Job::once(spectra, std::slice::from_ref(w));
+    running::run_bin(&mut re, &mut im, running::Step::Direct, &job, w, bin, false, &mut Vec::new(), out)
 }
 
 #[cfg(test)]

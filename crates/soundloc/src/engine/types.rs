@@ -1,0 +1,106 @@
+//! What the stream engine takes and gives: stream options, outputs, spectrum rows.
+
+use crate::backend::StageTimes;
+use crate::input::ChannelMap;
+use crate::noise::policy::{InitialNoise, NoiseUpdate};
+use crate::result::LocalizationResult;
+use crate::tracking::TrackerConfig;
+
+/// The broadband spectrum of every result, dB, `[result][dir]`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SpectrumTable {
+    /// Result frame c of each row.
+    pub frames: Vec<usize>,
+    /// Time of each row in seconds.
+    pub times_s: Vec<f64>,
+    /// Number of directions (columns).
+    pub num_dirs: usize,
+    /// 10·log10(P̄ + 1), `[result][dir]`.
+    pub db: Vec<f32>,
+    /// Number of used bins.
+    pub num_bins: usize,
+    /// g_k (eigenvalue weight, or 1) per result and used bin, `[result][bin]`.
+    pub bin_weight: Vec<f32>,
+}
+
+impl SpectrumTable {
+    pub(super) fn empty(num_dirs: usize, num_bins: usize) -> Self {
+        SpectrumTable {
+            frames: Vec::new(),
+            times_s: Vec::new(),
+            num_dirs,
+            db: Vec::new(),
+            num_bins,
+            bin_weight: Vec::new(),
+        }
+    }
+
+    /// Append another table's rows.
+    pub fn append(&mut self, other: SpectrumTable) {
+        self.frames.extend(other.frames);
+        self.times_s.extend(other.times_s);
+        self.db.extend(other.db);
+        self.bin_weight.extend(other.bin_weight);
+    }
+}
+
+/// What `push` and `flush` append to: results in time order, spectrum rows (one per
+/// window, in window order, when the engine was asked for spectra) and notes for the user
+/// (a noise range cut at the end of the input, an unused segment).
+#[derive(Debug, Clone, Default)]
+pub struct Output {
+    /// Results, in increasing frame order.
+    pub results: Vec<LocalizationResult>,
+    /// Spectrum rows, when asked for.
+    pub spectrum: Option<SpectrumTable>,
+    /// Things the user should know.
+    pub notes: Vec<String>,
+}
+
+impl Output {
+    /// Take everything out, leaving it empty.
+    pub fn take(&mut self) -> Output {
+        std::mem::take(self)
+    }
+}
+
+/// Everything one batch localization produces.
+#[derive(Debug, Clone)]
+pub struct Localization {
+    /// One result per correlation window, in time order.
+    pub results: Vec<LocalizationResult>,
+    /// The spectrum, when asked for.
+    pub spectrum: Option<SpectrumTable>,
+    /// Notes for the user.
+    pub notes: Vec<String>,
+    /// The device that computed it.
+    pub device: String,
+    /// Time per stage in ms.
+    pub stage_times: StageTimes,
+}
+
+/// Tracking options: HARK's SourceTracker and SourceIntervalExtender.
+#[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize, serde::Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct TrackingSpec {
+    /// SourceTracker parameters.
+    pub tracker: TrackerConfig,
+    /// SourceIntervalExtender PREROLL_LENGTH in frames (0 = off; delays results by it).
+    pub preroll: usize,
+}
+
+/// How a stream is run (beside the plan): noise policy, tracking, channel map, spectra.
+#[derive(Debug, Clone, PartialEq)]
+pub struct StreamOptions {
+    /// The K the stream starts with.
+    pub initial_noise: InitialNoise,
+    /// Online K updates.
+    pub noise_update: NoiseUpdate,
+    /// Tracking (None = off).
+    pub tracking: Option<TrackingSpec>,
+    /// Input channels → microphones.
+    pub channels: ChannelMap,
+    /// Produce spectrum rows.
+    pub want_spectrum: bool,
+}
+
