@@ -5,7 +5,7 @@
 #   cargo build --release && cargo test --release -p soundloc --test gpu_parity --no-run
 #   scripts/gpu_run.sh --stage        # copies the binaries and the peer into .devcarry/
 # On the device (repo root, $OUT set by the device tool):
-#   scripts/gpu_run.sh [parity] [bench] [stream] [peer] [bigbatch] [f64] [e2e] [multi]   (default: parity bench peer)
+#   scripts/gpu_run.sh [parity] [bench] [stream] [streams] [peer] [bigbatch] [f64] [e2e] [multi]   (default: parity bench peer)
 set -uo pipefail
 root="$(cd "$(dirname "$0")/.." && pwd)"
 C="$root/.devcarry"
@@ -51,6 +51,14 @@ for s in $steps; do
     stream)
       # The stream engine under 10 ms pushes, PERIOD 1: real-time factor and latency.
       "$C/soundloc" bench --stream --device cuda --array ring8 --array seed --algorithm gsvd --algorithm gevd --seconds ${STREAM_SECONDS:-5} 2>&1 | tee "$OUT/stream.txt" ;;
+    streams)
+      # Many streams on one GPU (issue 8): N seed-config PERIOD-1 streams in one group,
+      # 10 ms ticks; real-time factor below 1 = all N kept in real time.
+      for a in seed ring8; do
+        ns="${STREAMS_SEED:-1 50 100 150 200 250}"; [ $a = ring8 ] && ns="${STREAMS_RING:-1 200 1000}"
+        args=""; for n in $ns; do args="$args --streams $n"; done
+        "$C/soundloc" bench --stream --device cuda --array $a --algorithm gsvd --seconds ${STREAM_SECONDS:-3} $args
+      done 2>&1 | tee "$OUT/streams.txt" ;;
     e2e)
       # End to end (issue 10): a 60-mic, 2522-direction TF zip and 60 s of 60-channel
       # 16-bit audio made here, GSVD PERIOD 1 on the GPU: cold (no cache) and warm.

@@ -54,9 +54,9 @@ pub fn phase<T: Real>(z: C<T>) -> C<T> {
 pub fn correlate_phat<T: Real>(spectra: &Spectra<T>, w: &WindowSpec, bin: usize, out: &mut [C<T>]) {
     use crate::correlation::running::{run_bin, Step};
     let m = spectra.num_mics;
-    let (mut re, mut im) = (vec![0.0; m * m], vec![0.0; m * m]);
+    let mut sum = vec![C::new(0.0, 0.0); m * m];
     let job = crate::backend::Job::once(spectra, std::slice::from_ref(w));
-    run_bin(&mut re, &mut im, Step::Direct, &job, w, bin, true, &mut Vec::new(), out);
+    run_bin(&mut sum, Step::Direct, &job, w, bin, true, &mut Vec::new(), out);
 }
 
 /// Adds w_k·P_k(d) = w_k·Re(ãᴴ R̃ ã)/M² for every direction d of used bin `b` to `acc`.

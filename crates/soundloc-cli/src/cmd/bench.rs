@@ -47,6 +47,10 @@ pub struct Args {
     /// With --stream: seconds of audio per run (after one second of warm-up).
     #[arg(long, default_value_t = 5.0)]
     pub seconds: f64,
+    /// With --stream: concurrent streams sharing one device (a stream group: every 10 ms
+    /// tick pushes a block into each, their windows run in one launch). Repeatable.
+    #[arg(long = "streams", default_values_t = [1usize])]
+    pub streams: Vec<usize>,
     /// With --stream: which arrays (repeatable; default: both).
     #[arg(long = "array", value_enum)]
     pub arrays: Vec<ArrayArg>,
@@ -105,7 +109,10 @@ fn run_stream(a: &Args, algs: &[AlgorithmArg]) -> anyhow::Result<ExitCode> {
         a.arrays.clone()
     };
     for arr in arrays {
-        for &alg in algs {
+        for (&alg, &streams) in algs
+            .iter()
+            .flat_map(|alg| a.streams.iter().map(move |s| (alg, s)))
+        {
             let cfg = StreamBenchConfig {
                 array: match arr {
                     ArrayArg::Ring8 => StreamArray::Ring8,
@@ -120,13 +127,14 @@ fn run_stream(a: &Args, algs: &[AlgorithmArg]) -> anyhow::Result<ExitCode> {
                     PrecisionArg::F32 => soundloc::Precision::F32,
                     PrecisionArg::F64 => soundloc::Precision::F64,
                 },
+                streams: streams.max(1),
             };
             let r = run(&cfg)?;
             if a.json {
                 println!("{}", serde_json::to_string(&r)?);
             } else {
                 println!(
-                    "stream {:?} {} on {}: M={} D={} PERIOD {} ({:.0} results/s of audio), 10 ms pushes, {:.1} s",
+                    "stream {:?} {} on {}: M={} D={} PERIOD {} ({:.0} results/s of audio), 10 ms pushes, {:.1} s, {} stream(s)",
                     cfg.array,
                     cfg.algorithm.name(),
                     r.device,
@@ -134,7 +142,8 @@ fn run_stream(a: &Args, algs: &[AlgorithmArg]) -> anyhow::Result<ExitCode> {
                     r.num_dirs,
                     cfg.period,
                     100.0 / cfg.period as f64,
-                    cfg.seconds
+                    cfg.seconds,
+                    cfg.streams
                 );
                 println!(
                     "  real-time factor {:.4} ({:.1}x real time); latency last sample -> result: median {:.2} ms, p99 {:.2} ms, max {:.2} ms",
@@ -151,7 +160,7 @@ fn run_stream(a: &Args, algs: &[AlgorithmArg]) -> anyhow::Result<ExitCode> {
                     s.decomposition_ms,
                     s.spectrum_ms,
                     s.peaks_ms,
-                    r.rtf * 1e3 * cfg.period as f64 / 100.0
+                    r.rtf * 1e3 * cfg.period as f64 / 100.0 / cfg.streams as f64
                         - (s.correlation_ms + s.decomposition_ms + s.spectrum_ms + s.peaks_ms)
                 );
             }

@@ -66,13 +66,13 @@ impl<T: Real> CpuBackend<T> {
         };
         let steps: Vec<Step> = job.windows.iter().map(|w| rc.step(w, job.first)).collect();
         self.r_bins.resize(nb * nw * mm, C::new(T::zero(), T::zero()));
-        let bins: Vec<(&mut [f64], &mut [f64])> = rc.bins_mut().collect();
+        let bins: Vec<&mut [C<f64>]> = rc.bins_mut().collect();
         bins.into_par_iter()
             .zip(self.r_bins.par_chunks_mut(nw * mm))
             .enumerate()
-            .for_each_init(Vec::new, |y, (b, ((re, im), rb))| {
+            .for_each_init(Vec::new, |y, (b, (sum, rb))| {
                 for (wi, (w, st)) in job.windows.iter().zip(&steps).enumerate() {
-                    run_bin(re, im, *st, job, w, b, phat, y, &mut rb[wi * mm..(wi + 1) * mm]);
+                    run_bin(sum, *st, job, w, b, phat, y, &mut rb[wi * mm..(wi + 1) * mm]);
                 }
             });
         for b in 0..nb {

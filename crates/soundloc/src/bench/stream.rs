@@ -7,6 +7,12 @@
 //! audio, and the latency from the arrival of a window's last sample (the block that holds
 //! it is pushed) to its result (median, p99, max): on one engine a result is ready when the
 //! push that completes its window returns.
+//!
+//! With `streams` > 1, that many streams (independent random audio) share one
+//! [`StreamGroup`](crate::StreamGroup): every 10 ms tick pushes a block into each and one
+//! `run` launches all their due windows together; the real-time factor is the compute time
+//! of the ticks / the audio time of one stream (below 1: the device keeps every stream in
+//! real time), the latency that of a tick (its last push to the end of its `run`).
 
 use super::{gauss, random_noise, random_transfer_functions};
 use crate::array::{freefield::free_field, Geometry, Grid};
@@ -45,6 +51,8 @@ pub struct StreamBenchConfig {
     pub device: DeviceChoice,
     /// Precision.
     pub precision: Precision,
+    /// Concurrent streams in one group (1: a single `Localizer`).
+    pub streams: usize,
 }
 
 /// Figures.
@@ -72,9 +80,9 @@ pub struct StreamReport {
     pub stages_per_result: crate::backend::StageTimes,
 }
 
-/// Run it.
-pub fn run(cfg: &StreamBenchConfig) -> Result<StreamReport> {
-    let mut rng = rand::rngs::StdRng::seed_from_u64(1);
+type Setup = (LocalizeConfig, crate::array::TransferFunctions, crate::noise::NoiseMatrices);
+
+fn setup(cfg: &StreamBenchConfig, rng: &mut rand::rngs::StdRng) -> Result<Setup> {
     let config = LocalizeConfig {
         algorithm: cfg.algorithm,
         window_type: WindowType::Past,
@@ -92,13 +100,26 @@ pub fn run(cfg: &StreamBenchConfig) -> Result<StreamReport> {
                 config.bin_range(),
                 343.0,
             )?;
-            (tf, random_noise(&mut rng, 8, config.bin_range()))
+            (tf, random_noise(rng, 8, config.bin_range()))
         }
         StreamArray::Seed => (
-            random_transfer_functions(&mut rng, &config, 60, 2522),
-            random_noise(&mut rng, 60, config.bin_range()),
+            random_transfer_functions(rng, &config, 60, 2522),
+            random_noise(rng, 60, config.bin_range()),
         ),
     };
+    Ok((config, tf, k))
+}
+
+/// Run it.
+pub fn run(cfg: &StreamBenchConfig) -> Result<StreamReport> {
+    if cfg.streams > 1 {
+        return match cfg.precision {
+            Precision::F32 => run_group::<f32>(cfg),
+            Precision::F64 => run_group::<f64>(cfg),
+        };
+    }
+    let mut rng = rand::rngs::StdRng::seed_from_u64(1);
+    let (config, tf, k) = setup(cfg, &mut rng)?;
     let m = tf.num_mics;
     let d = tf.num_dirs();
     let mut spec = LocalizerSpec::from_tf("(benchmark)");
@@ -178,5 +199,88 @@ pub fn run(cfg: &StreamBenchConfig) -> Result<StreamReport> {
         latency_ms_p99: q(0.99),
         latency_ms_max: lat.last().copied().unwrap_or(f64::NAN),
         stages_per_result: stages,
+    })
+}
+
+/// `streams` streams in one group, pushed tick by tick.
+fn run_group<T: crate::real::Real>(cfg: &StreamBenchConfig) -> Result<StreamReport> {
+    use crate::engine::StreamOptions;
+    use crate::noise::policy::{InitialNoise, NoiseUpdate};
+    let mut rng = rand::rngs::StdRng::seed_from_u64(1);
+    let (config, tf, k) = setup(cfg, &mut rng)?;
+    let k = cfg.algorithm.uses_noise().then_some(k);
+    let plan = std::sync::Arc::new(crate::plan::Plan::<T>::new(&config, &tf, k.as_ref())?);
+    let mut group = crate::StreamGroup::new(plan, cfg.device)?;
+    let m = tf.num_mics;
+    let n = cfg.streams;
+    for _ in 0..n {
+        group.add(StreamOptions {
+            initial_noise: InitialNoise::Given(k.clone()),
+            noise_update: NoiseUpdate::Fixed,
+            tracking: None,
+            channels: crate::input::ChannelMap::identity(m),
+            want_spectrum: false,
+        })?;
+    }
+    let fs = config.sample_rate_hz as f64;
+    let block = cfg.block.max(1);
+    // Pre-generated audio, one buffer per stream, reused tick after tick.
+    let bufs: Vec<Vec<f32>> = (0..n)
+        .map(|_| (0..block * m).map(|_| (1000.0 * gauss(&mut rng)) as f32).collect())
+        .collect();
+    let mut outs = vec![Output::default(); n];
+    let tick = |group: &mut crate::StreamGroup<T>, outs: &mut [Output]| -> Result<()> {
+        for (i, b) in bufs.iter().enumerate() {
+            group.push(
+                i,
+                Block::Interleaved {
+                    data: b,
+                    channels: m,
+                },
+                &mut outs[i],
+            )?;
+        }
+        group.run(outs)
+    };
+    for _ in 0..(fs as usize).div_ceil(block) {
+        tick(&mut group, &mut outs)?;
+    }
+    for o in outs.iter_mut() {
+        o.results.clear();
+    }
+    let before = group.stage_times();
+    let ticks = (cfg.seconds * fs / block as f64).ceil() as usize;
+    let mut lat = Vec::with_capacity(ticks);
+    for _ in 0..ticks {
+        let t = Instant::now();
+        tick(&mut group, &mut outs)?;
+        lat.push(t.elapsed().as_secs_f64() * 1e3);
+    }
+    let compute: f64 = lat.iter().sum::<f64>() / 1e3;
+    let results: usize = outs.iter().map(|o| o.results.len()).sum();
+    lat.sort_by(f64::total_cmp);
+    let st = group.stage_times();
+    let nr = results.max(1) as f64;
+    let q = |p: f64| {
+        lat.get(((lat.len() as f64 - 1.0) * p).round() as usize)
+            .copied()
+            .unwrap_or(f64::NAN)
+    };
+    Ok(StreamReport {
+        config: cfg.clone(),
+        device: group.device_name(),
+        num_mics: m,
+        num_dirs: tf.num_dirs(),
+        results,
+        rtf: compute / (ticks * block) as f64 * fs,
+        latency_ms_median: q(0.5),
+        latency_ms_p99: q(0.99),
+        latency_ms_max: lat.last().copied().unwrap_or(f64::NAN),
+        stages_per_result: crate::backend::StageTimes {
+            correlation_ms: (st.correlation_ms - before.correlation_ms) / nr,
+            decomposition_ms: (st.decomposition_ms - before.decomposition_ms) / nr,
+            spectrum_ms: (st.spectrum_ms - before.spectrum_ms) / nr,
+            peaks_ms: (st.peaks_ms - before.peaks_ms) / nr,
+        },
     })
 }

@@ -125,9 +125,9 @@ impl WindowScheduler {
 /// window on its own: a direct [`running`] step, summed in f64.
 pub fn correlate<T: Real>(spectra: &Spectra<T>, w: &WindowSpec, bin: usize, out: &mut [C<T>]) -> T {
     let m = spectra.num_mics;
-    let (mut re, mut im) = (vec![0.0; m * m], vec![0.0; m * m]);
+    let mut sum = vec![C::new(0.0, 0.0); m * m];
     let job = Job::once(spectra, std::slice::from_ref(w));
-    running::run_bin(&mut re, &mut im, running::Step::Direct, &job, w, bin, false, &mut Vec::new(), out)
+    running::run_bin(&mut sum, running::Step::Direct, &job, w, bin, false, &mut Vec::new(), out)
 }
 
 #[cfg(test)]

@@ -1,9 +1,9 @@
 //! Stage 2, incrementally: the running correlation of one stream.
 //!
 //! Per used bin k the sum S_k = Σ_{f=s}^{s+W−1} y_{k,f} y_{k,f}ᴴ of window [s, s + W) is
-//! kept in f64 (upper triangle, real and imaginary parts apart so the rank-1 updates
-//! vectorise) and carried from one window to the next by adding the frames that enter and
-//! subtracting those that leave: 2·Δ outer products for a step of Δ frames instead of W.
+//! kept in f64 and carried from one window to the next by adding the frames that enter and
+//! subtracting those that leave: S += Y_inᵀ conj(Y_in) − Y_outᵀ conj(Y_out), 2·Δ outer
+//! products for a step of Δ frames instead of W (faer's SIMD products).
 //! y = x for MUSIC, y = x/|x| (phase transform) for SRP-PHAT. Then
 //! R_k = S_k / W and, for MUSIC, HARK's scaling R ← R / (max_ij |Re R_ij| + 1), rounded
 //! to the working precision once (the f32 path no longer sums in f32).
@@ -44,10 +44,8 @@ pub enum Step {
 pub struct RunningCorrelation {
     m: usize,
     nb: usize,
-    /// Re S, `[bin][i][j]` (upper triangle used).
-    re: Vec<f64>,
-    /// Im S, same layout.
-    im: Vec<f64>,
+    /// S, `[bin][M×M]` column-major (S_ij at `j * M + i`).
+    sums: Vec<C<f64>>,
     /// The window the sums hold: (start, len).
     at: Option<(usize, usize)>,
     /// Frames slid since the last direct sum.
@@ -60,8 +58,7 @@ impl RunningCorrelation {
         RunningCorrelation {
             m,
             nb,
-            re: vec![0.0; nb * m * m],
-            im: vec![0.0; nb * m * m],
+            sums: vec![C::new(0.0, 0.0); nb * m * m],
             at: None,
             since_direct: 0,
         }
@@ -69,7 +66,7 @@ impl RunningCorrelation {
 
     /// Bytes held.
     pub fn bytes(&self) -> usize {
-        (self.re.len() + self.im.len()) * 8
+        self.sums.len() * 16
     }
 
     /// Forget the window held (the next step is direct).
@@ -79,7 +76,7 @@ impl RunningCorrelation {
     }
 
     /// The step for window `w` when the caller's frames start at stream frame `first`,
-    /// and advance the bookkeeping to `w` (the sums themselves move in [`Self::run_bin`]).
+    /// and advance the bookkeeping to `w` (the sums themselves move in [`run_bin`]).
     pub fn step(&mut self, w: &WindowSpec, first: usize) -> Step {
         let step = match self.at {
             Some((ps, pl))
@@ -104,10 +101,9 @@ impl RunningCorrelation {
         step
     }
 
-    /// Split the sums by bin, for running the bins in parallel: `(re, im)` of bin k.
-    pub fn bins_mut(&mut self) -> impl Iterator<Item = (&mut [f64], &mut [f64])> {
-        let mm = self.m * self.m;
-        self.re.chunks_mut(mm).zip(self.im.chunks_mut(mm))
+    /// The sums split by bin (M × M each), for running the bins in parallel.
+    pub fn bins_mut(&mut self) -> std::slice::ChunksMut<'_, C<f64>> {
+        self.sums.chunks_mut(self.m * self.m)
     }
 
     /// Number of used bins.
@@ -116,86 +112,81 @@ impl RunningCorrelation {
     }
 }
 
-/// Carry bin `bin`'s sums (`re`, `im`: M × M) through `step` to window `w` of `job`, then
-/// write R (row-major M × M, exactly Hermitian, real diagonal) into `out`; `phat` applies
-/// the phase transform to the frames and skips HARK's scaling. Returns the scale divisor
-/// (1 without scaling).
+/// Carry bin `bin`'s sum (`sum`: M × M column-major) through `step` to window `w` of
+/// `job`, then write R (row-major M × M, exactly Hermitian, real diagonal) into `out`;
+/// `phat` applies the phase transform to the frames and skips HARK's scaling. `y` is
+/// scratch. Returns the scale divisor (1 without scaling).
 #[allow(clippy::too_many_arguments)]
 pub fn run_bin<T: Real>(
-    re: &mut [f64],
-    im: &mut [f64],
+    sum: &mut [C<f64>],
     step: Step,
     job: &Job<'_, T>,
     w: &WindowSpec,
     bin: usize,
     phat: bool,
-    y: &mut Vec<(f64, f64)>,
+    y: &mut Vec<C<f64>>,
     out: &mut [C<T>],
 ) -> T {
     let sp = job.spectra;
     let m = sp.num_mics;
     debug_assert_eq!(out.len(), m * m);
-    let frame = |f: usize, y: &mut Vec<(f64, f64)>| {
-        let o = (job.local(f) * sp.num_bins + bin) * m;
+    // Frames `frames` as the rows of a row-major matrix in `y`.
+    let gather = |frames: std::ops::Range<usize>, y: &mut Vec<C<f64>>| {
         y.clear();
-        y.extend(sp.data[o..o + m].iter().map(|&z| {
-            let z = if phat { phase(z) } else { z };
-            (z.re.to_f64(), z.im.to_f64())
-        }));
+        for f in frames {
+            let o = (job.local(f) * sp.num_bins + bin) * m;
+            y.extend(sp.data[o..o + m].iter().map(|&z| {
+                let z = if phat { phase(z) } else { z };
+                C::new(z.re.to_f64(), z.im.to_f64())
+            }));
+        }
+    };
+    // S += sign · Yᵀ conj(Y) = sign · Σ_f y_f y_fᴴ (S_ij = Σ y_i conj(y_j)).
+    let add = |sum: &mut [C<f64>], y: &[C<f64>], accum: faer::Accum, sign: f64| {
+        let rows = y.len() / m.max(1);
+        let ym = faer::MatRef::from_row_major_slice(y, rows, m);
+        let s = faer::MatMut::from_column_major_slice_mut(sum, m, m);
+        faer::linalg::matmul::matmul(
+            s,
+            accum,
+            ym.transpose(),
+            ym.conjugate(),
+            C::new(sign, 0.0),
+            faer::Par::Seq,
+        );
     };
     match step {
         Step::Direct => {
-            re.fill(0.0);
-            im.fill(0.0);
-            for f in w.start..w.start + w.len {
-                frame(f, y);
-                rank1(re, im, y, m, 1.0);
-            }
+            gather(w.start..w.start + w.len, y);
+            add(sum, y, faer::Accum::Replace, 1.0);
         }
         Step::Slide { prev_start, delta } => {
-            for j in 0..delta {
-                frame(prev_start + w.len + j, y);
-                rank1(re, im, y, m, 1.0);
-                frame(prev_start + j, y);
-                rank1(re, im, y, m, -1.0);
+            if delta > 0 {
+                gather(prev_start + w.len..prev_start + w.len + delta, y);
+                add(sum, y, faer::Accum::Add, 1.0);
+                gather(prev_start..prev_start + delta, y);
+                add(sum, y, faer::Accum::Add, -1.0);
             }
         }
     }
     let inv_w = 1.0 / w.len.max(1) as f64;
     let mut s = 1.0;
     if !phat {
-        let mut mx = 0.0f64;
-        for i in 0..m {
-            for j in i..m {
-                mx = mx.max((re[i * m + j] * inv_w).abs());
-            }
-        }
-        s = mx + 1.0;
+        let mx = sum.iter().fold(0.0f64, |a, v| a.max(v.re.abs()));
+        s = mx * inv_w + 1.0;
     }
     let k = inv_w / s;
     for i in 0..m {
-        out[i * m + i] = C::new(T::of_f64(re[i * m + i] * k), T::zero());
+        // Row i of R from the upper triangle of S (column j, row i ≤ j).
+        out[i * m + i] = C::new(T::of_f64(sum[i * m + i].re * k), T::zero());
         for j in i + 1..m {
-            let v = C::new(T::of_f64(re[i * m + j] * k), T::of_f64(im[i * m + j] * k));
+            let v = sum[j * m + i] * k;
+            let v = C::new(T::of_f64(v.re), T::of_f64(v.im));
             out[i * m + j] = v;
             out[j * m + i] = v.conj();
         }
     }
     T::of_f64(s)
-}
-
-/// S += sign · y yᴴ on the upper triangle: S_ij += y_i conj(y_j).
-#[inline]
-fn rank1(re: &mut [f64], im: &mut [f64], y: &[(f64, f64)], m: usize, sign: f64) {
-    for i in 0..m {
-        let (ar, ai) = (sign * y[i].0, sign * y[i].1);
-        let row_re = &mut re[i * m + i..i * m + m];
-        let row_im = &mut im[i * m + i..i * m + m];
-        for ((r, q), &(br, bi)) in row_re.iter_mut().zip(row_im.iter_mut()).zip(&y[i..m]) {
-            *r += ar * br + ai * bi;
-            *q += ai * br - ar * bi;
-        }
-    }
 }
 
 #[cfg(test)]
@@ -251,9 +242,9 @@ mod tests {
         for w in windows {
             let st = rc.step(w, 0);
             let mut per_bin = Vec::new();
-            for (b, (re, im)) in rc.bins_mut().enumerate() {
+            for (b, sum) in rc.bins_mut().enumerate() {
                 let mut r = vec![C::new(0.0f32, 0.0); m * m];
-                run_bin(re, im, st, &job, w, b, false, &mut y, &mut r);
+                run_bin(sum, st, &job, w, b, false, &mut y, &mut r);
                 per_bin.extend(r);
             }
             out.push(per_bin);
