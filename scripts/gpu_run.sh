@@ -57,7 +57,7 @@ for s in $steps; do
       for a in seed ring8; do
         ns="${STREAMS_SEED:-1 50 100 150 200 250}"; [ $a = ring8 ] && ns="${STREAMS_RING:-1 200 1000}"
         args=""; for n in $ns; do args="$args --streams $n"; done
-        "$C/soundloc" bench --stream --device cuda --array $a --algorithm gsvd --seconds ${STREAM_SECONDS:-3} $args
+        "$C/soundloc" bench --stream --device ${STREAMS_DEVICE:-cuda} --array $a --algorithm gsvd --seconds ${STREAM_SECONDS:-3} $args
       done 2>&1 | tee "$OUT/streams.txt" ;;
     e2e)
       # End to end (issue 10): a 60-mic, 2522-direction TF zip and 60 s of 60-channel

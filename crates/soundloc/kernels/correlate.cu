@@ -7,7 +7,8 @@
 // scale   [window][bin]       the divisor max|Re R_ij| + 1 (for the decomposition's
 //                             factor form, which rebuilds R's factor from the frames)
 // Grid: (windows × bins) blocks, matrix index = window * nb + bin. Dynamic shared
-// memory: fc × M complex (a chunk of fc frames) + 32 reals.
+// memory: fc × M complex (a chunk of fc frames) + 32 doubles. Sums in double, one
+// rounding to T (as the CPU's running correlation).
 #include "common.cuh"
 
 #define SL_CORR_EPT 8
@@ -17,21 +18,42 @@ __device__ void correlate_impl(const cplx<T>* __restrict__ X, int nb, int M, con
                                int mat0, cplx<T>* __restrict__ R, T* __restrict__ scale) {
     SL_DYN_SMEM(sl_smem);
     cplx<T>* xs = reinterpret_cast<cplx<T>*>(sl_smem);
-    T* red = reinterpret_cast<T*>(xs + (size_t)fc * M);
+    double* red = reinterpret_cast<double*>(xs + (size_t)fc * M);
     const int mat = mat0 + blockIdx.x;
     const int w = mat / nb, b = mat - w * nb;
     const int start = win[2 * w], len = win[2 * w + 1];
     const int tid = threadIdx.x, nt = blockDim.x;
     const int ntri = M * (M + 1) / 2;
     cplx<T>* Rm = R + (size_t)blockIdx.x * M * M;
-    const T inv_len = (T)1 / (T)len;
-    T maxre = (T)0;
+    const double inv_len = 1.0 / (double)len;
+    // The divisor first: for Hermitian PSD R, max_ij |Re R_ij| is the largest diagonal
+    // entry (|R_ij| ≤ √(R_ii R_jj)), so R is scaled as it is written — one rounding to T.
+    double diag = 0.0;
+    for (int f0 = 0; f0 < len; f0 += fc) {
+        const int nf = min(fc, len - f0);
+        __syncthreads();
+        for (int k = tid; k < nf * M; k += nt) {
+            const int f = k / M, m = k - f * M;
+            xs[k] = X[((size_t)(start + f0 + f) * nb + b) * M + m];
+        }
+        __syncthreads();
+        if (tid < M) {
+            for (int f = 0; f < nf; ++f) {
+                const cplx<T> x = xs[f * M + tid];
+                diag += (double)x.re * (double)x.re + (double)x.im * (double)x.im;
+            }
+        }
+    }
+    const double mx = block_max(tid < M ? diag * inv_len : 0.0, red);
+    const double k = inv_len / (mx + 1.0);
+    if (tid == 0) scale[blockIdx.x] = (T)(mx + 1.0);
     for (int base = 0; base < ntri; base += SL_CORR_EPT * nt) {
-        cplx<T> acc[SL_CORR_EPT];
+        // Sums in double: f32 frames multiply exactly, and 50-term sums keep their digits.
+        cplx<double> acc[SL_CORR_EPT];
         int ii[SL_CORR_EPT], jj[SL_CORR_EPT];
 #pragma unroll
         for (int e = 0; e < SL_CORR_EPT; ++e) {
-            acc[e] = czero<T>();
+            acc[e] = czero<double>();
             int idx = base + tid + e * nt;
             int j = 0, i = 0;
             if (idx < ntri) {
@@ -48,36 +70,34 @@ __device__ void correlate_impl(const cplx<T>* __restrict__ X, int nb, int M, con
         for (int f0 = 0; f0 < len; f0 += fc) {
             const int nf = min(fc, len - f0);
             __syncthreads();
-            for (int k = tid; k < nf * M; k += nt) {
-                const int f = k / M, m = k - f * M;
-                xs[k] = X[((size_t)(start + f0 + f) * nb + b) * M + m];
+            for (int q = tid; q < nf * M; q += nt) {
+                const int f = q / M, m = q - f * M;
+                xs[q] = X[((size_t)(start + f0 + f) * nb + b) * M + m];
             }
             __syncthreads();
             for (int f = 0; f < nf; ++f) {
                 const cplx<T>* xf = xs + f * M;
 #pragma unroll
                 for (int e = 0; e < SL_CORR_EPT; ++e) {
-                    if (jj[e] >= 0) cmac_cb(acc[e], xf[ii[e]], xf[jj[e]]);
+                    if (jj[e] >= 0) {
+                        const cplx<T> a = xf[ii[e]], c = xf[jj[e]];
+                        cmac_cb(acc[e], cplx<double>{(double)a.re, (double)a.im},
+                                cplx<double>{(double)c.re, (double)c.im});
+                    }
                 }
             }
         }
 #pragma unroll
         for (int e = 0; e < SL_CORR_EPT; ++e) {
             if (jj[e] >= 0) {
-                cplx<T> v = cscale(acc[e], inv_len);
                 const int i = ii[e], j = jj[e];
+                cplx<T> v{(T)(acc[e].re * k), (T)(acc[e].im * k)};
                 if (i == j) v.im = (T)0;
                 Rm[(size_t)j * M + i] = v;
                 Rm[(size_t)i * M + j] = cconj(v);
-                maxre = sl_max(maxre, sl_abs(v.re));
             }
         }
     }
-    const T mx = block_max(maxre, red);  // includes a __syncthreads: R writes are visible
-    const T inv_s = (T)1 / (mx + (T)1);
-    if (tid == 0) scale[blockIdx.x] = mx + (T)1;
-    __syncthreads();
-    for (int k = tid; k < M * M; k += nt) Rm[k] = cscale(Rm[k], inv_s);
 }
 
 #ifndef SL_NO_F32

@@ -129,7 +129,44 @@ impl<T: Real> Stft<T> {
     /// how a signal is cut into calls.
     fn transform(&self, channels: &[Vec<f32>], first_sample: usize, dst: &mut [C<T>]) {
         let m = channels.len();
-        let frame_len = self.bins.len() * m;
+        let nb = self.bins.len();
+        let frame_len = nb * m;
+        let frames = dst.len() / frame_len.max(1);
+        if frames < 2 * rayon::current_num_threads() && m >= 8 {
+            // Few frames (a live stream's push): spread the channels over the cores
+            // instead, through a [frame][mic][bin] buffer.
+            let mut tmp = vec![C::new(T::zero(), T::zero()); dst.len()];
+            tmp.par_chunks_mut(nb.max(1))
+                .with_min_len(4)
+                .enumerate()
+                .for_each_init(
+                    || {
+                        (
+                            self.fft.make_input_vec(),
+                            self.fft.make_output_vec(),
+                            self.fft.make_scratch_vec(),
+                        )
+                    },
+                    |(inp, spec, scratch), (i, out)| {
+                        let (f, mic) = (i / m, i % m);
+                        let off = first_sample + f * self.hop;
+                        for (j, v) in inp.iter_mut().enumerate() {
+                            *v = T::of_f64(channels[mic][off + j] as f64) * self.window[j];
+                        }
+                        let _ = self.fft.process_with_scratch(inp, spec, scratch);
+                        out.copy_from_slice(&spec[self.bins.clone()]);
+                    },
+                );
+            for f in 0..frames {
+                for mic in 0..m {
+                    let src = &tmp[(f * m + mic) * nb..(f * m + mic + 1) * nb];
+                    for (b, v) in src.iter().enumerate() {
+                        dst[f * frame_len + b * m + mic] = *v;
+                    }
+                }
+            }
+            return;
+        }
         dst.par_chunks_mut(frame_len.max(1)).enumerate().for_each_init(
             || {
                 (

@@ -229,19 +229,14 @@ fn run_group<T: crate::real::Real>(cfg: &StreamBenchConfig) -> Result<StreamRepo
         .map(|_| (0..block * m).map(|_| (1000.0 * gauss(&mut rng)) as f32).collect())
         .collect();
     let mut outs = vec![Output::default(); n];
-    let tick = |group: &mut crate::StreamGroup<T>, outs: &mut [Output]| -> Result<()> {
-        for (i, b) in bufs.iter().enumerate() {
-            group.push(
-                i,
-                Block::Interleaved {
-                    data: b,
-                    channels: m,
-                },
-                &mut outs[i],
-            )?;
-        }
-        group.run(outs)
-    };
+    let blocks: Vec<Block<'_>> = bufs
+        .iter()
+        .map(|b| Block::Interleaved {
+            data: b,
+            channels: m,
+        })
+        .collect();
+    let tick = |group: &mut crate::StreamGroup<T>, outs: &mut [Output]| group.push_all(&blocks, outs);
     for _ in 0..(fs as usize).div_ceil(block) {
         tick(&mut group, &mut outs)?;
     }

@@ -102,6 +102,27 @@ impl<T: Real> StreamGroup<T> {
         self.stream_mut(i)?.push(block, out)
     }
 
+    /// One block for every stream (`blocks[i]` into stream i, the streams' STFTs in
+    /// parallel on the CPU's cores), then [`run`](Self::run): the tick of a server that
+    /// receives all its arrays' audio in step.
+    pub fn push_all(&mut self, blocks: &[Block<'_>], outs: &mut [Output]) -> Result<()> {
+        use rayon::prelude::*;
+        if blocks.len() != self.streams.len() || outs.len() != self.streams.len() {
+            return Err(Error::Config(format!(
+                "{} blocks and {} outputs for {} streams",
+                blocks.len(),
+                outs.len(),
+                self.streams.len()
+            )));
+        }
+        self.streams
+            .par_iter_mut()
+            .zip(blocks.par_iter())
+            .zip(outs.par_iter_mut())
+            .try_for_each(|((s, b), o)| s.push(*b, o))?;
+        self.run(outs)
+    }
+
     /// Run every waiting window of every stream, in launches of up to the backend's batch
     /// size; stream i's results are appended to `outs[i]` (`outs` has one entry per
     /// stream).

@@ -994,8 +994,8 @@ fn layout<T: Real>(plan: &Plan<T>, gpu: &dyn Gpu) -> Result<Layout> {
         && std::env::var("SOUNDLOC_CUDA_DEC").map_or(true, |v| v != "jacobi");
     let groups = n / 2 * v.lpp as usize;
     let dec_threads = groups.div_ceil(32).clamp(1, 32) * 32;
-    let corr_fc = ((SMEM_DEFAULT - 32 * ts) / (m * cs)).clamp(1, 32);
-    let corr_smem = corr_fc * m * cs + 32 * ts;
+    let corr_fc = ((SMEM_DEFAULT - 32 * 8) / (m * cs)).clamp(1, 32);
+    let corr_smem = corr_fc * m * cs + 32 * 8;
     let lds = m | 1;
     let mut spec_dt = 64;
     while spec_dt > 32 && spec_dt * lds * cs > 64 * 1024 {
