@@ -343,10 +343,13 @@ impl<T: Real> FrameRing<T> {
         &mut self.spectra.data[old..]
     }
 
-    /// Drop the frames before absolute frame `frame`.
+    /// Let go of the frames before absolute frame `frame`. They are removed once they
+    /// are at least as many as those kept (and at least 64), so a stream that drops one
+    /// frame per push moves each frame O(1) times instead of the whole ring every push;
+    /// until then they stay readable and [`first`](Self::first) does not move.
     pub fn drop_before(&mut self, frame: usize) {
         let k = frame.min(self.end()).saturating_sub(self.first);
-        if k > 0 {
+        if k > 0 && (k >= 64 || k == self.spectra.num_frames) && 2 * k >= self.spectra.num_frames {
             let fl = self.spectra.num_bins * self.spectra.num_mics;
             self.spectra.data.drain(..k * fl);
             self.spectra.num_frames -= k;
