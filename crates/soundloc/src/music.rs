@@ -189,7 +189,8 @@ mod tests {
         let plan = &*inp.plan;
         let mut be = CpuBackend::new(inp.plan.clone());
         let mut out = BatchOutput::default();
-        be.process(&[Job::once(&inp.spectra, &inp.windows)], true, &mut out).unwrap();
+        be.process(&[Job::once(&inp.spectra, &inp.windows)], true, &mut out)
+            .unwrap();
         let (m, d, nb, ns) = (
             plan.num_mics,
             plan.num_dirs,

@@ -49,7 +49,12 @@ fn a_group_gives_every_stream_its_own_results_bit_for_bit() {
         let alone: Vec<Output> = audio
             .iter()
             .map(|ch| {
-                let mut e = Engine::new(plan.clone(), Box::new(CpuBackend::new(plan.clone())), options.clone()).unwrap();
+                let mut e = Engine::new(
+                    plan.clone(),
+                    Box::new(CpuBackend::new(plan.clone())),
+                    options.clone(),
+                )
+                .unwrap();
                 let mut out = Output::default();
                 e.push(Block::Planar(ch), &mut out).unwrap();
                 e.flush(&mut out).unwrap();
@@ -85,7 +90,10 @@ fn a_group_gives_every_stream_its_own_results_bit_for_bit() {
             let what = format!("{window_type:?} PERIOD {period} stream {i}");
             assert!(alone[i].results.len() >= 3, "{what}");
             assert!(outs[i].results == alone[i].results, "{what}: results differ");
-            let (a, b) = (outs[i].spectrum.as_ref().unwrap(), alone[i].spectrum.as_ref().unwrap());
+            let (a, b) = (
+                outs[i].spectrum.as_ref().unwrap(),
+                alone[i].spectrum.as_ref().unwrap(),
+            );
             assert!(a.db == b.db && a.frames == b.frames, "{what}: spectra differ");
         }
         // In step: one block per stream per tick (push_all: the STFTs in parallel).
@@ -115,7 +123,15 @@ fn a_group_gives_every_stream_its_own_results_bit_for_bit() {
 fn a_group_refuses_streams_with_their_own_noise_and_bad_indices() {
     let sc = ring8_drone(0.0, 1).unwrap();
     let config = LocalizeConfig::default();
-    let tf = free_field(&sc.geometry, &sc.grid, config.nfft, 16000, config.bin_range(), 343.0).unwrap();
+    let tf = free_field(
+        &sc.geometry,
+        &sc.grid,
+        config.nfft,
+        16000,
+        config.bin_range(),
+        343.0,
+    )
+    .unwrap();
     let plan = Arc::new(Plan::<f32>::new(&config, &tf, None).unwrap());
     let mut g = StreamGroup::with_backend(plan.clone(), Box::new(CpuBackend::new(plan)));
     let online = StreamOptions {
@@ -128,6 +144,8 @@ fn a_group_refuses_streams_with_their_own_noise_and_bad_indices() {
     let e = g.add(online).err().expect("a per-stream K is refused");
     assert!(e.to_string().contains("fixed noise matrix"), "{e}");
     let mut outs = vec![Output::default()];
-    assert!(g.push(0, Block::Planar(&vec![vec![0.0; 10]; 8]), &mut outs[0]).is_err());
+    assert!(g
+        .push(0, Block::Planar(&vec![vec![0.0; 10]; 8]), &mut outs[0])
+        .is_err());
     assert!(g.run(&mut outs).is_err(), "one output for no stream");
 }

@@ -78,7 +78,8 @@ impl<T: Real> CpuBackend<T> {
         for b in 0..nb {
             for wi in 0..nw {
                 let dst = ((w0 + wi) * nb + b) * mm;
-                self.r[dst..dst + mm].copy_from_slice(&self.r_bins[(b * nw + wi) * mm..(b * nw + wi + 1) * mm]);
+                self.r[dst..dst + mm]
+                    .copy_from_slice(&self.r_bins[(b * nw + wi) * mm..(b * nw + wi + 1) * mm]);
             }
         }
         if job.stream.is_kept() {
@@ -115,7 +116,10 @@ impl<T: Real> Backend<T> for CpuBackend<T> {
         let plan = &*plan;
         let (m, nb, d) = (plan.num_mics, plan.num_bins(), plan.num_dirs);
         let nw = super::count_windows(jobs);
-        let lens: Vec<usize> = jobs.iter().flat_map(|j| j.windows.iter().map(|w| w.len)).collect();
+        let lens: Vec<usize> = jobs
+            .iter()
+            .flat_map(|j| j.windows.iter().map(|w| w.len))
+            .collect();
         let mm = m * m;
         let alg = plan.config.algorithm;
         let srp = !alg.is_music();

@@ -251,7 +251,12 @@ pub fn count_windows<T: Real>(jobs: &[Job<'_, T>]) -> usize {
 
 /// Check that one spectra block fits a plan and holds every frame of `windows` (starts
 /// are `spectra` frames). `who` names the backend in the message.
-fn check_batch<T: Real>(who: &str, plan: &Plan<T>, spectra: &Spectra<T>, windows: &[WindowSpec]) -> Result<()> {
+fn check_batch<T: Real>(
+    who: &str,
+    plan: &Plan<T>,
+    spectra: &Spectra<T>,
+    windows: &[WindowSpec],
+) -> Result<()> {
     let (m, nb) = (plan.num_mics, plan.num_bins());
     if spectra.num_mics != m || spectra.num_bins != nb {
         return Err(crate::Error::Mismatch(format!(

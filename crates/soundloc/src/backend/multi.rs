@@ -187,7 +187,8 @@ mod tests {
             let inp = inputs::<f32>(&cfg).unwrap();
             let mut one = CpuBackend::new(inp.plan.clone());
             let mut want = BatchOutput::default();
-            one.process(&[Job::once(&inp.spectra, &inp.windows)], true, &mut want).unwrap();
+            one.process(&[Job::once(&inp.spectra, &inp.windows)], true, &mut want)
+                .unwrap();
             let parts: Vec<Box<dyn Backend<f32>>> = vec![
                 Box::new(CpuBackend::new(inp.plan.clone())),
                 Box::new(CpuBackend::new(inp.plan.clone())),
@@ -195,7 +196,8 @@ mod tests {
             let mut two = MultiBackend::new(parts).unwrap();
             assert_eq!(two.max_windows_per_batch(), 2 * one.max_windows_per_batch());
             let mut got = BatchOutput::default();
-            two.process(&[Job::once(&inp.spectra, &inp.windows)], true, &mut got).unwrap();
+            two.process(&[Job::once(&inp.spectra, &inp.windows)], true, &mut got)
+                .unwrap();
             assert_eq!(got, want, "{alg:?}");
             assert_eq!(got.peaks.len(), 7);
             // A new plan reaches both; a smaller batch (one device idle) still matches.
@@ -218,7 +220,10 @@ mod tests {
             ..BenchConfig::default()
         };
         let inp = inputs::<f32>(&cfg).unwrap();
-        let (s1, s2) = (crate::backend::StreamId::fresh(), crate::backend::StreamId::fresh());
+        let (s1, s2) = (
+            crate::backend::StreamId::fresh(),
+            crate::backend::StreamId::fresh(),
+        );
         let jobs = [
             Job {
                 stream: s1,

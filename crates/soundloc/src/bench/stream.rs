@@ -80,7 +80,11 @@ pub struct StreamReport {
     pub stages_per_result: crate::backend::StageTimes,
 }
 
-type Setup = (LocalizeConfig, crate::array::TransferFunctions, crate::noise::NoiseMatrices);
+type Setup = (
+    LocalizeConfig,
+    crate::array::TransferFunctions,
+    crate::noise::NoiseMatrices,
+);
 
 fn setup(cfg: &StreamBenchConfig, rng: &mut rand::rngs::StdRng) -> Result<Setup> {
     let config = LocalizeConfig {
@@ -226,15 +230,16 @@ fn run_group<T: crate::real::Real>(cfg: &StreamBenchConfig) -> Result<StreamRepo
     let block = cfg.block.max(1);
     // Pre-generated audio, one buffer per stream, reused tick after tick.
     let bufs: Vec<Vec<f32>> = (0..n)
-        .map(|_| (0..block * m).map(|_| (1000.0 * gauss(&mut rng)) as f32).collect())
+        .map(|_| {
+            (0..block * m)
+                .map(|_| (1000.0 * gauss(&mut rng)) as f32)
+                .collect()
+        })
         .collect();
     let mut outs = vec![Output::default(); n];
     let blocks: Vec<Block<'_>> = bufs
         .iter()
-        .map(|b| Block::Interleaved {
-            data: b,
-            channels: m,
-        })
+        .map(|b| Block::Interleaved { data: b, channels: m })
         .collect();
     let tick = |group: &mut crate::StreamGroup<T>, outs: &mut [Output]| group.push_all(&blocks, outs);
     for _ in 0..(fs as usize).div_ceil(block) {

@@ -127,7 +127,16 @@ pub fn correlate<T: Real>(spectra: &Spectra<T>, w: &WindowSpec, bin: usize, out:
     let m = spectra.num_mics;
     let mut sum = vec![C::new(0.0, 0.0); m * m];
     let job = Job::once(spectra, std::slice::from_ref(w));
-    running::run_bin(&mut sum, running::Step::Direct, &job, w, bin, false, &mut Vec::new(), out)
+    running::run_bin(
+        &mut sum,
+        running::Step::Direct,
+        &job,
+        w,
+        bin,
+        false,
+        &mut Vec::new(),
+        out,
+    )
 }
 
 #[cfg(test)]

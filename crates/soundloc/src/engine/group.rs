@@ -51,9 +51,12 @@ impl<T: Real> StreamGroup<T> {
     /// Add a stream; returns its index. Its noise must be the plan's fixed K (given up
     /// front, never updated): windows of one launch share one K.
     pub fn add(&mut self, options: StreamOptions) -> Result<usize> {
-        if !matches!(options.initial_noise, InitialNoise::Given(_)) || options.noise_update != NoiseUpdate::Fixed {
+        if !matches!(options.initial_noise, InitialNoise::Given(_))
+            || options.noise_update != NoiseUpdate::Fixed
+        {
             return Err(Error::Config(
-                "a stream group shares one fixed noise matrix K: give it up front, without online updates".into(),
+                "a stream group shares one fixed noise matrix K: give it up front, without online updates"
+                    .into(),
             ));
         }
         let mut e = Engine::new(self.plan.clone(), Box::new(NoBackend), options)?;
@@ -199,7 +202,9 @@ impl<T: Real> Backend<T> for NoBackend {
         1
     }
     fn process(&mut self, _: &[Job<'_, T>], _: bool, _: &mut BatchOutput) -> Result<()> {
-        Err(Error::Config("a group's stream runs its windows through the group".into()))
+        Err(Error::Config(
+            "a group's stream runs its windows through the group".into(),
+        ))
     }
     fn set_plan(&mut self, _: Arc<Plan<T>>) -> Result<()> {
         Ok(())

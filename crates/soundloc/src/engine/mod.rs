@@ -21,7 +21,9 @@
 //! the frames of a preceding-frames K); a large block is processed in pieces of
 //! [`CHUNK_FRAMES`] frames.
 
-use crate::backend::{cpu::CpuBackend, Backend, BatchOutput, DeviceChoice, Job, StageTimes, StreamId, WindowSpec};
+use crate::backend::{
+    cpu::CpuBackend, Backend, BatchOutput, DeviceChoice, Job, StageTimes, StreamId, WindowSpec,
+};
 use crate::correlation::WindowScheduler;
 use crate::input::{Block, ChannelMap};
 use crate::noise::policy::{InitialNoise, KSource, NoisePolicy, NoiseUpdate};
@@ -523,7 +525,9 @@ impl<T: Real> Engine<T> {
         };
         let r = match self.backend.as_mut() {
             Some(b) => b.process(&[job], want, &mut batch),
-            None => Err(Error::Config("a group's stream runs its windows through the group".into())),
+            None => Err(Error::Config(
+                "a group's stream runs its windows through the group".into(),
+            )),
         };
         let r = r.and_then(|()| self.deliver(windows, &batch, 0, out));
         self.batch = batch;
@@ -547,7 +551,13 @@ impl<T: Real> Engine<T> {
 
     /// Turn rows `at ..` of `batch` (the output for `windows`) into results: peaks,
     /// refinement, tracking, spectrum rows.
-    fn deliver(&mut self, windows: &[WindowSpec], batch: &BatchOutput, at: usize, out: &mut Output) -> Result<()> {
+    fn deliver(
+        &mut self,
+        windows: &[WindowSpec],
+        batch: &BatchOutput,
+        at: usize,
+        out: &mut Output,
+    ) -> Result<()> {
         self.windows_run += windows.len();
         self.last_start = windows.last().map(|w| w.start);
         let want = self.options.want_spectrum;

@@ -103,4 +103,3 @@ pub struct StreamOptions {
     /// Produce spectrum rows.
     pub want_spectrum: bool,
 }
-

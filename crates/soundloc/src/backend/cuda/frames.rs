@@ -193,11 +193,25 @@ mod tests {
         a.set_capacity(1000);
         let s = StreamId::fresh();
         let p = a.place(&[(s, 0..50)]);
-        assert_eq!(p.uploads, vec![Upload { job: 0, at: 0, frames: 0..50 }]);
+        assert_eq!(
+            p.uploads,
+            vec![Upload {
+                job: 0,
+                at: 0,
+                frames: 0..50
+            }]
+        );
         assert_eq!(p.base, vec![0]);
         // PERIOD 1: the next window needs 1..51, only frame 50 goes up.
         let p = a.place(&[(s, 1..51)]);
-        assert_eq!(p.uploads, vec![Upload { job: 0, at: 50, frames: 50..51 }]);
+        assert_eq!(
+            p.uploads,
+            vec![Upload {
+                job: 0,
+                at: 50,
+                frames: 50..51
+            }]
+        );
         assert_eq!(p.base, vec![1]);
         // Past the region's room (100 frames): refilled from its start.
         for k in 2..=50 {
@@ -206,7 +220,14 @@ mod tests {
             assert_eq!(p.uploads[0].frames, k + 49..k + 50);
         }
         let p = a.place(&[(s, 51..101)]);
-        assert_eq!(p.uploads, vec![Upload { job: 0, at: 0, frames: 51..101 }]);
+        assert_eq!(
+            p.uploads,
+            vec![Upload {
+                job: 0,
+                at: 0,
+                frames: 51..101
+            }]
+        );
         assert_eq!(p.base, vec![0]);
         assert_eq!(a.held(s), Some(51..101));
     }
@@ -224,9 +245,21 @@ mod tests {
         assert_eq!(
             p.uploads,
             vec![
-                Upload { job: 0, at: 200, frames: 0..30 },
-                Upload { job: 1, at: 150, frames: 60..61 },
-                Upload { job: 2, at: 50, frames: 50..51 },
+                Upload {
+                    job: 0,
+                    at: 200,
+                    frames: 0..30
+                },
+                Upload {
+                    job: 1,
+                    at: 150,
+                    frames: 60..61
+                },
+                Upload {
+                    job: 2,
+                    at: 50,
+                    frames: 50..51
+                },
             ]
         );
         // The same stream twice in one call: the second gets its own frames.

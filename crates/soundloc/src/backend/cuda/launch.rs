@@ -1,0 +1,294 @@
+//! Kernel launches of the CUDA backend: argument packing and one sub-batch's stages.
+
+use super::*;
+
+/// Kernel arguments, each stored in 8 bytes (little-endian: an i32 or f32 in the low
+/// bytes), handed to the launch as `void*` to each slot.
+pub(super) struct Args {
+    pub(super) v: Vec<u64>,
+}
+
+impl Args {
+    pub(super) fn new() -> Self {
+        Args {
+            v: Vec::with_capacity(24),
+        }
+    }
+    pub(super) fn p(mut self, p: DevPtr) -> Self {
+        self.v.push(p);
+        self
+    }
+    pub(super) fn i(mut self, x: usize) -> Self {
+        self.v.push(x as i32 as u32 as u64);
+        self
+    }
+    pub(super) fn r<T: Real>(mut self, x: T) -> Self {
+        if std::mem::size_of::<T>() == 4 {
+            self.v.push((x.to_f64() as f32).to_bits() as u64);
+        } else {
+            self.v.push(x.to_f64().to_bits());
+        }
+        self
+    }
+    pub(super) fn launch(
+        mut self,
+        gpu: &dyn Gpu,
+        f: Func,
+        grid: [usize; 3],
+        block: usize,
+        smem: usize,
+    ) -> Result<()> {
+        let mut ps: Vec<*mut c_void> = self.v.iter_mut().map(|x| x as *mut u64 as *mut c_void).collect();
+        let g = [grid[0] as u32, grid[1] as u32, grid[2] as u32];
+        // SAFETY: the argument lists below match the kernels' signatures (kernels/*.cu).
+        unsafe { gpu.launch(f, g, block as u32, smem as u32, Stream::Compute, &mut ps) }
+    }
+}
+
+/// How the decomposition kernel forms the matrix it rotates (per batch).
+#[derive(Debug, Clone, Copy)]
+pub(super) struct DecMode {
+    /// 0: the M × M matrix from R; 1: the factor W·Yᴴ (W < M frames, Hermitian cases);
+    /// 2: the GSVD factor K⁻¹ R Q (Q an orthonormal basis of the frames).
+    pub(super) factor: usize,
+    /// Columns of the factor (even).
+    pub(super) ncf: usize,
+    pub(super) left: usize,
+    pub(super) right: usize,
+    pub(super) threads: usize,
+}
+
+impl<T: Real> CudaBackend<T> {
+    pub(super) fn bin_groups(&self, nwb: usize) -> usize {
+        let l = &self.lay;
+        let xy = l.d.div_ceil(l.spec_dt) * nwb.div_ceil(l.spec_wg.min(nwb).max(1));
+        (4 * self.gpu.sm_count()).div_ceil(xy.max(1)).clamp(1, l.nb)
+    }
+
+    /// Mean cycles per phase of eigh.cu over the last batch's matrices, on stderr
+    /// (SOUNDLOC_CUDA_PROFILE=1; a tuning aid).
+    pub(super) fn print_profile(&mut self, nmat: usize) -> Result<()> {
+        let mut t = vec![0i64; nmat * 8];
+        // SAFETY: synchronous copy of the profile buffer after the stream is idle.
+        unsafe {
+            self.gpu.dtoh(
+                t.as_mut_ptr() as *mut u8,
+                self.d_prof.ptr,
+                nmat * 64,
+                Stream::Compute,
+            )?
+        };
+        self.gpu.sync(Stream::Compute)?;
+        let names = [
+            "form H",
+            "tridiagonal",
+            "bisection",
+            "inverse iteration",
+            "back-transform",
+        ];
+        let mut line = format!("soundloc cuda: eigh cycles per matrix ({nmat} matrices):");
+        for (p, name) in names.iter().enumerate() {
+            let mean = t.chunks(8).map(|c| (c[p + 1] - c[p]) as f64).sum::<f64>() / nmat.max(1) as f64;
+            line.push_str(&format!(" {name} {mean:.0}"));
+        }
+        let _ = writeln!(std::io::stderr(), "{line}");
+        Ok(())
+    }
+
+    /// The tridiagonal eigensolver (eigh.cu) of this sub-batch's matrices: form_h for the
+    /// whitened cases, then eigh.
+    pub(super) fn launch_eigh(&self, mat0: usize, nmat: usize) -> Result<()> {
+        let l = &self.lay;
+        if l.valmode != 0 {
+            Args::new()
+                .p(self.d_r.ptr)
+                .p(self.d_wcm.ptr)
+                .p(self.d_wrm.ptr)
+                .i(l.m)
+                .i(l.nb)
+                .i(l.valmode)
+                .i(mat0)
+                .p(self.d_h.ptr)
+                .launch(
+                    &*self.gpu,
+                    self.f.form_h,
+                    [nmat, 1, 1],
+                    l.eigh_threads,
+                    l.form_h_smem,
+                )?;
+        }
+        Args::new()
+            .p(self.d_r.ptr)
+            .p(self.d_h.ptr)
+            .i(l.m)
+            .i(l.nb)
+            .i(l.valmode)
+            .i(l.ns)
+            .i(usize::from(self.plan.config.eigenvalue_weight))
+            .p(self.d_weights.ptr)
+            .i(mat0)
+            .p(self.d_e.ptr)
+            .p(self.d_gain.ptr)
+            .p(self.d_bw.ptr)
+            .p(self.d_info.ptr)
+            .p(if self.profile { self.d_prof.ptr } else { 0 })
+            .launch(&*self.gpu, self.f.eigh, [nmat, 1, 1], l.eigh_threads, l.eigh_smem)
+    }
+
+    /// The Jacobi decomposition (decompose.cu) of this sub-batch's matrices.
+    pub(super) fn launch_jacobi(&self, mat0: usize, nmat: usize, mode: &DecMode) -> Result<()> {
+        let l = &self.lay;
+        let vec_all = usize::from(!l.squared);
+        Args::new()
+            .p(self.d_r.ptr)
+            .p(self.d_x.ptr)
+            .p(self.d_win.ptr)
+            .p(self.d_scale.ptr)
+            .p(self.d_wcm.ptr)
+            .p(self.d_wrm.ptr)
+            .i(l.m)
+            .i(l.nb)
+            .i(l.ld)
+            .i(mode.ncf)
+            .i(mode.factor)
+            .i(mode.left)
+            .i(mode.right)
+            .i(l.ns)
+            .i(vec_all)
+            .i(MAX_SWEEPS as usize)
+            .i(usize::from(self.plan.config.eigenvalue_weight))
+            .i(l.valmode)
+            .p(self.d_weights.ptr)
+            .i(mat0)
+            .p(self.d_e.ptr)
+            .p(self.d_gain.ptr)
+            .p(self.d_bw.ptr)
+            .p(self.d_info.ptr)
+            .p(self.d_scratch.ptr)
+            .launch(
+                &*self.gpu,
+                self.f.decompose,
+                [nmat, 1, 1],
+                mode.threads,
+                l.dec_smem,
+            )
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    pub(super) fn launch_sub_batch(
+        &mut self,
+        k: usize,
+        nw: usize,
+        kout: usize,
+        want_spectrum: bool,
+        mode: &DecMode,
+        ev: &[Event],
+    ) -> Result<()> {
+        let l = self.lay.clone();
+        let (cs, ts) = (csize::<T>(), std::mem::size_of::<T>());
+        let sb = self.sub_batch;
+        let w0 = k * sb;
+        let nwb = sb.min(nw - w0);
+        let mat0 = w0 * l.nb;
+        let nmat = nwb * l.nb;
+        let nbg = self.bin_groups(nwb);
+        let g = &*self.gpu;
+        g.record(ev[0], Stream::Compute)?;
+        Args::new()
+            .p(self.d_x.ptr)
+            .i(l.nb)
+            .i(l.m)
+            .p(self.d_win.ptr)
+            .i(l.corr_fc)
+            .i(mat0)
+            .p(self.d_r.ptr)
+            .p(self.d_scale.ptr)
+            .launch(g, self.f.correlate, [nmat, 1, 1], 256, l.corr_smem)?;
+        g.record(ev[1], Stream::Compute)?;
+        if l.eigh {
+            self.launch_eigh(mat0, nmat)?;
+        } else {
+            self.launch_jacobi(mat0, nmat, mode)?;
+        }
+        g.record(ev[2], Stream::Compute)?;
+        let n2den = if self.d_n2den.bytes > 0 {
+            self.d_n2den.ptr
+        } else {
+            self.d_n2num.ptr
+        };
+        let wg = l.spec_wg.min(nwb).max(1);
+        let spec_smem = l.spec_tile + if l.spec_e_smem { wg * l.ne * l.m * cs } else { 0 };
+        Args::new()
+            .p(self.d_st.ptr)
+            .p(n2den)
+            .p(self.d_n2num.ptr)
+            .p(self.d_e.ptr)
+            .i(l.ne)
+            .p(self.d_gain.ptr + (mat0 * ts) as u64)
+            .i(l.m)
+            .i(l.nb)
+            .i(l.d)
+            .i(l.ns)
+            .i(usize::from(l.squared))
+            .i(nwb)
+            .r(T::of_f64(crate::music::REFINE_RATIO))
+            .i(l.spec_dt)
+            .i(usize::from(l.spec_e_smem))
+            .p(self.d_ppart.ptr)
+            .launch(
+                g,
+                self.f.spectrum,
+                [l.d.div_ceil(l.spec_dt), nwb.div_ceil(wg), nbg],
+                l.spec_dt * wg,
+                spec_smem,
+            )?;
+        g.record(ev[3], Stream::Compute)?;
+        let row = (1 + kout) * 16;
+        let spec_ptr = if want_spectrum {
+            self.d_spec.ptr + (w0 * l.d * 4) as u64
+        } else {
+            0
+        };
+        Args::new()
+            .p(self.d_ppart.ptr)
+            .i(nbg)
+            .i(nwb)
+            .i(l.d)
+            .p(self.d_offs.ptr)
+            .p(self.d_nbrs.ptr)
+            .p(self.d_azok.ptr)
+            .i(kout)
+            .i(l.peak_cap)
+            .p(self.d_db.ptr + (w0 * l.d * 8) as u64)
+            .p(spec_ptr)
+            .p(self.d_out.ptr + (w0 * row) as u64)
+            .launch(g, self.f.peaks, [nwb, 1, 1], 256, l.peak_smem)?;
+        // SAFETY: the pinned buffers were sized for the whole batch before the loop and
+        // are not touched by the host until the compute stream is synchronised.
+        unsafe {
+            g.dtoh(
+                self.h_out.ptr.add(w0 * row),
+                self.d_out.ptr + (w0 * row) as u64,
+                nwb * row,
+                Stream::Compute,
+            )?;
+            if want_spectrum {
+                g.dtoh(
+                    self.h_spec.ptr.add(w0 * l.d * 4),
+                    self.d_spec.ptr + (w0 * l.d * 4) as u64,
+                    nwb * l.d * 4,
+                    Stream::Compute,
+                )?;
+                g.dtoh(
+                    self.h_bw.ptr.add(mat0 * 4),
+                    self.d_bw.ptr + (mat0 * 4) as u64,
+                    nmat * 4,
+                    Stream::Compute,
+                )?;
+            }
+        }
+        g.record(ev[4], Stream::Compute)?;
+        let _ = cs;
+        Ok(())
+    }
+}

@@ -1,0 +1,156 @@
+//! Sizes and launch shapes of the CUDA backend, derived once from the plan and the device.
+
+use super::*;
+
+/// Sizes and launch shapes derived from the plan.
+#[derive(Debug, Clone)]
+pub(super) struct Layout {
+    pub(super) m: usize,
+    pub(super) nb: usize,
+    pub(super) d: usize,
+    pub(super) ns: usize,
+    /// Vectors kept per matrix (ns, or M for the unsquared denominator).
+    pub(super) ne: usize,
+    pub(super) squared: bool,
+    pub(super) left: usize,
+    pub(super) right: usize,
+    /// How the decomposition kernel evaluates the largest value (decompose.cu).
+    pub(super) valmode: usize,
+    pub(super) alg: Algorithm,
+    pub(super) lpp: usize,
+    pub(super) want_v: bool,
+    pub(super) ld: usize,
+    pub(super) dec_smem_mode: bool,
+    /// Whether the signal subspace comes from the tridiagonal eigensolver (eigh.cu)
+    /// instead of the Jacobi kernel.
+    pub(super) eigh: bool,
+    pub(super) eigh_threads: usize,
+    pub(super) eigh_smem: usize,
+    pub(super) form_h_smem: usize,
+    pub(super) dec_threads: usize,
+    pub(super) dec_smem: usize,
+    pub(super) dec_scratch_per_mat: usize,
+    pub(super) corr_fc: usize,
+    pub(super) corr_smem: usize,
+    /// Directions per spectrum block.
+    pub(super) spec_dt: usize,
+    /// Windows per spectrum block (at most).
+    pub(super) spec_wg: usize,
+    /// Whether the spectrum kernel stages the windows' vectors in shared memory.
+    pub(super) spec_e_smem: bool,
+    /// Shared memory of the steering tile.
+    pub(super) spec_tile: usize,
+    pub(super) peak_cap: usize,
+    pub(super) peak_kout: usize,
+    pub(super) peak_smem: usize,
+}
+
+/// Eigenvectors of the tridiagonal matrix solved at once by eigh.cu (its EH_VEC).
+pub(super) const EIGH_VEC: usize = 8;
+
+pub(super) fn layout<T: Real>(plan: &Plan<T>, gpu: &dyn Gpu) -> Result<Layout> {
+    let (cs, ts) = (csize::<T>(), std::mem::size_of::<T>());
+    let m = plan.num_mics;
+    let nb = plan.num_bins();
+    let d = plan.num_dirs;
+    let ns = plan.config.signal_dim();
+    let squared = plan.config.denominator == Denominator::Squared;
+    let (left, right) = match (plan.config.algorithm, squared) {
+        (Algorithm::Sevd, _) => (0, 0),
+        (Algorithm::Gevd, _) => (1, 1),
+        (Algorithm::GevdHark, _) => (1, 2),
+        (Algorithm::Gsvd, true) => (1, 0),
+        (Algorithm::Gsvd, false) => (0, 1),
+        (Algorithm::SrpPhat, _) => {
+            return Err(variant_for(plan)
+                .err()
+                .unwrap_or_else(|| Error::Device("srp-phat".into())))
+        }
+    };
+    let valmode = match plan.config.algorithm {
+        Algorithm::Sevd => 0,
+        Algorithm::Gevd => 1,
+        Algorithm::GevdHark => 2,
+        Algorithm::Gsvd => 3,
+        Algorithm::SrpPhat => 0,
+    };
+    let want_v = !squared;
+    let ne = if squared { ns } else { m };
+    let v = variant_for(plan)?;
+    let n = m + (m & 1);
+    let mut ld = n;
+    while ld % 16 != 4 {
+        ld += 1;
+    }
+    let optin = gpu.max_smem_optin().max(SMEM_DEFAULT);
+    let mats = if want_v { 2 } else { 1 } * n * ld * cs;
+    let small = (3 * n * cs + n * ts + 32 * ts + 2 * n * 4).div_ceil(16) * 16;
+    let dec_smem_mode = mats + small <= optin;
+    let (dec_smem, dec_scratch_per_mat) = if dec_smem_mode {
+        (mats + small, 0)
+    } else {
+        (small, mats)
+    };
+    // The tridiagonal eigensolver whenever only the signal vectors are needed and its
+    // register tiles cover M (SOUNDLOC_CUDA_DEC=jacobi keeps the Jacobi kernel, for A/B runs).
+    let eigh_threads = kernels::eigh_threads();
+    let eigh_smem =
+        (m * (m | 1) + 4 * m) * 16 + (3 * m + ns + ns * m + ns.min(EIGH_VEC) * 5 * m) * 8 + 33 * 4;
+    let form_h_smem = m * (m | 1) * 16;
+    let eigh = squared
+        && m <= 64
+        && eigh_smem <= optin
+        && std::env::var("SOUNDLOC_CUDA_DEC").map_or(true, |v| v != "jacobi");
+    let groups = n / 2 * v.lpp as usize;
+    let dec_threads = groups.div_ceil(32).clamp(1, 32) * 32;
+    let corr_fc = ((SMEM_DEFAULT - 32 * 8) / (m * cs)).clamp(1, 32);
+    let corr_smem = corr_fc * m * cs + 32 * 8;
+    let lds = m | 1;
+    let mut spec_dt = 64;
+    while spec_dt > 32 && spec_dt * lds * cs > 64 * 1024 {
+        spec_dt /= 2;
+    }
+    let spec_tile = spec_dt * lds * cs;
+    if spec_tile > optin {
+        return Err(Error::Device(format!(
+            "{m} microphones: the spectrum tile does not fit in shared memory"
+        )));
+    }
+    let spec_wg = if squared { 4 } else { 1 };
+    let spec_e_smem = spec_tile + spec_wg * ne * m * cs <= optin.min(160 * 1024);
+    let peak_cap = d.next_power_of_two().clamp(1, 4096);
+    let peak_kout = plan.peak_table.max_out.min(peak_cap);
+    let peak_smem = peak_cap * 12;
+    Ok(Layout {
+        m,
+        nb,
+        d,
+        ns,
+        ne,
+        squared,
+        left,
+        right,
+        valmode,
+        alg: plan.config.algorithm,
+        lpp: v.lpp as usize,
+        want_v,
+        ld,
+        dec_smem_mode,
+        eigh,
+        eigh_threads,
+        eigh_smem,
+        form_h_smem,
+        dec_threads,
+        dec_smem,
+        dec_scratch_per_mat,
+        corr_fc,
+        corr_smem,
+        spec_dt,
+        spec_wg,
+        spec_e_smem,
+        spec_tile,
+        peak_cap,
+        peak_kout,
+        peak_smem,
+    })
+}
