@@ -462,7 +462,9 @@ fn engine<T: Real>(
     };
     let plan = Arc::new(Plan::<T>::new(config, tf, k)?);
     let backend = make_backend(plan.clone(), device)?;
-    Engine::new(plan, backend, options)
+    let mut e = Engine::new(plan, backend, options)?;
+    e.set_cpu_fallback(device == DeviceChoice::Auto);
+    Ok(e)
 }
 
 /// K from a noise recording, through the input's channel map.

@@ -105,6 +105,8 @@ pub struct Engine<T: Real> {
     /// Start of the last window run: its frames stay while windows overlap by more than
     /// half, so a backend's running correlation can subtract the frames that leave.
     last_start: Option<usize>,
+    /// Whether a device error moves the stream to the CPU (device `auto`).
+    cpu_fallback: bool,
 }
 
 impl<T: Real> Engine<T> {
@@ -151,6 +153,7 @@ impl<T: Real> Engine<T> {
             constant: Vec::new(),
             stream: StreamId::fresh(),
             last_start: None,
+            cpu_fallback: false,
             plan,
             backend: Some(backend),
         })
@@ -175,6 +178,13 @@ impl<T: Real> Engine<T> {
             want_spectrum,
         };
         Engine::new(plan, backend, options)
+    }
+
+    /// On a device error (a GPU that fails mid-run), go on with the CPU backend instead of
+    /// failing: the batch that failed runs again on the CPU, so no result is lost or
+    /// repeated, and a note says so. What `device = auto` asks for.
+    pub fn set_cpu_fallback(&mut self, on: bool) {
+        self.cpu_fallback = on;
     }
 
     /// The plan (holding the K in use now).
@@ -523,12 +533,23 @@ impl<T: Real> Engine<T> {
             spectra: self.ring.spectra(),
             windows,
         };
-        let r = match self.backend.as_mut() {
+        let mut r = match self.backend.as_mut() {
             Some(b) => b.process(&[job], want, &mut batch),
             None => Err(Error::Config(
                 "a group's stream runs its windows through the group".into(),
             )),
         };
+        if let (Err(Error::Device(e)), true) = (&r, self.cpu_fallback) {
+            out.notes.push(format!(
+                "warning: {} failed ({e}); going on with the CPU from frame {}",
+                self.device_name(),
+                self.report_frame(windows[0].frame)
+            ));
+            let mut cpu: Box<dyn Backend<T>> = Box::new(CpuBackend::new(self.plan.clone()));
+            r = cpu.process(&[job], want, &mut batch);
+            self.backend = Some(cpu);
+            self.cpu_fallback = false;
+        }
         let r = r.and_then(|()| self.deliver(windows, &batch, 0, out));
         self.batch = batch;
         r
