@@ -141,7 +141,7 @@ fn a_group_refuses_streams_with_their_own_noise_and_bad_indices() {
         channels: ChannelMap::identity(8),
         want_spectrum: false,
     };
-    let e = g.add(online).err().expect("a per-stream K is refused");
+    let e = g.add(online).expect_err("a per-stream K is refused");
     assert!(e.to_string().contains("fixed noise matrix"), "{e}");
     let mut outs = vec![Output::default()];
     assert!(g
