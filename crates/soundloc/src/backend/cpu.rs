@@ -260,4 +260,8 @@ impl<T: Real> Backend<T> for CpuBackend<T> {
     fn reset_stage_times(&mut self) {
         self.times = StageTimes::default();
     }
+
+    fn forget(&mut self, stream: StreamId) {
+        self.running.remove(&stream);
+    }
 }

@@ -359,4 +359,9 @@ pub trait Backend<T: Real>: Send {
     fn stage_times(&self) -> StageTimes;
     /// Zero the stage times.
     fn reset_stage_times(&mut self);
+    /// `stream` will not come again (it ended, was reset, or had a gap): drop what is kept
+    /// for it. Nothing is kept by default.
+    fn forget(&mut self, stream: StreamId) {
+        let _ = stream;
+    }
 }

@@ -150,6 +150,12 @@ impl<T: Real> Backend<T> for MultiBackend<T> {
             p.reset_stage_times();
         }
     }
+
+    fn forget(&mut self, stream: super::StreamId) {
+        for p in &mut self.parts {
+            p.forget(stream);
+        }
+    }
 }
 
 #[cfg(test)]

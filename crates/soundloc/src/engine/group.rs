@@ -187,6 +187,8 @@ impl<T: Real> StreamGroup<T> {
 
     /// Start stream `i` again (see [`Engine::reset`]).
     pub fn reset(&mut self, i: usize) -> Result<()> {
+        let old = self.stream(i)?.stream;
+        self.backend.forget(old);
         self.stream_mut(i)?.reset()
     }
 }

@@ -180,6 +180,15 @@ impl<T: Real> Engine<T> {
         Engine::new(plan, backend, options)
     }
 
+    /// A new stream starts: the backend may drop what it kept for the old one.
+    fn new_stream_id(&mut self) {
+        if let Some(b) = self.backend.as_mut() {
+            b.forget(self.stream);
+        }
+        self.stream = StreamId::fresh();
+        self.last_start = None;
+    }
+
     /// On a device error (a GPU that fails mid-run), go on with the CPU backend instead of
     /// failing: the batch that failed runs again on the CPU, so no result is lost or
     /// repeated, and a note says so. What `device = auto` asks for.
@@ -253,8 +262,7 @@ impl<T: Real> Engine<T> {
         self.ring.reset();
         self.scheduler.reset();
         self.pending.clear();
-        self.stream = StreamId::fresh();
-        self.last_start = None;
+        self.new_stream_id();
         out.notes.push(format!(
             "input gap: {:.3} s of audio lost at {at:.3} s (the input came faster than it was localized); \
              windows across it skipped{}",
@@ -450,8 +458,7 @@ impl<T: Real> Engine<T> {
         self.finished = false;
         self.origin = 0;
         self.constant.clear();
-        self.stream = StreamId::fresh();
-        self.last_start = None;
+        self.new_stream_id();
         if let Some(b) = self.backend.as_mut() {
             b.reset_stage_times();
         }
@@ -664,5 +671,13 @@ pub fn source(grid: &crate::array::Grid, dir: usize, power_db: f64) -> Source {
         y,
         z,
         power_db,
+    }
+}
+
+impl<T: Real> Drop for Engine<T> {
+    fn drop(&mut self) {
+        if let Some(b) = self.backend.as_mut() {
+            b.forget(self.stream);
+        }
     }
 }

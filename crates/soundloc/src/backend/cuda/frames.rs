@@ -75,6 +75,13 @@ impl FrameArena {
         self.top = 0;
     }
 
+    /// Give up `stream`'s region (its space is reused once the regions above it are gone,
+    /// or when the arena starts over).
+    pub fn release(&mut self, stream: StreamId) {
+        self.regions.remove(&stream);
+        self.top = self.regions.values().map(|g| g.pos + g.room).max().unwrap_or(0);
+    }
+
     /// Frames on the device for `stream` now: `first .. end`.
     #[cfg(test)]
     pub fn held(&self, stream: StreamId) -> Option<Range<usize>> {
@@ -267,6 +274,20 @@ mod tests {
         assert_eq!(p.uploads[0].frames, 51..52);
         assert_eq!(p.uploads[1].frames, 0..50);
         assert_ne!(p.base[1], p.base[0]);
+    }
+
+    #[test]
+    fn a_released_stream_gives_its_space_back() {
+        let mut a = FrameArena::default();
+        a.set_capacity(1000);
+        let (s1, s2) = (StreamId::fresh(), StreamId::fresh());
+        a.place(&[(s1, 0..50), (s2, 0..50)]);
+        a.release(s2);
+        assert_eq!(a.held(s2), None);
+        // s2's space (frames 100..200) is the next region handed out.
+        let p = a.place(&[(StreamId::fresh(), 0..50)]);
+        assert_eq!(p.base, vec![100]);
+        assert_eq!(a.held(s1), Some(0..50));
     }
 
     #[test]

@@ -461,6 +461,10 @@ impl<T: Real> Backend<T> for CudaBackend<T> {
     fn reset_stage_times(&mut self) {
         self.times = StageTimes::default();
     }
+
+    fn forget(&mut self, stream: StreamId) {
+        self.arena.release(stream);
+    }
 }
 
 impl<T: Real> Drop for CudaBackend<T> {
