@@ -1,0 +1,89 @@
+//! From a backend's batch output to results: grid peaks to sources (refined when asked),
+//! tracking, spectrum rows.
+
+use super::{Engine, Output, SpectrumTable};
+use crate::backend::{BatchOutput, WindowSpec};
+use crate::real::Real;
+use crate::result::{LocalizationResult, Source};
+use crate::Result;
+
+impl<T: Real> Engine<T> {
+    /// Turn rows `at ..` of `batch` (the output for `windows`) into results: peaks,
+    /// refinement, tracking, spectrum rows.
+    pub(super) fn deliver(
+        &mut self,
+        windows: &[WindowSpec],
+        batch: &BatchOutput,
+        at: usize,
+        out: &mut Output,
+    ) -> Result<()> {
+        self.windows_run += windows.len();
+        self.last_start = windows.last().map(|w| w.start);
+        let want = self.options.want_spectrum;
+        let refine = self.plan.config.refine;
+        let (nd, nb) = (self.plan.num_dirs, self.plan.num_bins());
+        for (i, w) in windows.iter().enumerate() {
+            let wi = at + i;
+            let peaks = &batch.peaks[wi];
+            let mut r = LocalizationResult {
+                num_active: batch.source_count.get(wi).map(|&c| c as usize),
+                frame: self.report_frame(w.frame),
+                time_s: self.frame_time(w.frame),
+                sources: peaks
+                    .iter()
+                    .map(|p| {
+                        let mut s = source(&self.plan.grid, p.dir, p.power_db);
+                        if refine {
+                            let db = &batch.spectrum_db[wi * nd..(wi + 1) * nd];
+                            refine_source(&mut s, &self.plan.grid, &self.plan.peak_table, db);
+                        }
+                        s
+                    })
+                    .collect(),
+            };
+            if let Some(t) = &mut self.tracker {
+                r = t.update(&r);
+            }
+            match &mut self.extender {
+                Some(e) => out.results.extend(e.push(r)),
+                None => out.results.push(r),
+            }
+        }
+        if want {
+            let n = windows.len();
+            let t = out.spectrum.get_or_insert_with(|| SpectrumTable::empty(nd, nb));
+            t.db.extend_from_slice(&batch.spectrum_db[at * nd..(at + n) * nd]);
+            t.bin_weight
+                .extend_from_slice(&batch.bin_weight[at * nb..(at + n) * nb]);
+            for w in windows {
+                t.frames.push(self.report_frame(w.frame));
+                t.times_s.push(self.frame_time(w.frame));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Move `s` (a grid peak) to its refined direction ([`crate::peaks::refine`]); the grid
+/// index stays; x/y/z become the refined unit vector.
+pub fn refine_source(s: &mut Source, grid: &crate::array::Grid, table: &crate::peaks::PeakTable, db: &[f32]) {
+    let r = crate::peaks::refine::refine(grid, table, db, s.grid_index);
+    s.azimuth_deg = r.azimuth_deg;
+    s.elevation_deg = r.elevation_deg;
+    [s.x, s.y, s.z] = r.unit;
+}
+
+/// A result source for grid direction `dir`: unit direction vector, azimuth, elevation.
+pub fn source(grid: &crate::array::Grid, dir: usize, power_db: f64) -> Source {
+    let [x, y, z] = grid.unit(dir);
+    Source {
+        id: None,
+        grid_index: dir,
+        azimuth_deg: grid.azimuth_deg(dir),
+        elevation_deg: grid.elevation_deg(dir),
+        x,
+        y,
+        z,
+        power_db,
+    }
+}
