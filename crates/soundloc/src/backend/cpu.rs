@@ -85,7 +85,7 @@ impl<T: Real> CpuBackend<T> {
         if job.stream.is_kept() {
             self.running.insert(job.stream, (rc, self.calls));
             // Drop the least recently used streams' sums beyond the budget.
-            let per = 2 * nb * mm * 8;
+            let per = self.running.values().next().map_or(0, |(rc, _)| rc.bytes());
             while self.running.len() * per > KEEP_BYTES {
                 let Some(oldest) = self.running.iter().min_by_key(|(_, (_, t))| *t).map(|(k, _)| *k) else {
                     break;

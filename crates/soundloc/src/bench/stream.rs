@@ -179,19 +179,8 @@ pub fn run(cfg: &StreamBenchConfig) -> Result<StreamReport> {
         }
     }
     lat.sort_by(f64::total_cmp);
-    let st = loc.stage_times();
-    let n = results.max(1) as f64;
-    let stages = crate::backend::StageTimes {
-        correlation_ms: (st.correlation_ms - before.correlation_ms) / n,
-        decomposition_ms: (st.decomposition_ms - before.decomposition_ms) / n,
-        spectrum_ms: (st.spectrum_ms - before.spectrum_ms) / n,
-        peaks_ms: (st.peaks_ms - before.peaks_ms) / n,
-    };
-    let q = |p: f64| {
-        lat.get(((lat.len() as f64 - 1.0) * p).round() as usize)
-            .copied()
-            .unwrap_or(f64::NAN)
-    };
+    let stages = per_result(loc.stage_times(), before, results);
+    let q = |p: f64| quantile(&lat, p);
     Ok(StreamReport {
         config: cfg.clone(),
         device: loc.device_name(),
@@ -259,13 +248,7 @@ fn run_group<T: crate::real::Real>(cfg: &StreamBenchConfig) -> Result<StreamRepo
     let compute: f64 = lat.iter().sum::<f64>() / 1e3;
     let results: usize = outs.iter().map(|o| o.results.len()).sum();
     lat.sort_by(f64::total_cmp);
-    let st = group.stage_times();
-    let nr = results.max(1) as f64;
-    let q = |p: f64| {
-        lat.get(((lat.len() as f64 - 1.0) * p).round() as usize)
-            .copied()
-            .unwrap_or(f64::NAN)
-    };
+    let q = |p: f64| quantile(&lat, p);
     Ok(StreamReport {
         config: cfg.clone(),
         device: group.device_name(),
@@ -276,11 +259,29 @@ fn run_group<T: crate::real::Real>(cfg: &StreamBenchConfig) -> Result<StreamRepo
         latency_ms_median: q(0.5),
         latency_ms_p99: q(0.99),
         latency_ms_max: lat.last().copied().unwrap_or(f64::NAN),
-        stages_per_result: crate::backend::StageTimes {
-            correlation_ms: (st.correlation_ms - before.correlation_ms) / nr,
-            decomposition_ms: (st.decomposition_ms - before.decomposition_ms) / nr,
-            spectrum_ms: (st.spectrum_ms - before.spectrum_ms) / nr,
-            peaks_ms: (st.peaks_ms - before.peaks_ms) / nr,
-        },
+        stages_per_result: per_result(group.stage_times(), before, results),
     })
+}
+
+/// Stage times since `before`, per result.
+fn per_result(
+    now: crate::backend::StageTimes,
+    before: crate::backend::StageTimes,
+    results: usize,
+) -> crate::backend::StageTimes {
+    let n = results.max(1) as f64;
+    crate::backend::StageTimes {
+        correlation_ms: (now.correlation_ms - before.correlation_ms) / n,
+        decomposition_ms: (now.decomposition_ms - before.decomposition_ms) / n,
+        spectrum_ms: (now.spectrum_ms - before.spectrum_ms) / n,
+        peaks_ms: (now.peaks_ms - before.peaks_ms) / n,
+    }
+}
+
+/// The `p` quantile of sorted values (NaN when empty).
+fn quantile(sorted: &[f64], p: f64) -> f64 {
+    sorted
+        .get(((sorted.len() as f64 - 1.0) * p).round() as usize)
+        .copied()
+        .unwrap_or(f64::NAN)
 }
