@@ -67,7 +67,7 @@ pub use config::{Algorithm, LocalizeConfig, Precision, WindowFunction, WindowTyp
 pub use engine::{Localization, Output, SpectrumTable, StreamGroup, TrackingSpec};
 pub use error::{Error, Result};
 pub use input::{Block, ChannelMap};
-pub use localizer::{ArraySpec, Localizer, LocalizerSpec, NoiseSource};
+pub use localizer::{ArraySpec, Localizer, LocalizerGroup, LocalizerSpec, NoiseSource};
 pub use noise::policy::NoiseUpdate;
 pub use real::Real;
 pub use result::{LocalizationResult, Source};

@@ -149,3 +149,68 @@ fn a_group_refuses_streams_with_their_own_noise_and_bad_indices() {
         .is_err());
     assert!(g.run(&mut outs).is_err(), "one output for no stream");
 }
+
+/// The spec-level group (`LocalizerGroup`): built like a `Localizer` from the same spec
+/// (here the robust default: a noise recording, no algorithm named, tracking), each stream
+/// gives exactly what its own `Localizer` gives.
+#[test]
+fn a_localizer_group_from_a_spec_equals_one_localizer_per_stream() {
+    use soundloc::array::grid::GridSpec;
+    use soundloc::{Localizer, LocalizerGroup, LocalizerSpec, NoiseSource};
+    let scenes: Vec<_> = (0..2).map(|s| ring8_drone(0.0, 60 + s).unwrap()).collect();
+    let fs = scenes[0].sample_rate_hz;
+    let audio: Vec<Vec<Vec<f32>>> = scenes
+        .iter()
+        .map(|s| render(&s.scene, &s.geometry, fs, 1.5, s.seed).channels)
+        .collect();
+    let dir = std::env::temp_dir().join(format!("soundloc-group-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let noise_path = dir.join("noise.wav");
+    let noise = soundloc::audio::Audio {
+        sample_rate_hz: fs,
+        channels: audio[0].iter().map(|c| c[..8000].to_vec()).collect(),
+    };
+    noise
+        .write_wav(&noise_path, soundloc::audio::SampleFormat::Float32)
+        .unwrap();
+    let mut spec = LocalizerSpec::free_field(
+        scenes[0].geometry.mics.clone(),
+        GridSpec::Ring {
+            step_deg: 5.0,
+            elevation_deg: 0.0,
+        },
+    );
+    spec.noise = NoiseSource::Recording { path: noise_path };
+    spec.tracking = Some(TrackingSpec::default());
+    spec.analysis.period = 10;
+    spec.spectrum = true;
+    let mut g = LocalizerGroup::new(&spec, 2).unwrap();
+    assert_eq!(g.len(), 2);
+    assert_eq!(g.config().algorithm, Algorithm::Gevd, "the robust default");
+    let mut outs = vec![Output::default(); 2];
+    let len = audio[0][0].len();
+    for p0 in (0..len).step_by(160) {
+        let parts: Vec<Vec<Vec<f32>>> = audio
+            .iter()
+            .map(|a| a.iter().map(|c| c[p0..(p0 + 160).min(len)].to_vec()).collect())
+            .collect();
+        let blocks: Vec<Block<'_>> = parts.iter().map(|p| Block::Planar(p)).collect();
+        g.push_all(&blocks, &mut outs).unwrap();
+    }
+    for i in 0..2 {
+        g.flush(i, &mut outs).unwrap();
+        let alone = Localizer::new(&spec).unwrap().localize(&audio[i]).unwrap();
+        assert!(alone.results.len() >= 10, "stream {i}");
+        assert!(outs[i].results == alone.results, "stream {i}: results differ");
+        assert!(outs[i].spectrum.as_ref().unwrap().db == alone.spectrum.as_ref().unwrap().db);
+    }
+    assert!(outs[0].results != outs[1].results, "the scenes differ");
+    // A noise range of each stream's own input would give each its own K: refused.
+    spec.noise = NoiseSource::Range {
+        start_s: 0.0,
+        end_s: 0.5,
+    };
+    let e = LocalizerGroup::new(&spec, 2).err().expect("per-stream K refused");
+    assert!(e.to_string().contains("one fixed noise matrix"), "{e}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}

@@ -37,6 +37,9 @@ use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
+mod group;
+pub use group::LocalizerGroup;
+
 /// Where the microphone positions and steering vectors come from.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case", tag = "kind", deny_unknown_fields)]
@@ -313,64 +316,17 @@ impl Localizer {
         tf: TransferFunctions,
         noise: Option<NoiseMatrices>,
     ) -> Result<Self> {
-        let full_mics = tf.num_mics;
-        let tf = if spec.channels.is_empty() {
-            tf
-        } else {
-            tf.select_channels(&spec.channels)?
-        };
-        let (analysis, note) = spec.resolved_analysis(tf.num_mics);
-        let algorithm = analysis.algorithm;
-        let config = LocalizeConfig {
-            sample_rate_hz: tf.sample_rate_hz,
-            ..analysis
-        };
-        let channels = ChannelMap {
-            input_channels: spec.input_channels.clone(),
-            tf_channels: spec.channels.clone(),
-            full_mics,
-            mics: tf.num_mics,
-        };
-        let mut notes: Vec<String> = note.into_iter().collect();
-        let initial_noise = match (noise, &spec.noise) {
-            _ if !algorithm.uses_noise() => InitialNoise::Given(None),
-            (Some(k), _) => InitialNoise::Given(Some(k)),
-            (None, NoiseSource::None) => InitialNoise::Given(None),
-            (None, NoiseSource::Range { start_s, end_s }) => InitialNoise::Range(*start_s, *end_s),
-            (None, NoiseSource::Recording { path }) => {
-                InitialNoise::Given(Some(noise_from_recording(path, &config, &channels)?))
-            }
-            (None, NoiseSource::CorrelationFile { path }) => {
-                use crate::formats::noise_cm::{Expected, NoiseCm};
-                let expected = Expected {
-                    num_mics: Some(tf.num_mics),
-                    nfft: Some(config.nfft),
-                };
-                InitialNoise::Given(Some(
-                    NoiseCm::load(path, expected)?.to_noise_matrices(config.bin_range())?,
-                ))
-            }
-        };
-        if !algorithm.uses_noise() && spec.noise != NoiseSource::None {
-            notes.push(format!("{} ignores the noise matrix", algorithm.name()));
-        }
-        let options = StreamOptions {
-            initial_noise,
-            noise_update: spec.noise_update.clone(),
-            tracking: spec.tracking,
-            channels,
-            want_spectrum: spec.spectrum,
-        };
-        let grid = tf.grid.clone();
+        let p = prepare(spec, tf, noise)?;
+        let grid = p.tf.grid.clone();
         let inner = match spec.precision {
-            Precision::F32 => Inner::F32(engine::<f32>(&config, &tf, spec.device, options)?),
-            Precision::F64 => Inner::F64(engine::<f64>(&config, &tf, spec.device, options)?),
+            Precision::F32 => Inner::F32(engine::<f32>(&p.config, &p.tf, spec.device, p.options)?),
+            Precision::F64 => Inner::F64(engine::<f64>(&p.config, &p.tf, spec.device, p.options)?),
         };
         Ok(Localizer {
             inner,
-            config,
+            config: p.config,
             grid,
-            notes,
+            notes: p.notes,
         })
     }
 
@@ -448,6 +404,79 @@ impl Localizer {
     pub fn localize(&mut self, channels: &[Vec<f32>]) -> Result<Localization> {
         dispatch!(mut self, e => e.localize(channels))
     }
+}
+
+/// What a spec resolves to once its transfer functions are in memory: the analysis, the
+/// TFs of the microphones used, a stream's options (K, updates, tracking, channel map)
+/// and the notes to show.
+pub(crate) struct Prepared {
+    pub config: LocalizeConfig,
+    pub tf: TransferFunctions,
+    pub options: StreamOptions,
+    pub notes: Vec<String>,
+}
+
+/// Resolve `spec` against transfer functions of all microphones (before
+/// `spec.channels`) and, optionally, K (`noise`, replacing `spec.noise`).
+pub(crate) fn prepare(
+    spec: &LocalizerSpec,
+    tf: TransferFunctions,
+    noise: Option<NoiseMatrices>,
+) -> Result<Prepared> {
+    let full_mics = tf.num_mics;
+    let tf = if spec.channels.is_empty() {
+        tf
+    } else {
+        tf.select_channels(&spec.channels)?
+    };
+    let (analysis, note) = spec.resolved_analysis(tf.num_mics);
+    let algorithm = analysis.algorithm;
+    let config = LocalizeConfig {
+        sample_rate_hz: tf.sample_rate_hz,
+        ..analysis
+    };
+    let channels = ChannelMap {
+        input_channels: spec.input_channels.clone(),
+        tf_channels: spec.channels.clone(),
+        full_mics,
+        mics: tf.num_mics,
+    };
+    let mut notes: Vec<String> = note.into_iter().collect();
+    let initial_noise = match (noise, &spec.noise) {
+        _ if !algorithm.uses_noise() => InitialNoise::Given(None),
+        (Some(k), _) => InitialNoise::Given(Some(k)),
+        (None, NoiseSource::None) => InitialNoise::Given(None),
+        (None, NoiseSource::Range { start_s, end_s }) => InitialNoise::Range(*start_s, *end_s),
+        (None, NoiseSource::Recording { path }) => {
+            InitialNoise::Given(Some(noise_from_recording(path, &config, &channels)?))
+        }
+        (None, NoiseSource::CorrelationFile { path }) => {
+            use crate::formats::noise_cm::{Expected, NoiseCm};
+            let expected = Expected {
+                num_mics: Some(tf.num_mics),
+                nfft: Some(config.nfft),
+            };
+            InitialNoise::Given(Some(
+                NoiseCm::load(path, expected)?.to_noise_matrices(config.bin_range())?,
+            ))
+        }
+    };
+    if !algorithm.uses_noise() && spec.noise != NoiseSource::None {
+        notes.push(format!("{} ignores the noise matrix", algorithm.name()));
+    }
+    let options = StreamOptions {
+        initial_noise,
+        noise_update: spec.noise_update.clone(),
+        tracking: spec.tracking,
+        channels,
+        want_spectrum: spec.spectrum,
+    };
+    Ok(Prepared {
+        config,
+        tf,
+        options,
+        notes,
+    })
 }
 
 fn engine<T: Real>(
