@@ -11,6 +11,10 @@
 //! error that names the file (as every error must), refused without naming it, panics and
 //! slow executions. The suite runs 2000 inputs per target
 //! (`tests/mutation.rs`); `soundloc-fuzz` runs millions (FUZZING.md).
+//!
+//! The same targets serve the coverage-guided harness in `fuzz/` (cargo-afl): it takes a
+//! target's [`Target::file_name`], [`Target::companions`] and [`Target::read`], and its seed
+//! corpus from [`write_seeds`]. [`cli`] fuzzes the `soundloc` command line.
 
 use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
@@ -23,6 +27,8 @@ use soundloc::formats::source_log;
 use soundloc::result::{LocalizationResult, Source};
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
+
+pub mod cli;
 
 /// What a target's reader does with one file: Ok, or the error's message.
 type Reader = fn(&Path) -> Result<(), String>;
@@ -40,6 +46,43 @@ pub struct Target {
     /// Files written once beside the input (e.g. the imaginary part of a text pair).
     companions: Vec<(&'static str, Vec<u8>)>,
     reader: Reader,
+}
+
+impl Target {
+    /// The valid files mutation starts from.
+    pub fn seeds(&self) -> &[Vec<u8>] {
+        &self.seeds
+    }
+
+    /// Files the reader expects beside the input (name, content), e.g. `K_i` for `K_r`.
+    pub fn companions(&self) -> &[(&'static str, Vec<u8>)] {
+        &self.companions
+    }
+
+    /// Read `path` with this target's reader: Ok, or the error's message. A panic is a bug.
+    pub fn read(&self, path: &Path) -> Result<(), String> {
+        (self.reader)(path)
+    }
+}
+
+/// The target called `name`, if any.
+pub fn target(name: &str) -> Option<Target> {
+    targets().into_iter().find(|t| t.name == name)
+}
+
+/// Write every target's seeds into `dir/<target>/seed-<i>` (a seed corpus for coverage-guided
+/// fuzzers); returns how many files were written.
+pub fn write_seeds(dir: &Path) -> std::io::Result<usize> {
+    let mut n = 0;
+    for t in targets() {
+        let d = dir.join(t.name);
+        std::fs::create_dir_all(&d)?;
+        for (i, s) in t.seeds.iter().enumerate() {
+            std::fs::write(d.join(format!("seed-{i}")), s)?;
+            n += 1;
+        }
+    }
+    Ok(n)
 }
 
 fn tmp_dir(tag: &str) -> PathBuf {
