@@ -27,4 +27,4 @@ venv=target/pyvenv
 rm -rf target/wheels
 "$venv/bin/maturin" build --release -q -m crates/soundloc-py/Cargo.toml -o target/wheels -i "$venv/bin/python"
 "$venv/bin/python" -m pip install -q --disable-pip-version-check --force-reinstall --no-deps target/wheels/soundloc-*.whl
-SOUNDLOC_BIN="$PWD/target/release/soundloc" "$venv/bin/python" -m pytest -q crates/soundloc-py/tests
+SOUNDLOC_BIN="$PWD/target/release/soundloc" "$venv/bin/python" -m pytest -q -rs crates/soundloc-py/tests

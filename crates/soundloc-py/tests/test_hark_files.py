@@ -5,6 +5,7 @@ import json
 import subprocess
 
 import numpy as np
+import pytest
 
 import soundloc
 
@@ -50,3 +51,61 @@ def test_tf_noise_cm_and_source_log(tmp_path):
     for a, b in zip(got, cli_results):
         assert a["frame"] == b["frame"]
         assert [round(s["azimuth_deg"]) for s in a["sources"]] == [round(s["azimuth_deg"]) for s in b["sources"]]
+
+
+def test_write_tf_noise_cm_and_source_log(tmp_path):
+    """Files written from Python read back equal, and the CLI localizes with them."""
+    d = np.array([[np.cos(a), np.sin(a), 0.0] for a in np.radians(np.arange(0, 360, 10))])
+    f = np.arange(257) * FS / 512
+    r = np.linalg.norm(d[:, None, :] - MICS[None, :, :], axis=2)  # (D, M) distances, 1 m grid
+    tf = np.exp(-2j * np.pi * f[None, None, :] * r[:, :, None] / 343.0)
+    path = tmp_path / "py_tf.zip"
+    soundloc.write_tf(path, tf, d, MICS, 512, FS)
+    back = soundloc.read_tf(path)
+    lo = back["first_bin"]
+    np.testing.assert_allclose(back["tf"], tf[:, :, lo:lo + back["tf"].shape[2]], atol=1e-6)
+    np.testing.assert_allclose(back["directions"], d, atol=1e-12)
+    # The CLI localizes the two talkers with the TF written here.
+    wav = tmp_path / "rec.wav"
+    write_wav(wav, scene(seconds=1.5, seed=4))
+    out = subprocess.run([str(cli()), "localize", str(wav), "--tf", str(path), "--format", "jsonl"],
+                         check=True, capture_output=True, text=True).stdout
+    rows = [json.loads(line) for line in out.splitlines()]
+    assert rows and all(
+        min(abs((s["azimuth_deg"] - t + 180) % 360 - 180) for s in row["sources"]) <= 10.0
+        for row in rows for t in (30.0, -120.0))
+    with pytest.raises(ValueError, match="shape"):
+        soundloc.write_tf(tmp_path / "bad.zip", tf[:, :, :100], d, MICS, 512, FS)
+
+    # Noise CMs: zip (f32 values) and text pair (full precision), read back.
+    rng = np.random.default_rng(3)
+    a = rng.standard_normal((257, 8, 8)) + 1j * rng.standard_normal((257, 8, 8))
+    k = a @ np.conj(np.transpose(a, (0, 2, 1))) + 8 * np.eye(8)
+    (z,) = soundloc.write_noise_cm(tmp_path / "k.zip", k)
+    kz, nfft = soundloc.read_noise_cm(z)
+    assert nfft == 512
+    np.testing.assert_allclose(kz, k, rtol=1e-6, atol=1e-5)
+    re, im = soundloc.write_noise_cm(tmp_path / "k", k)
+    assert (re.name, im.name) == ("k_r", "k_i")
+    kt, _ = soundloc.read_noise_cm(re)
+    np.testing.assert_allclose(kt, k, rtol=1e-12, atol=1e-12)
+    with pytest.raises(ValueError, match="not a zip"):
+        soundloc.write_noise_cm(tmp_path / "k2.zip", k, format="text")
+    with pytest.raises(ValueError, match="shape"):
+        soundloc.write_noise_cm(tmp_path / "k3.zip", k[:, :, :4])
+
+    # Source logs from a Results object: the directions and ids come back.
+    res = soundloc.Localizer(geometry=MICS, grid="ring:5", device="cpu", track=True).localize(
+        scene(seconds=1.5, seed=4), FS)
+    for fmt, name in (("text", "log.txt"), (None, "log.xml")):
+        soundloc.write_source_log(tmp_path / name, res, format=fmt)
+        log = soundloc.read_source_log(tmp_path / name)
+        assert [r["frame"] for r in log] == list(res.frames)
+        for i, r in enumerate(log):
+            got = sorted((s["id"], round(s["azimuth_deg"], 6)) for s in r["sources"])
+            want = sorted((int(res.ids[i, j]), round(float(res.azimuth_deg[i, j]), 6))
+                          for j in range(res.azimuth_deg.shape[1]) if not np.isnan(res.azimuth_deg[i, j]))
+            assert got == want, (fmt, i)
+    # And a list of dicts as read_source_log returns round-trips too.
+    soundloc.write_source_log(tmp_path / "again.txt", log)
+    assert (tmp_path / "again.txt").read_text() == (tmp_path / "log.txt").read_text()

@@ -8,7 +8,12 @@
     res.spectrum_db        # (results, directions); loc.directions()["azimuth_deg"]
 
 Streaming: ``loc.push(block)`` returns the results that block completed; ``loc.flush()``
-at the end; ``loc.reset()`` starts a new stream.
+at the end; ``loc.reset()`` starts a new stream. Many arrays on one device:
+``soundloc.StreamGroup(n, **same arguments)`` and ``g.push_all([block_0, ..., block_n-1])``.
+
+HARK files as numpy: read_tf / write_tf (transfer-function zips), read_noise_cm /
+write_noise_cm (noise correlation matrices, zip or text pair), read_source_log /
+write_source_log (source-location logs, text or XML), read_audio (WAV/FLAC).
 
 Arguments (HARK LocalizeMUSIC name / pyroomacoustics name):
     tf: HARK transfer-function zip or HGTF file; or geometry: (M, 3) mic positions in metres
@@ -36,12 +41,15 @@ from typing import List, Optional
 
 import numpy as np
 
-from ._native import Localizer as _Native, __version__, read_audio, read_noise_cm, read_tf
+from ._native import Localizer as _Native, StreamGroup as _Group, spec as _spec, __version__
+from ._native import read_audio, read_noise_cm, read_tf, write_tf
+from ._native import write_noise_cm as _write_noise_cm
 from ._native import read_source_log_json as _read_source_log_json
+from ._native import write_source_log_json as _write_source_log_json
 from . import archive, doa
 
-__all__ = ["Localizer", "Results", "archive", "doa", "read_audio", "read_noise_cm", "read_source_log",
-           "read_tf", "__version__"]
+__all__ = ["Localizer", "Results", "StreamGroup", "archive", "doa", "read_audio", "read_noise_cm",
+           "read_source_log", "read_tf", "write_noise_cm", "write_source_log", "write_tf", "__version__"]
 
 
 def read_source_log(path, frame_period_s=0.01):
@@ -50,6 +58,29 @@ def read_source_log(path, frame_period_s=0.01):
     import json
 
     return [json.loads(line) for line in _read_source_log_json(str(path), frame_period_s)]
+
+
+def write_noise_cm(path, k, format=None):
+    """Write noise correlation matrices ``k`` (nfft/2 + 1, M, M) complex as HARK's zip
+    (>= 2.1, values rounded to f32) or text pair (<= 2.0; "K" gives K_r and K_i);
+    ``format`` "zip" | "text", or None: zip when the path ends in .zip. Returns the paths
+    written (pathlib.Path)."""
+    from pathlib import Path
+
+    return [Path(p) for p in _write_noise_cm(str(path), k, format)]
+
+
+def write_source_log(path, results, format=None):
+    """Write results as a HARK source-location log: ``format`` "text" (HARK <= 2.0, one line
+    per frame: frame, then id x y z per source) or "xml" (HARK >= 2.1), or None: xml when the
+    path ends in .xml. ``results``: a :class:`Results` (sources as unit vectors from their
+    azimuth and elevation) or a list of result dicts as :func:`read_source_log` returns."""
+    import json
+
+    if format is None:
+        format = "xml" if str(path).lower().endswith(".xml") else "text"
+    records = results.to_records() if isinstance(results, Results) else results
+    _write_source_log_json(str(path), [json.dumps(r) for r in records], format)
 
 
 @dataclass
@@ -68,6 +99,28 @@ class Results:
 
     def __len__(self) -> int:
         return len(self.times)
+
+    def to_records(self) -> list:
+        """One dict per result, as ``soundloc localize`` writes JSON lines: frame, time_s,
+        sources (id, grid_index, azimuth_deg, elevation_deg, x, y, z as a unit vector,
+        power_db)."""
+        out = []
+        for i in range(len(self.times)):
+            sources = []
+            for j in range(self.azimuth_deg.shape[1]):
+                az, el = self.azimuth_deg[i, j], self.elevation_deg[i, j]
+                if np.isnan(az):
+                    continue
+                a, e = np.radians(az), np.radians(el)
+                sources.append(dict(
+                    id=None if self.ids[i, j] < 0 else int(self.ids[i, j]),
+                    grid_index=int(self.grid_index[i, j]),
+                    azimuth_deg=float(az), elevation_deg=float(el),
+                    x=float(np.cos(e) * np.cos(a)), y=float(np.cos(e) * np.sin(a)), z=float(np.sin(e)),
+                    power_db=float(self.power_db[i, j]),
+                ))
+            out.append(dict(frame=int(self.frames[i]), time_s=float(self.times[i]), sources=sources))
+        return out
 
     def to_pandas(self):
         """One row per (result, source): frame, time_s, rank, id, azimuth_deg, elevation_deg, power_db."""
@@ -96,7 +149,9 @@ class Localizer:
     """A stateful localizer; see the module docstring for the arguments."""
 
     def __init__(self, **kwargs):
-        self._n = _Native(**kwargs)
+        spec = _spec(**kwargs)
+        self._spec_json = spec.to_json()
+        self._n = _Native(spec)
 
     def localize(self, x, fs=None, channels_first=None) -> Results:
         """Localize a whole recording (the stream is reset first)."""
@@ -123,6 +178,63 @@ class Localizer:
         """The grid: unit vectors (D, 3), azimuth_deg (D,), elevation_deg (D,)."""
         return self._n.directions()
 
+    def spec_json(self) -> str:
+        """The library's spec (every option, resolved) as JSON."""
+        return self._spec_json
+
     def __getattr__(self, name):
         # latency_frames, samples_needed_next, device, algorithm, fs, num_mics, notes
+        return getattr(self._n, name)
+
+
+class StreamGroup:
+    """Streams of several arrays of one kind, localized together: one plan, one device,
+    the windows of all streams in one batch (one GPU launch serves every array).
+
+        g = soundloc.StreamGroup(4, tf="tf.zip", noise_cm="k.zip")
+        for blocks in capture():               # one (samples, channels) block per array
+            for i, r in enumerate(g.push_all(blocks)):
+                ...                            # r: Results of array i
+
+    Takes :class:`Localizer`'s arguments; the noise matrix is shared, so it must be given
+    up front (``noise=`` array, ``noise_cm=``), not as ``noise_range=`` or online updates.
+    Each stream's results equal those of its own :class:`Localizer`.
+    """
+
+    def __init__(self, streams, **kwargs):
+        self._n = _Group(_spec(**kwargs), int(streams))
+
+    def __len__(self):
+        return len(self._n)
+
+    def add_stream(self) -> int:
+        """Add a stream like the others; returns its index."""
+        return self._n.add_stream()
+
+    def push(self, i, block, channels_first=None) -> None:
+        """Queue a block into stream ``i``; its windows run at the next run/push_all/flush."""
+        self._n.push(i, block, channels_first=channels_first)
+
+    def run(self) -> List[Results]:
+        """Run every waiting window; one :class:`Results` per stream."""
+        return [Results(**r) for r in self._n.run()]
+
+    def push_all(self, blocks, channels_first=None) -> List[Results]:
+        """One block per stream (in stream order), then one run; one :class:`Results` per stream."""
+        return [Results(**r) for r in self._n.push_all(list(blocks), channels_first=channels_first)]
+
+    def flush(self, i) -> Results:
+        """End stream ``i``'s input: its last results."""
+        return Results(**self._n.flush(i))
+
+    def reset(self, i) -> None:
+        """Start stream ``i`` again."""
+        self._n.reset(i)
+
+    def directions(self) -> dict:
+        """The grid: unit vectors (D, 3), azimuth_deg (D,), elevation_deg (D,)."""
+        return self._n.directions()
+
+    def __getattr__(self, name):
+        # latency_frames, samples_needed_next(i), device, algorithm, fs, num_mics, notes
         return getattr(self._n, name)

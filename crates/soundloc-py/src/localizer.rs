@@ -1,0 +1,205 @@
+//! `soundloc._native.Localizer`: one stream (see `soundloc.Localizer` in Python).
+
+use crate::spec::PySpec;
+use crate::{channel_count, directions, err, results, samples};
+use pyo3::exceptions::{PyRuntimeError, PyValueError};
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+use soundloc::{Block, Localizer, Output};
+use std::path::PathBuf;
+use std::sync::{Mutex, MutexGuard};
+
+/// A stateful localizer (see `soundloc.Localizer` in Python for the arguments).
+#[pyclass(module = "soundloc._native", name = "Localizer")]
+pub(crate) struct PyLocalizer {
+    /// Behind a mutex: a Python object may be used from several threads (the engine is
+    /// `Send`, not `Sync`).
+    inner: Mutex<Localizer>,
+    channels_first: bool,
+}
+
+#[pymethods]
+impl PyLocalizer {
+    #[new]
+    fn new(py: Python<'_>, spec: &PySpec) -> PyResult<Self> {
+        Ok(PyLocalizer {
+            inner: Mutex::new(spec.localizer(py)?),
+            channels_first: spec.channels_first,
+        })
+    }
+
+    /// Localize a whole recording: (samples, channels) (or (channels, samples) with
+    /// channels_first=True) at `fs` Hz. The stream is reset first.
+    #[pyo3(signature = (x, fs=None, channels_first=None))]
+    fn localize<'py>(
+        &mut self,
+        py: Python<'py>,
+        x: &Bound<'py, PyAny>,
+        fs: Option<u32>,
+        channels_first: Option<bool>,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        self.check_rate(fs)?;
+        self.lock()?.reset().map_err(err)?;
+        let mut out = self.run(py, x, channels_first.unwrap_or(self.channels_first), true)?;
+        results(py, &mut out, self.lock()?.grid().len())
+    }
+
+    /// Localize a WAV/FLAC file and write its results to `output` as the CLI does
+    /// (`format` "jsonl" or "csv"; the file is written whole or not at all). Returns the
+    /// number of results. The GIL is released throughout.
+    #[pyo3(signature = (input, output, format="jsonl"))]
+    fn localize_file(
+        &mut self,
+        py: Python<'_>,
+        input: PathBuf,
+        output: PathBuf,
+        format: &str,
+    ) -> PyResult<usize> {
+        let csv = match format {
+            "jsonl" => false,
+            "csv" => true,
+            f => {
+                return Err(PyValueError::new_err(format!(
+                    "format {f:?}: expected \"jsonl\" or \"csv\""
+                )))
+            }
+        };
+        let mut inner = self.lock()?;
+        let loc = &mut *inner;
+        py.allow_threads(|| -> soundloc::Result<usize> {
+            let audio = soundloc::audio::read_audio(&input)?;
+            loc.check_input(audio.sample_rate_hz, audio.num_channels())
+                .map_err(|e| soundloc::Error::Config(format!("{}: {e}", input.display())))?;
+            loc.reset()?;
+            let run = loc.localize(&audio.channels)?;
+            if csv {
+                soundloc::output::csv::write_csv_file(&output, &run.results)?;
+            } else {
+                soundloc::output::jsonl::write_jsonl_file(&output, &run.results)?;
+            }
+            Ok(run.results.len())
+        })
+        .map_err(err)
+    }
+
+    /// Push a block of any length; returns the results its samples completed.
+    #[pyo3(signature = (x, channels_first=None))]
+    fn push<'py>(
+        &mut self,
+        py: Python<'py>,
+        x: &Bound<'py, PyAny>,
+        channels_first: Option<bool>,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        let mut out = self.run(py, x, channels_first.unwrap_or(self.channels_first), false)?;
+        results(py, &mut out, self.lock()?.grid().len())
+    }
+
+    /// End of input: results still held (a noise range, the tracker's delay).
+    fn flush<'py>(&mut self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let mut out = Output::default();
+        let mut inner = self.lock()?;
+        let loc = &mut *inner;
+        py.allow_threads(|| loc.flush(&mut out)).map_err(err)?;
+        results(py, &mut out, inner.grid().len())
+    }
+
+    /// Start a new stream (same plan and device).
+    fn reset(&mut self) -> PyResult<()> {
+        self.lock()?.reset().map_err(err)
+    }
+
+    /// Frames between a result's frame and the last frame of its window.
+    #[getter]
+    fn latency_frames(&self) -> PyResult<usize> {
+        Ok(self.lock()?.latency_frames())
+    }
+
+    /// Samples per channel still needed before the next result.
+    #[getter]
+    fn samples_needed_next(&self) -> PyResult<usize> {
+        Ok(self.lock()?.samples_needed_next())
+    }
+
+    /// The device description.
+    #[getter]
+    fn device(&self) -> PyResult<String> {
+        Ok(self.lock()?.device_name())
+    }
+
+    /// The algorithm that runs.
+    #[getter]
+    fn algorithm(&self) -> PyResult<&'static str> {
+        Ok(self.lock()?.config().algorithm.name())
+    }
+
+    /// Analysis sampling rate, Hz.
+    #[getter]
+    fn fs(&self) -> PyResult<u32> {
+        Ok(self.lock()?.config().sample_rate_hz)
+    }
+
+    /// Microphones used.
+    #[getter]
+    fn num_mics(&self) -> PyResult<usize> {
+        Ok(self.lock()?.num_mics())
+    }
+
+    /// Notes from building (the algorithm chosen…).
+    #[getter]
+    fn notes(&self) -> PyResult<Vec<String>> {
+        Ok(self.lock()?.notes().to_vec())
+    }
+
+    /// The grid: (D, 3) unit direction vectors, azimuth and elevation in degrees.
+    fn directions<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        directions(py, self.lock()?.grid())
+    }
+}
+
+impl PyLocalizer {
+    fn lock(&self) -> PyResult<MutexGuard<'_, Localizer>> {
+        self.inner
+            .lock()
+            .map_err(|_| PyRuntimeError::new_err("the localizer failed in another thread"))
+    }
+
+    fn check_rate(&self, fs: Option<u32>) -> PyResult<()> {
+        let want = self.lock()?.config().sample_rate_hz;
+        match fs {
+            Some(f) if f != want => Err(PyValueError::new_err(format!(
+                "the audio is sampled at {f} Hz, but the transfer functions are for {want} Hz"
+            ))),
+            _ => Ok(()),
+        }
+    }
+
+    fn run(
+        &mut self,
+        py: Python<'_>,
+        x: &Bound<'_, PyAny>,
+        channels_first: bool,
+        flush: bool,
+    ) -> PyResult<Output> {
+        let s = samples(x)?;
+        let mut guard = self.lock()?;
+        let fs = guard.config().sample_rate_hz;
+        let n_ch = channel_count(s.shape(), channels_first, |c| guard.check_input(fs, c))?;
+        let mut out = Output::default();
+        let data = s.data();
+        let inner = &mut *guard;
+        py.allow_threads(|| -> soundloc::Result<()> {
+            let block = if channels_first {
+                Block::ChannelsFirst { data, channels: n_ch }
+            } else {
+                Block::Interleaved { data, channels: n_ch }
+            };
+            inner.push(block, &mut out)?;
+            if flush {
+                inner.flush(&mut out)?;
+            }
+            Ok(())
+        })
+        .map_err(err)?;
+        Ok(out)
+    }
+}

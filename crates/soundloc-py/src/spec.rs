@@ -1,0 +1,292 @@
+//! Python keyword arguments → a [`LocalizerSpec`], plus what only Python can give (a grid or
+//! a noise recording as arrays). `Localizer` and `StreamGroup` are both built from one
+//! [`PySpec`], so they take the same arguments (documented on `soundloc.Localizer`).
+
+use crate::{err, parse, points, samples};
+use pyo3::exceptions::PyValueError;
+use pyo3::prelude::*;
+use soundloc::array::freefield::free_field;
+use soundloc::array::grid::GridSpec;
+use soundloc::array::{Geometry, Grid, TransferFunctions};
+use soundloc::backend::DeviceChoice;
+use soundloc::config::WindowType;
+use soundloc::noise::NoiseMatrices;
+use soundloc::{
+    Algorithm, ArraySpec, Localizer, LocalizerGroup, LocalizerSpec, NoiseSource, NoiseUpdate, Precision,
+    TrackingSpec,
+};
+use std::path::{Path, PathBuf};
+
+/// A localizer's description: the library's spec and the arrays Python passed.
+#[pyclass(module = "soundloc._native", name = "Spec", frozen)]
+pub(crate) struct PySpec {
+    pub spec: LocalizerSpec,
+    /// `grid=` as a (D, 3) array of directions.
+    grid_points: Option<Vec<[f64; 3]>>,
+    /// `noise=` as samples and their (rows, cols).
+    noise_audio: Option<(Vec<f32>, [usize; 2])>,
+    pub channels_first: bool,
+    grid_radius: f64,
+    speed_of_sound: f64,
+}
+
+#[pymethods]
+impl PySpec {
+    /// The library's spec as JSON (what `soundloc localize --spec` would take).
+    fn to_json(&self) -> PyResult<String> {
+        serde_json::to_string_pretty(&self.spec).map_err(|e| PyValueError::new_err(e.to_string()))
+    }
+}
+
+/// The spec from `soundloc.Localizer`'s keyword arguments.
+#[pyfunction]
+#[pyo3(signature = (*, tf=None, geometry=None, grid=None, algorithm=None, num_sources=2, max_peaks=-1,
+    window=50, period=50, window_type="future", freq_range=(500.0, 2800.0), nfft=512, hop=160, fs=16000,
+    noise=None, noise_range=None, noise_cm=None, noise_segments=None, noise_preceding=None,
+    track=false, tracker_thresh_db=0.0, device="auto", precision="f32", channels=None,
+    input_channels=None, spectrum=true, grid_radius=1.0, speed_of_sound=343.0, channels_first=false,
+    subspace_dim=None, normalize_bins=false, refine=false))]
+#[allow(clippy::too_many_arguments)] // mirrors the Python keywords
+pub(crate) fn spec(
+    tf: Option<PathBuf>,
+    geometry: Option<&Bound<'_, PyAny>>,
+    grid: Option<&Bound<'_, PyAny>>,
+    algorithm: Option<&str>,
+    num_sources: usize,
+    max_peaks: i64,
+    window: usize,
+    period: usize,
+    window_type: &str,
+    freq_range: (f64, f64),
+    nfft: usize,
+    hop: usize,
+    fs: u32,
+    noise: Option<&Bound<'_, PyAny>>,
+    noise_range: Option<(f64, f64)>,
+    noise_cm: Option<PathBuf>,
+    noise_segments: Option<Vec<(f64, f64)>>,
+    noise_preceding: Option<(usize, usize)>,
+    track: bool,
+    tracker_thresh_db: f64,
+    device: &str,
+    precision: &str,
+    channels: Option<Vec<usize>>,
+    input_channels: Option<Vec<usize>>,
+    spectrum: bool,
+    grid_radius: f64,
+    speed_of_sound: f64,
+    channels_first: bool,
+    subspace_dim: Option<usize>,
+    normalize_bins: bool,
+    refine: bool,
+) -> PyResult<PySpec> {
+    let grid_spec: Option<GridSpec> = match grid {
+        Some(g) => match g.extract::<String>() {
+            Ok(s) => Some(s.parse().map_err(err)?),
+            Err(_) => None,
+        },
+        None => Some("ring:5".parse().map_err(err)?),
+    };
+    let grid_points = match (grid, &grid_spec) {
+        (Some(g), None) => Some(points(g, "grid")?),
+        _ => None,
+    };
+    let mics = geometry.map(|g| points(g, "geometry")).transpose()?;
+    let array = match (&tf, &mics) {
+        (Some(p), None) => ArraySpec::TransferFunctions { path: p.clone() },
+        (None, Some(m)) => ArraySpec::FreeField {
+            mics: m.clone(),
+            grid: grid_spec.unwrap_or(GridSpec::Ring {
+                step_deg: 5.0,
+                elevation_deg: 0.0,
+            }),
+            radius_m: grid_radius,
+            speed_of_sound_m_s: speed_of_sound,
+        },
+        (Some(_), Some(_)) => return Err(PyValueError::new_err("give tf= or geometry=, not both")),
+        (None, None) => {
+            return Err(PyValueError::new_err(
+                "no array: give tf= (a HARK transfer-function file) or geometry= (an (M, 3) array of positions in metres)",
+            ))
+        }
+    };
+    let mut spec = LocalizerSpec::with_array(array);
+    spec.algorithm = algorithm
+        .map(|a| parse::<Algorithm>("algorithm", a))
+        .transpose()?;
+    let a = &mut spec.analysis;
+    a.num_sources = num_sources;
+    a.subspace_dim = subspace_dim;
+    a.normalize_bins = normalize_bins;
+    // The robust default (a noise source, no algorithm) turns refinement on itself.
+    a.refine = refine;
+    a.max_peaks = max_peaks;
+    a.window = window;
+    a.period = period;
+    a.window_type = parse::<WindowType>("window_type", window_type)?;
+    (a.lower_freq_hz, a.upper_freq_hz) = freq_range;
+    a.nfft = nfft;
+    a.hop = hop;
+    a.sample_rate_hz = fs;
+    spec.channels = channels.unwrap_or_default();
+    spec.input_channels = input_channels.unwrap_or_default();
+    let given = [noise.is_some(), noise_range.is_some(), noise_cm.is_some()];
+    if given.iter().filter(|&&g| g).count() > 1 {
+        return Err(PyValueError::new_err(
+            "give at most one of noise=, noise_range=, noise_cm=",
+        ));
+    }
+    spec.noise = match (noise_range, noise_cm) {
+        (Some((start_s, end_s)), _) => NoiseSource::Range { start_s, end_s },
+        (_, Some(path)) => NoiseSource::CorrelationFile { path },
+        _ => NoiseSource::None,
+    };
+    spec.noise_update = match (noise_segments, noise_preceding) {
+        (Some(_), Some(_)) => {
+            return Err(PyValueError::new_err(
+                "give noise_segments= or noise_preceding=, not both",
+            ))
+        }
+        (Some(s), None) => NoiseUpdate::Segments(s),
+        (None, Some((frames, gap))) => NoiseUpdate::Preceding { frames, gap },
+        (None, None) => NoiseUpdate::Fixed,
+    };
+    spec.tracking = track.then(|| TrackingSpec {
+        tracker: soundloc::tracking::TrackerConfig {
+            thresh_db: tracker_thresh_db,
+            ..Default::default()
+        },
+        preroll: 0,
+    });
+    spec.device = parse::<DeviceChoice>("device", device)?;
+    spec.precision = parse::<Precision>("precision", precision)?;
+    spec.spectrum = spectrum;
+    // A noise recording as an array: K from it, through the same channel map.
+    let noise_audio: Option<(Vec<f32>, [usize; 2])> = noise
+        .map(samples)
+        .transpose()?
+        .map(|n| (n.data().to_vec(), n.shape()));
+    let noise_given = noise_audio.is_some();
+    if noise_given && spec.noise == NoiseSource::None {
+        // Make the spec say a noise source is given (the default algorithm depends on it).
+        spec.noise = NoiseSource::Recording {
+            path: PathBuf::from("(array)"),
+        };
+    }
+    Ok(PySpec {
+        spec,
+        grid_points,
+        noise_audio,
+        channels_first,
+        grid_radius,
+        speed_of_sound,
+    })
+}
+
+impl PySpec {
+    /// Transfer functions and K built here when Python gave a grid or noise as arrays
+    /// (the spec cannot name them); None when the spec alone says everything.
+    fn arrays(&self) -> soundloc::Result<Option<(TransferFunctions, Option<NoiseMatrices>)>> {
+        let (spec, grid_points, noise_audio) = (&self.spec, &self.grid_points, &self.noise_audio);
+        let (grid_radius, speed_of_sound, channels_first) =
+            (self.grid_radius, self.speed_of_sound, self.channels_first);
+        if grid_points.is_none() && noise_audio.is_none() {
+            return Ok(None);
+        }
+        let (alg, _) = spec.resolved_algorithm();
+        let config = soundloc::LocalizeConfig {
+            algorithm: alg,
+            ..spec.analysis.clone()
+        };
+        let tf = match (grid_points, &spec.array) {
+            (Some(p), ArraySpec::FreeField { mics, .. }) => {
+                let g = Grid::from_points(p.iter().map(|v| v.map(|c| c * grid_radius)).collect())?;
+                free_field(
+                    &Geometry::new(mics.clone(), Path::new("geometry"))?,
+                    &g,
+                    config.nfft,
+                    config.sample_rate_hz,
+                    0..config.nfft / 2 + 1,
+                    speed_of_sound,
+                )?
+            }
+            (Some(_), _) => {
+                return Err(soundloc::Error::Config(
+                    "grid= as an array needs geometry=".into(),
+                ))
+            }
+            _ => spec.load_array(&config)?,
+        };
+        let k = match noise_audio {
+            Some((data, shape)) => Some(noise_matrices(spec, &config, &tf, data, *shape, channels_first)?),
+            None => None,
+        };
+        Ok(Some((tf, k)))
+    }
+
+    /// A localizer (the GIL released while files load and the plan is built).
+    pub fn localizer(&self, py: Python<'_>) -> PyResult<Localizer> {
+        py.allow_threads(|| match self.arrays()? {
+            None => Localizer::new(&self.spec),
+            Some((tf, k)) => Localizer::with_transfer_functions(&self.spec, tf, k),
+        })
+        .map_err(err)
+    }
+
+    /// A group of `streams` streams sharing the plan.
+    pub fn group(&self, py: Python<'_>, streams: usize) -> PyResult<LocalizerGroup> {
+        py.allow_threads(|| match self.arrays()? {
+            None => LocalizerGroup::new(&self.spec, streams),
+            Some((tf, k)) => LocalizerGroup::with_transfer_functions(&self.spec, tf, k, streams),
+        })
+        .map_err(err)
+    }
+}
+
+/// K from a noise array through the spec's channel map.
+fn noise_matrices(
+    spec: &LocalizerSpec,
+    config: &soundloc::LocalizeConfig,
+    tf: &soundloc::array::TransferFunctions,
+    data: &[f32],
+    [rows, cols]: [usize; 2],
+    channels_first: bool,
+) -> soundloc::Result<soundloc::noise::NoiseMatrices> {
+    let (nch, len) = if channels_first {
+        (rows, cols)
+    } else {
+        (cols, rows)
+    };
+    let map = soundloc::ChannelMap {
+        input_channels: spec.input_channels.clone(),
+        tf_channels: spec.channels.clone(),
+        full_mics: tf.num_mics,
+        mics: if spec.channels.is_empty() {
+            tf.num_mics
+        } else {
+            spec.channels.len()
+        },
+    };
+    let idx = map
+        .resolve(nch)
+        .map_err(|e| soundloc::Error::Mismatch(format!("noise of shape ({rows}, {cols}): {e}")))?;
+    let planar: Vec<Vec<f32>> = idx
+        .iter()
+        .map(|&c| {
+            (0..len)
+                .map(|i| {
+                    if channels_first {
+                        data[c * len + i]
+                    } else {
+                        data[i * nch + c]
+                    }
+                })
+                .collect()
+        })
+        .collect();
+    let config = soundloc::LocalizeConfig {
+        sample_rate_hz: tf.sample_rate_hz,
+        ..config.clone()
+    };
+    soundloc::noise::estimate(&config, config.sample_rate_hz, &planar, None)
+}
