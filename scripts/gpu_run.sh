@@ -5,7 +5,7 @@
 #   cargo build --release && cargo test --release -p soundloc --test gpu_parity --no-run
 #   scripts/gpu_run.sh --stage        # copies the binaries and the peer into .devcarry/
 # On the device (repo root, $OUT set by the device tool):
-#   scripts/gpu_run.sh [parity] [bench] [stream] [streams] [peer] [bigbatch] [f64] [e2e] [multi]   (default: parity bench peer)
+#   scripts/gpu_run.sh [parity] [bench] [stream] [streams] [peer] [bigbatch] [f64] [e2e] [multi] [newalg]   (default: parity bench peer)
 set -uo pipefail
 root="$(cd "$(dirname "$0")/.." && pwd)"
 C="$root/.devcarry"
@@ -116,6 +116,11 @@ PY
       ;;
     f64)
       "$C/soundloc" bench --device cuda --precision f64 --algorithm gsvd --algorithm gevd --batch 64 --repeats 5 --json 2>&1 | tee -a "$OUT/bench.jsonl" ;;
+    newalg)
+      # The peers' algorithms on the GPU (issue 11): SRP-PHAT and NormMUSIC next to the GEVD.
+      { "$C/soundloc" bench --device cuda --algorithm gevd --algorithm srp-phat --batch 256 --repeats 10 --json
+        "$C/soundloc" bench --device cuda --algorithm gevd --algorithm sevd --normalize-bins --batch 256 --repeats 10 --json
+      } 2>&1 | tee "$OUT/newalg.jsonl" ;;
     allalg)
       "$C/soundloc" bench --device cuda --algorithm sevd --algorithm gevd-hark --batch 256 --repeats 10 --json 2>&1 | tee -a "$OUT/bench.jsonl" ;;
     peer)

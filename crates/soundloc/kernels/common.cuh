@@ -98,6 +98,14 @@ __device__ __forceinline__ double sl_abs(double x) { return fabs(x); }
 __device__ __forceinline__ float sl_max(float a, float b) { return a > b ? a : b; }
 __device__ __forceinline__ double sl_max(double a, double b) { return a > b ? a : b; }
 
+// *p = max(*p, v) for v ≥ 0 and *p ≥ 0 (non-negative IEEE values order as their bits).
+__device__ __forceinline__ void atomic_max_pos(float* p, float v) {
+    atomicMax(reinterpret_cast<unsigned int*>(p), __float_as_uint(v));
+}
+__device__ __forceinline__ void atomic_max_pos(double* p, double v) {
+    atomicMax(reinterpret_cast<unsigned long long*>(p), (unsigned long long)__double_as_longlong(v));
+}
+
 template <typename T>
 struct sl_eps;
 template <>

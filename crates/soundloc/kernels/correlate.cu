@@ -6,6 +6,8 @@
 // R       [window][bin][M×M]  column-major output (R[j*M+i] = R_ij)
 // scale   [window][bin]       the divisor max|Re R_ij| + 1 (for the decomposition's
 //                             factor form, which rebuilds R's factor from the frames)
+// phat    SRP-PHAT: every coefficient reduced to its phase x/|x| (0 where |x| = 0) as it is
+//         loaded, and R̃ = (1/W) Σ x̃ x̃ᴴ unscaled (scale = 1; srp.rs)
 // Grid: (windows × bins) blocks, matrix index = window * nb + bin. Dynamic shared
 // memory: fc × M complex (a chunk of fc frames) + 32 doubles. Sums in double, one
 // rounding to T (as the CPU's running correlation).
@@ -13,9 +15,18 @@
 
 #define SL_CORR_EPT 8
 
+// Frame coefficient x, or its phase x/|x| (0 where |x| is 0 or not finite) with `phat`.
+template <typename T>
+__device__ __forceinline__ cplx<T> load_x(const cplx<T>& x, int phat) {
+    if (!phat) return x;
+    const double n = sl_sqrt((double)x.re * (double)x.re + (double)x.im * (double)x.im);
+    if (n > 0.0 && n - n == 0.0) return cx<T>((T)((double)x.re / n), (T)((double)x.im / n));  // n finite
+    return czero<T>();
+}
+
 template <typename T>
 __device__ void correlate_impl(const cplx<T>* __restrict__ X, int nb, int M, const int* __restrict__ win, int fc,
-                               int mat0, cplx<T>* __restrict__ R, T* __restrict__ scale) {
+                               int mat0, int phat, cplx<T>* __restrict__ R, T* __restrict__ scale) {
     SL_DYN_SMEM(sl_smem);
     cplx<T>* xs = reinterpret_cast<cplx<T>*>(sl_smem);
     double* red = reinterpret_cast<double*>(xs + (size_t)fc * M);
@@ -29,7 +40,7 @@ __device__ void correlate_impl(const cplx<T>* __restrict__ X, int nb, int M, con
     // The divisor first: for Hermitian PSD R, max_ij |Re R_ij| is the largest diagonal
     // entry (|R_ij| ≤ √(R_ii R_jj)), so R is scaled as it is written — one rounding to T.
     double diag = 0.0;
-    for (int f0 = 0; f0 < len; f0 += fc) {
+    for (int f0 = 0; f0 < (phat ? 0 : len); f0 += fc) {
         const int nf = min(fc, len - f0);
         __syncthreads();
         for (int k = tid; k < nf * M; k += nt) {
@@ -45,8 +56,9 @@ __device__ void correlate_impl(const cplx<T>* __restrict__ X, int nb, int M, con
         }
     }
     const double mx = block_max(tid < M ? diag * inv_len : 0.0, red);
-    const double k = inv_len / (mx + 1.0);
-    if (tid == 0) scale[blockIdx.x] = (T)(mx + 1.0);
+    const double div = phat ? 1.0 : mx + 1.0;
+    const double k = inv_len / div;
+    if (tid == 0) scale[blockIdx.x] = (T)div;
     for (int base = 0; base < ntri; base += SL_CORR_EPT * nt) {
         // Sums in double: f32 frames multiply exactly, and 50-term sums keep their digits.
         cplx<double> acc[SL_CORR_EPT];
@@ -72,7 +84,7 @@ __device__ void correlate_impl(const cplx<T>* __restrict__ X, int nb, int M, con
             __syncthreads();
             for (int q = tid; q < nf * M; q += nt) {
                 const int f = q / M, m = q - f * M;
-                xs[q] = X[((size_t)(start + f0 + f) * nb + b) * M + m];
+                xs[q] = load_x(X[((size_t)(start + f0 + f) * nb + b) * M + m], phat);
             }
             __syncthreads();
             for (int f = 0; f < nf; ++f) {
@@ -102,13 +114,13 @@ __device__ void correlate_impl(const cplx<T>* __restrict__ X, int nb, int M, con
 
 #ifndef SL_NO_F32
 extern "C" __global__ void correlate_f32(const cplx<float>* X, int nb, int M, const int* win, int fc, int mat0,
-                                         cplx<float>* R, float* scale) {
-    correlate_impl<float>(X, nb, M, win, fc, mat0, R, scale);
+                                         int phat, cplx<float>* R, float* scale) {
+    correlate_impl<float>(X, nb, M, win, fc, mat0, phat, R, scale);
 }
 #endif
 #ifndef SL_NO_F64
 extern "C" __global__ void correlate_f64(const cplx<double>* X, int nb, int M, const int* win, int fc, int mat0,
-                                         cplx<double>* R, double* scale) {
-    correlate_impl<double>(X, nb, M, win, fc, mat0, R, scale);
+                                         int phat, cplx<double>* R, double* scale) {
+    correlate_impl<double>(X, nb, M, win, fc, mat0, phat, R, scale);
 }
 #endif

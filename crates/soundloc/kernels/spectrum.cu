@@ -1,6 +1,12 @@
-// Stage 4 — MUSIC spectrum: for each direction d, window w and used bin b,
-//   P_b(d) = ‖a‖² / Σ_noise |aᴴ e_m|²   (squared, default)   or   ‖a‖² / Σ_noise |aᴴ e_m|
-// and the weighted bin sum P̄_w(d) = Σ_b gain_wb P_b(d), gain = w_b g_b.
+// Stage 4 — the spectrum: for each direction d, window w and used bin b,
+//   MUSIC (kind 0): P_b(d) = ‖a‖² / Σ_noise |aᴴ e_m|²  (squared, default)  or  ‖a‖² / Σ_noise |aᴴ e_m|
+//   SRP-PHAT (kind 1): P_b(d) = Re(ãᴴ R̃ ã) / M²  (E is then R̃ itself, column-major, ne = M;
+//                      ã the phase-only steering; srp.rs)
+// and the weighted bin sum P̄_w(d) = Σ_b gain_wb P_b(d), gain = w_b g_b (w_b for SRP).
+// NormMUSIC (normalize_bins) runs two passes: pass 1 takes binmax_wb = max_d P_b(d)
+// (atomic max over directions, binmax zeroed before), pass 2 sums w_b P_b(d) / binmax_wb
+// (g_b cancels; a bin whose maximum is 0 keeps gain·P — the CPU's normalize_bin). Pass 0:
+// the plain sum.
 //
 // Squared: Σ_noise |aᴴe_m|² = ‖a‖² − Σ_signal |aᴴe_s|² (orthonormal basis); where that
 // complement is below tau·‖a‖² (music::REFINE_RATIO, as the CPU) it is recomputed as
@@ -79,11 +85,25 @@ __device__ __forceinline__ T proj_sum(const cplx<T>* a, const cplx<T>* e, int M,
     return tot;
 }
 
+// Re(aᴴ R a) for R column-major M × M (column j at R + j·M).
+template <typename T>
+__device__ __noinline__ T quad_form(const cplx<T>* a, const cplx<T>* R, int M) {
+    T q = (T)0;
+    for (int j = 0; j < M; ++j) {
+        const cplx<T>* col = R + (size_t)j * M;
+        cplx<T> c = czero<T>();
+        for (int i = 0; i < M; ++i) cmacc(c, a[i], col[i]);  // (aᴴ R)_j
+        q += c.re * a[j].re - c.im * a[j].im;
+    }
+    return q;
+}
+
 template <typename T>
 __device__ void spectrum_impl(const cplx<T>* __restrict__ St, const T* __restrict__ n2den,
                               const T* __restrict__ n2num, const cplx<T>* __restrict__ E, int ne,
                               const T* __restrict__ gain, int M, int nb, int D, int ns, int squared, int nwin, T tau,
-                              int dt, int e_smem, T* __restrict__ Ppart) {
+                              int dt, int e_smem, int kind, int pass, const T* __restrict__ weights,
+                              T* __restrict__ binmax, T* __restrict__ Ppart) {
     SL_DYN_SMEM(sl_smem);
     const int lds = M | 1;
     cplx<T>* tile = reinterpret_cast<cplx<T>*>(sl_smem);
@@ -118,37 +138,55 @@ __device__ void spectrum_impl(const cplx<T>* __restrict__ St, const T* __restric
         }
         __syncthreads();
         if (!mine) continue;
-        const T g = gain[(size_t)wl * nb + b];
+        const T g = kind ? weights[b] : gain[(size_t)wl * nb + b];
         if (g == (T)0) continue;
         const cplx<T>* a = tile + dl * lds;
         const cplx<T>* e = e_smem ? etile + (size_t)wi * ne * M : E + ((size_t)wl * nb + b) * ne * M;
-        const T nd = n2den[(size_t)b * D + d], nn = n2num[(size_t)b * D + d];
-        T den;
-        if (squared) {
-            den = nd - proj_sum<T, true>(a, e, M, 0, ns);
-            if (den < tau * nd) den = residual_norm2(a, e, M, ns);
-            den = sl_max(den, eps * nd);
+        T num, den;
+        if (kind) {
+            num = quad_form(a, e, M) / (T)(M * M);
+            den = (T)1;
         } else {
-            den = proj_sum<T, false>(a, e, M, ns, M);
-            den = sl_max(den, eps * sl_sqrt(nd));
+            const T nd = n2den[(size_t)b * D + d];
+            num = n2num[(size_t)b * D + d];
+            if (squared) {
+                den = nd - proj_sum<T, true>(a, e, M, 0, ns);
+                if (den < tau * nd) den = residual_norm2(a, e, M, ns);
+                den = sl_max(den, eps * nd);
+            } else {
+                den = proj_sum<T, false>(a, e, M, ns, M);
+                den = sl_max(den, eps * sl_sqrt(nd));
+            }
         }
-        if (den > (T)0) acc += g * nn / den;
+        if (!(den > (T)0)) continue;
+        if (pass == 1) {
+            const T p = num / den;
+            if (p > (T)0) atomic_max_pos(binmax + (size_t)wl * nb + b, p);
+        } else if (pass == 2) {
+            const T bm = binmax[(size_t)wl * nb + b];
+            acc += bm > (T)0 ? weights[b] * ((num / den) / bm) : g * num / den;
+        } else {
+            acc += g * num / den;
+        }
     }
-    if (mine) Ppart[((size_t)blockIdx.z * nwin + wl) * D + d] = acc;
+    if (mine && pass != 1) Ppart[((size_t)blockIdx.z * nwin + wl) * D + d] = acc;
 }
 
 #ifndef SL_NO_F32
 extern "C" __global__ void spectrum_f32(const cplx<float>* St, const float* n2den, const float* n2num,
                                         const cplx<float>* E, int ne, const float* gain, int M, int nb, int D, int ns,
-                                        int squared, int nwin, float tau, int dt, int e_smem, float* Ppart) {
-    spectrum_impl<float>(St, n2den, n2num, E, ne, gain, M, nb, D, ns, squared, nwin, tau, dt, e_smem, Ppart);
+                                        int squared, int nwin, float tau, int dt, int e_smem, int kind, int pass,
+                                        const float* weights, float* binmax, float* Ppart) {
+    spectrum_impl<float>(St, n2den, n2num, E, ne, gain, M, nb, D, ns, squared, nwin, tau, dt, e_smem, kind, pass,
+                         weights, binmax, Ppart);
 }
 #endif
 #ifndef SL_NO_F64
 extern "C" __global__ void spectrum_f64(const cplx<double>* St, const double* n2den, const double* n2num,
                                         const cplx<double>* E, int ne, const double* gain, int M, int nb, int D,
-                                        int ns, int squared, int nwin, double tau, int dt, int e_smem,
-                                        double* Ppart) {
-    spectrum_impl<double>(St, n2den, n2num, E, ne, gain, M, nb, D, ns, squared, nwin, tau, dt, e_smem, Ppart);
+                                        int ns, int squared, int nwin, double tau, int dt, int e_smem, int kind,
+                                        int pass, const double* weights, double* binmax, double* Ppart) {
+    spectrum_impl<double>(St, n2den, n2num, E, ne, gain, M, nb, D, ns, squared, nwin, tau, dt, e_smem, kind, pass,
+                          weights, binmax, Ppart);
 }
 #endif

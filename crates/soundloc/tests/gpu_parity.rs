@@ -370,6 +370,43 @@ fn scene_ring_array_every_algorithm() {
     sd.check(&mode, "ring8 sevd middle W25 P7 all peaks", &cfg, 3);
 }
 
+/// SRP-PHAT (phase-transformed correlation, no decomposition) and NormMUSIC (per-bin
+/// normalised spectra, two spectrum passes) on the GPU against the CPU reference.
+#[test]
+fn srp_phat_and_normmusic_on_the_gpu() {
+    let Some(mode) = mode("srp_phat_and_normmusic_on_the_gpu") else {
+        return;
+    };
+    let sd = scene(Geometry::circle(8, 0.0365, 0.0), Grid::ring(5.0, 0.0, 1.0), 7);
+    let norm = |alg| LocalizeConfig {
+        normalize_bins: true,
+        ..scene_config(alg, 50, 10)
+    };
+    sd.check(
+        &mode,
+        "ring8 srp-phat",
+        &scene_config(Algorithm::SrpPhat, 50, 10),
+        4,
+    );
+    sd.check(&mode, "ring8 srp-phat normalised", &norm(Algorithm::SrpPhat), 4);
+    sd.check(&mode, "ring8 normmusic sevd", &norm(Algorithm::Sevd), 4);
+    sd.check(&mode, "ring8 normmusic gevd", &norm(Algorithm::Gevd), 3);
+    let (mics, dirs) = if mode.is_emulator() { (12, 150) } else { (60, 2522) };
+    let sd = scene(Geometry::sphere(mics, 0.1), Grid::sphere(dirs, 1.0), 11);
+    sd.check(
+        &mode,
+        &format!("sphere{mics} srp-phat"),
+        &scene_config(Algorithm::SrpPhat, 50, 25),
+        8,
+    );
+    sd.check(
+        &mode,
+        &format!("sphere{mics} normmusic gevd"),
+        &norm(Algorithm::Gevd),
+        8,
+    );
+}
+
 #[test]
 fn scene_sphere_array_60_mics() {
     let Some(mode) = mode("scene_sphere_array_60_mics") else {

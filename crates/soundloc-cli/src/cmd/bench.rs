@@ -28,6 +28,9 @@ pub struct Args {
     /// NUM_SOURCE.
     #[arg(long, default_value_t = 2)]
     pub num_sources: usize,
+    /// NormMUSIC: normalise each bin's spectrum to a maximum of 1 before the bin sum.
+    #[arg(long)]
+    pub normalize_bins: bool,
     /// Windows per batch for the throughput figure.
     #[arg(long, default_value_t = 16)]
     pub batch: usize,
@@ -282,6 +285,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
             num_dirs: a.directions,
             window: a.window,
             num_sources: a.num_sources,
+            normalize_bins: a.normalize_bins,
             batch: a.batch,
             repeats: a.repeats,
             device: a.device.into(),

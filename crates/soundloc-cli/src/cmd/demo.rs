@@ -63,12 +63,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
                 algorithm: alg,
                 ..Default::default()
             };
-            // SRP-PHAT has no CUDA kernels yet: it runs on the CPU whatever --device says.
-            let device: soundloc::backend::DeviceChoice = if alg.is_music() {
-                a.device.into()
-            } else {
-                soundloc::backend::DeviceChoice::Cpu
-            };
+            let device: soundloc::backend::DeviceChoice = a.device.into();
             let run = match a.precision {
                 PrecisionArg::F32 => localize_scene::<f32>(s, &audio, &config, device)?,
                 PrecisionArg::F64 => localize_scene::<f64>(s, &audio, &config, device)?,

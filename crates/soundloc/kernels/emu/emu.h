@@ -86,6 +86,27 @@ inline long long clock64() { return 0; }
 
 inline float __frcp_rn(float x) { return 1.0f / x; }
 
+inline unsigned atomicMax(unsigned* p, unsigned v) {
+    unsigned old = *p;
+    if (v > old) *p = v;
+    return old;
+}
+inline unsigned long long atomicMax(unsigned long long* p, unsigned long long v) {
+    unsigned long long old = *p;
+    if (v > old) *p = v;
+    return old;
+}
+inline unsigned __float_as_uint(float x) {
+    unsigned u;
+    std::memcpy(&u, &x, 4);
+    return u;
+}
+inline long long __double_as_longlong(double x) {
+    long long u;
+    std::memcpy(&u, &x, 8);
+    return u;
+}
+
 inline int atomicAdd(int* p, int v) {
     int old = *p;
     *p = old + v;

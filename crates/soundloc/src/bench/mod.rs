@@ -39,6 +39,8 @@ pub struct BenchConfig {
     pub window: usize,
     /// NUM_SOURCE.
     pub num_sources: usize,
+    /// NormMUSIC's per-bin normalisation.
+    pub normalize_bins: bool,
     /// Windows per batch for the throughput figure.
     pub batch: usize,
     /// Timed repeats (median taken).
@@ -55,6 +57,7 @@ impl Default for BenchConfig {
             num_dirs: 2522,
             window: 50,
             num_sources: 2,
+            normalize_bins: false,
             batch: 16,
             repeats: 10,
             device: DeviceChoice::Cpu,
@@ -109,6 +112,7 @@ pub fn inputs<T: Real>(cfg: &BenchConfig) -> Result<BenchInputs<T>> {
         window: cfg.window,
         period: cfg.window,
         num_sources: cfg.num_sources,
+        normalize_bins: cfg.normalize_bins,
         ..Default::default()
     };
     let bins = config.bin_range();

@@ -63,6 +63,7 @@ pub(super) enum Scratch {
     Db,
     Spec,
     Out,
+    BinMax,
 }
 
 #[derive(Clone, Copy)]
@@ -73,6 +74,8 @@ pub(super) enum HostBuf {
     Out,
     Spec,
     Bw,
+    /// Zeros (to clear device buffers with a copy).
+    Zero,
 }
 
 impl<T: Real> CudaBackend<T> {
@@ -158,6 +161,7 @@ impl<T: Real> CudaBackend<T> {
             Scratch::Db => &mut self.d_db,
             Scratch::Spec => &mut self.d_spec,
             Scratch::Out => &mut self.d_out,
+            Scratch::BinMax => &mut self.d_binmax,
         }
     }
 
@@ -189,6 +193,7 @@ impl<T: Real> CudaBackend<T> {
             HostBuf::Out => &self.h_out,
             HostBuf::Spec => &self.h_spec,
             HostBuf::Bw => &self.h_bw,
+            HostBuf::Zero => &self.h_zero,
         };
         if cur.bytes >= need {
             return Ok(cur.ptr);
@@ -209,6 +214,11 @@ impl<T: Real> CudaBackend<T> {
             HostBuf::Out => &mut self.h_out,
             HostBuf::Spec => &mut self.h_spec,
             HostBuf::Bw => &mut self.h_bw,
+            HostBuf::Zero => {
+                // SAFETY: p holds `grow` bytes, just allocated.
+                unsafe { std::ptr::write_bytes(p, 0, grow) };
+                &mut self.h_zero
+            }
         };
         *slot = Pinned { ptr: p, bytes: grow };
         Ok(p)

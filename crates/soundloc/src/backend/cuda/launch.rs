@@ -201,11 +201,14 @@ impl<T: Real> CudaBackend<T> {
             .p(self.d_win.ptr)
             .i(l.corr_fc)
             .i(mat0)
+            .i(usize::from(l.srp))
             .p(self.d_r.ptr)
             .p(self.d_scale.ptr)
             .launch(g, self.f.correlate, [nmat, 1, 1], 256, l.corr_smem)?;
         g.record(ev[1], Stream::Compute)?;
-        if l.eigh {
+        if l.srp {
+            // No decomposition: the spectrum reads R̃.
+        } else if l.eigh {
             self.launch_eigh(mat0, nmat)?;
         } else {
             self.launch_jacobi(mat0, nmat, mode)?;
@@ -218,30 +221,41 @@ impl<T: Real> CudaBackend<T> {
         };
         let wg = l.spec_wg.min(nwb).max(1);
         let spec_smem = l.spec_tile + if l.spec_e_smem { wg * l.ne * l.m * cs } else { 0 };
-        Args::new()
-            .p(self.d_st.ptr)
-            .p(n2den)
-            .p(self.d_n2num.ptr)
-            .p(self.d_e.ptr)
-            .i(l.ne)
-            .p(self.d_gain.ptr + (mat0 * ts) as u64)
-            .i(l.m)
-            .i(l.nb)
-            .i(l.d)
-            .i(l.ns)
-            .i(usize::from(l.squared))
-            .i(nwb)
-            .r(T::of_f64(crate::music::REFINE_RATIO))
-            .i(l.spec_dt)
-            .i(usize::from(l.spec_e_smem))
-            .p(self.d_ppart.ptr)
-            .launch(
-                g,
-                self.f.spectrum,
-                [l.d.div_ceil(l.spec_dt), nwb.div_ceil(wg), nbg],
-                l.spec_dt * wg,
-                spec_smem,
-            )?;
+        if l.normalize {
+            // SAFETY: h_zero (pinned, zeros) and d_binmax hold nmat·ts bytes (run_jobs).
+            unsafe { g.htod(self.d_binmax.ptr, self.h_zero.ptr, nmat * ts, Stream::Compute)? };
+        }
+        let passes: &[usize] = if l.normalize { &[1, 2] } else { &[0] };
+        for &pass in passes {
+            Args::new()
+                .p(self.d_st.ptr)
+                .p(n2den)
+                .p(self.d_n2num.ptr)
+                .p(if l.srp { self.d_r.ptr } else { self.d_e.ptr })
+                .i(l.ne)
+                .p(self.d_gain.ptr + (mat0 * ts) as u64)
+                .i(l.m)
+                .i(l.nb)
+                .i(l.d)
+                .i(l.ns)
+                .i(usize::from(l.squared))
+                .i(nwb)
+                .r(T::of_f64(crate::music::REFINE_RATIO))
+                .i(l.spec_dt)
+                .i(usize::from(l.spec_e_smem))
+                .i(usize::from(l.srp))
+                .i(pass)
+                .p(self.d_weights.ptr)
+                .p(self.d_binmax.ptr)
+                .p(self.d_ppart.ptr)
+                .launch(
+                    g,
+                    self.f.spectrum,
+                    [l.d.div_ceil(l.spec_dt), nwb.div_ceil(wg), nbg],
+                    l.spec_dt * wg,
+                    spec_smem,
+                )?;
+        }
         g.record(ev[3], Stream::Compute)?;
         let row = (1 + kout) * 16;
         let spec_ptr = if want_spectrum {
@@ -279,6 +293,8 @@ impl<T: Real> CudaBackend<T> {
                     nwb * l.d * 4,
                     Stream::Compute,
                 )?;
+            }
+            if want_spectrum && !l.srp {
                 g.dtoh(
                     self.h_bw.ptr.add(mat0 * 4),
                     self.d_bw.ptr + (mat0 * 4) as u64,

@@ -17,6 +17,10 @@ pub(super) struct Layout {
     /// How the decomposition kernel evaluates the largest value (decompose.cu).
     pub(super) valmode: usize,
     pub(super) alg: Algorithm,
+    /// SRP-PHAT: phase-transformed correlation, no decomposition, R̃ read by the spectrum.
+    pub(super) srp: bool,
+    /// NormMUSIC's per-bin normalisation (two spectrum passes).
+    pub(super) normalize: bool,
     pub(super) lpp: usize,
     pub(super) want_v: bool,
     pub(super) ld: usize,
@@ -61,12 +65,11 @@ pub(super) fn layout<T: Real>(plan: &Plan<T>, gpu: &dyn Gpu) -> Result<Layout> {
         (Algorithm::GevdHark, _) => (1, 2),
         (Algorithm::Gsvd, true) => (1, 0),
         (Algorithm::Gsvd, false) => (0, 1),
-        (Algorithm::SrpPhat, _) => {
-            return Err(variant_for(plan)
-                .err()
-                .unwrap_or_else(|| Error::Device("srp-phat".into())))
-        }
+        (Algorithm::SrpPhat, _) => (0, 0),
     };
+    let srp = plan.config.algorithm == Algorithm::SrpPhat;
+    // SRP's "vectors" are R̃'s M columns, squared-form tiles.
+    let squared = squared || srp;
     let valmode = match plan.config.algorithm {
         Algorithm::Sevd => 0,
         Algorithm::Gevd => 1,
@@ -75,7 +78,13 @@ pub(super) fn layout<T: Real>(plan: &Plan<T>, gpu: &dyn Gpu) -> Result<Layout> {
         Algorithm::SrpPhat => 0,
     };
     let want_v = !squared;
-    let ne = if squared { ns } else { m };
+    let ne = if srp {
+        m
+    } else if squared {
+        ns
+    } else {
+        m
+    };
     let v = variant_for(plan)?;
     let n = m + (m & 1);
     let mut ld = n;
@@ -98,6 +107,7 @@ pub(super) fn layout<T: Real>(plan: &Plan<T>, gpu: &dyn Gpu) -> Result<Layout> {
         (m * (m | 1) + 4 * m) * 16 + (3 * m + ns + ns * m + ns.min(EIGH_VEC) * 5 * m) * 8 + 33 * 4;
     let form_h_smem = m * (m | 1) * 16;
     let eigh = squared
+        && !srp
         && m <= 64
         && eigh_smem <= optin
         && std::env::var("SOUNDLOC_CUDA_DEC").map_or(true, |v| v != "jacobi");
@@ -132,6 +142,8 @@ pub(super) fn layout<T: Real>(plan: &Plan<T>, gpu: &dyn Gpu) -> Result<Layout> {
         right,
         valmode,
         alg: plan.config.algorithm,
+        srp,
+        normalize: plan.config.normalize_bins,
         lpp: v.lpp as usize,
         want_v,
         ld,

@@ -159,17 +159,6 @@ fn guarded<R>(f: impl FnOnce() -> Result<R>) -> Result<R> {
 }
 
 fn variant_for<T: Real>(plan: &Plan<T>) -> Result<Variant> {
-    if !plan.config.algorithm.is_music() || plan.config.normalize_bins {
-        return Err(Error::Device(format!(
-            "{}{} runs on the CPU only (no CUDA kernels for it yet)",
-            plan.config.algorithm.name(),
-            if plan.config.normalize_bins {
-                " with per-bin normalisation"
-            } else {
-                ""
-            }
-        )));
-    }
     Variant::for_mics(plan.num_mics).ok_or_else(|| {
         Error::Device(format!(
             "the CUDA backend handles up to 256 microphones, the array has {}",
@@ -228,11 +217,14 @@ pub struct CudaBackend<T: Real> {
     d_db: Buf,
     d_spec: Buf,
     d_out: Buf,
+    /// Per (window, bin) maximum over directions (NormMUSIC's first pass).
+    d_binmax: Buf,
     h_stage: [Pinned; 2],
     h_win: Pinned,
     h_out: Pinned,
     h_spec: Pinned,
     h_bw: Pinned,
+    h_zero: Pinned,
     /// Staging buffers 0 and 1 reusable; the window table is up.
     chunk_ev: [Event; 3],
     /// Where streams' frames are in `d_x`.
@@ -290,11 +282,13 @@ impl<T: Real> CudaBackend<T> {
             d_db: Buf::default(),
             d_spec: Buf::default(),
             d_out: Buf::default(),
+            d_binmax: Buf::default(),
             h_stage: [Pinned::default(), Pinned::default()],
             h_win: Pinned::default(),
             h_out: Pinned::default(),
             h_spec: Pinned::default(),
             h_bw: Pinned::default(),
+            h_zero: Pinned::default(),
             chunk_ev: [0, 0, 0],
             arena: frames::FrameArena::default(),
             events: Vec::new(),
@@ -497,6 +491,7 @@ impl<T: Real> Drop for CudaBackend<T> {
             self.d_db.ptr,
             self.d_spec.ptr,
             self.d_out.ptr,
+            self.d_binmax.ptr,
         ];
         for p in bufs {
             if p != 0 {
@@ -510,6 +505,7 @@ impl<T: Real> Drop for CudaBackend<T> {
             self.h_out.ptr,
             self.h_spec.ptr,
             self.h_bw.ptr,
+            self.h_zero.ptr,
         ];
         for p in pinned {
             if !p.is_null() {

@@ -49,8 +49,14 @@ impl<T: Real> CudaBackend<T> {
         // Device buffers.
         self.ensure(Scratch::Win, nw * 8)?;
         self.ensure(Scratch::R, nwb_max * nb * m * m * cs)?;
-        self.ensure(Scratch::E, nwb_max * nb * l.ne * m * cs)?;
-        if !l.dec_smem_mode {
+        if !l.srp {
+            self.ensure(Scratch::E, nwb_max * nb * l.ne * m * cs)?;
+        }
+        if l.normalize {
+            self.ensure(Scratch::BinMax, nwb_max * nb * ts)?;
+            self.ensure_pinned(HostBuf::Zero, nwb_max * nb * ts)?;
+        }
+        if !l.srp && !l.dec_smem_mode {
             self.ensure(Scratch::Jacobi, nwb_max * nb * l.dec_scratch_per_mat)?;
         }
         let nbg_max = (0..nsb)
@@ -302,8 +308,12 @@ impl<T: Real> CudaBackend<T> {
             unsafe {
                 out.spectrum_db
                     .extend_from_slice(std::slice::from_raw_parts(self.h_spec.ptr as *const f32, nw * d));
-                out.bin_weight
-                    .extend_from_slice(std::slice::from_raw_parts(self.h_bw.ptr as *const f32, nw * nb));
+                if l.srp {
+                    out.bin_weight.resize(nw * nb, 1.0);
+                } else {
+                    out.bin_weight
+                        .extend_from_slice(std::slice::from_raw_parts(self.h_bw.ptr as *const f32, nw * nb));
+                }
             }
         }
         Ok(())
