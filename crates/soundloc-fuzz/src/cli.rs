@@ -184,7 +184,10 @@ pub fn input_files() -> Vec<(String, Vec<u8>)> {
         ("array.toml".into(), geometry.to_toml_string().into_bytes()),
         file("tf.zip", &|p| write_tf_zip(&tf, p).expect("tf zip")),
         file("K.zip", &|p| cm.write_zip(p).expect("cm zip")),
-        ("list.txt".into(), b"# recordings\nrec.wav\n\ntake.flac\n".to_vec()),
+        (
+            "list.txt".into(),
+            b"# recordings\nrec.wav\n\ntake.flac\n".to_vec(),
+        ),
     ];
     cm.write_text_pair(&tmp.join("K_r"), &tmp.join("K_i"))
         .expect("cm text");

@@ -59,6 +59,11 @@ impl Target {
         &self.companions
     }
 
+    /// Zip seeds as (entry name, content) lists; empty for targets that are not zips.
+    pub fn zip_seeds(&self) -> &[Vec<(String, Vec<u8>)>] {
+        &self.zip_seeds
+    }
+
     /// Read `path` with this target's reader: Ok, or the error's message. A panic is a bug.
     pub fn read(&self, path: &Path) -> Result<(), String> {
         (self.reader)(path)
@@ -71,7 +76,10 @@ pub fn target(name: &str) -> Option<Target> {
 }
 
 /// Write every target's seeds into `dir/<target>/seed-<i>` (a seed corpus for coverage-guided
-/// fuzzers); returns how many files were written.
+/// fuzzers); returns how many files were written. Zip targets also get
+/// `dir/<target>@entries/seed-<k>`: the index of one entry (a byte) followed by that entry's
+/// content, the input of a harness that puts the content back in the zip with valid CRCs
+/// (see [`zip_with_entry`]).
 pub fn write_seeds(dir: &Path) -> std::io::Result<usize> {
     let mut n = 0;
     for t in targets() {
@@ -81,8 +89,33 @@ pub fn write_seeds(dir: &Path) -> std::io::Result<usize> {
             std::fs::write(d.join(format!("seed-{i}")), s)?;
             n += 1;
         }
+        if let Some(entries) = t.zip_seeds.first() {
+            let d = dir.join(format!("{}@entries", t.name));
+            std::fs::create_dir_all(&d)?;
+            for (k, (_, content)) in entries.iter().enumerate() {
+                let mut b = vec![k as u8];
+                b.extend_from_slice(content);
+                std::fs::write(d.join(format!("seed-{k}")), b)?;
+                n += 1;
+            }
+        }
     }
     Ok(n)
+}
+
+/// Write the zip seed `entries` to `path` with the entry chosen by `input[0]` (modulo the
+/// number of entries) holding `input[1..]`, with valid CRCs; false when nothing was written.
+pub fn zip_with_entry(path: &Path, entries: &[(String, Vec<u8>)], input: &[u8]) -> bool {
+    let Some((&k, content)) = input.split_first() else {
+        return false;
+    };
+    if entries.is_empty() {
+        return false;
+    }
+    let k = k as usize % entries.len();
+    let mut e = entries.to_vec();
+    e[k].1 = content.to_vec();
+    write_zip_entries(path, &e).is_ok()
 }
 
 fn tmp_dir(tag: &str) -> PathBuf {
