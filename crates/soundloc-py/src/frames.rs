@@ -82,6 +82,11 @@ impl PyFrames {
     ) -> PyResult<(Bound<'py, numpy::PyArray1<f32>>, Vec<usize>)> {
         use soundloc::config::SpectrumWeight;
         let shape = [x.shape()[0], x.shape()[1], x.shape()[2]];
+        if !x.is_c_contiguous() {
+            return Err(PyValueError::new_err(
+                "x must be C-contiguous (np.ascontiguousarray)",
+            ));
+        }
         let xs = x
             .as_slice()
             .map_err(|_| PyValueError::new_err("x must be C-contiguous"))?;

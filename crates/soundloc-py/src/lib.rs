@@ -30,8 +30,8 @@ pub(crate) fn parse<T: serde::de::DeserializeOwned>(what: &str, v: &str) -> PyRe
         .map_err(|_| PyValueError::new_err(format!("{what}: {v:?} is not a valid value")))
 }
 
-/// Samples of a 2-D numpy array as f32, with the array's (rows, cols); float32 in C order
-/// is not copied.
+/// Samples of a 2-D numpy array as f32 in C (row-major) order, with the array's (rows,
+/// cols); float32 in C order is not copied, anything else is copied in logical order.
 pub(crate) enum Samples<'py> {
     Borrowed(PyReadonlyArray2<'py, f32>),
     Owned(Vec<f32>, [usize; 2]),
@@ -65,7 +65,9 @@ pub(crate) fn samples<'py>(x: &Bound<'py, PyAny>) -> PyResult<Samples<'py>> {
     }
     if let Ok(a) = x.downcast::<PyArray2<f32>>() {
         let r = a.readonly();
-        if r.as_slice().is_ok() {
+        // Only C order is read in place: `as_slice` also accepts Fortran order, whose memory
+        // order is not (samples, channels).
+        if r.is_c_contiguous() {
             return Ok(Samples::Borrowed(r));
         }
         let s = [r.shape()[0], r.shape()[1]];
