@@ -86,6 +86,9 @@ pub struct Args {
     /// With --accuracy: only the conditions with at most this SNR (dB).
     #[arg(long, allow_negative_numbers = true)]
     pub max_snr: Option<f64>,
+    /// With --accuracy: only the variants whose name contains this text (repeatable).
+    #[arg(long)]
+    pub variant: Vec<String>,
 }
 
 #[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
@@ -230,7 +233,7 @@ fn run_e2e(a: &Args, alg: AlgorithmArg) -> anyhow::Result<ExitCode> {
 }
 
 fn run_accuracy(a: &Args) -> anyhow::Result<ExitCode> {
-    use soundloc::bench::accuracy::{run, variants, StudyArray, TEST_SEED0};
+    use soundloc::bench::accuracy::{run, variants_for, StudyArray, TEST_SEED0};
     let array = match a.arrays.first() {
         Some(ArrayArg::Seed) => StudyArray::Sphere60,
         _ => StudyArray::Ring8,
@@ -242,7 +245,13 @@ fn run_accuracy(a: &Args) -> anyhow::Result<ExitCode> {
     let period = if a.period == 1 { 25 } else { a.period };
     let max_snr = a.max_snr.unwrap_or(f64::INFINITY);
     let only = move |c: &soundloc::bench::accuracy::Condition| c.snr_db <= max_snr;
-    let vs = variants(period);
+    let vs: Vec<_> = variants_for(array, period)
+        .into_iter()
+        .filter(|v| a.variant.is_empty() || a.variant.iter().any(|s| v.name.contains(s.as_str())))
+        .collect();
+    if vs.is_empty() {
+        anyhow::bail!("--variant {:?}: no variant of the study matches", a.variant);
+    }
     let t = std::time::Instant::now();
     let study = run(array, &vs, seed0, a.scenes, 5.0, &only, &|n, total| {
         eprint!("\rscenes {n}/{total}");

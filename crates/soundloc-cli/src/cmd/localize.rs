@@ -125,8 +125,8 @@ pub struct AnalysisArgs {
     #[arg(long, default_value_t = 0.0)]
     pub diagonal_loading: f64,
     /// Signal-subspace dimension of the decomposition when it should differ from
-    /// --num-sources (reverberant rooms: one or two more than the talkers); default:
-    /// --num-sources, as HARK.
+    /// --num-sources (reverberant rooms and large arrays need more than the talkers);
+    /// default: --num-sources, as HARK, or max(--num-sources + 2, M/2) in the robust default.
     #[arg(long)]
     pub subspace_dim: Option<usize>,
     /// Per-bin normalisation (NormMUSIC): every bin's spectrum is scaled to a maximum of

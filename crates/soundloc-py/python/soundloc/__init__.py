@@ -20,7 +20,7 @@ Arguments (HARK LocalizeMUSIC name / pyroomacoustics name):
         (pyroomacoustics' ``L`` transposed) with grid: "ring:STEP_DEG[:ELEV]", "sphere:N" or
         a (D, 3) array of unit directions; fs (SAMPLING_RATE, for geometry=).
     algorithm: "sevd" | "gevd" | "gevd-hark" | "gsvd" | "srp-phat" (MUSIC_ALGORITHM); default
-        sevd, or the robust gevd (subspace num_sources+2, refinement) when a noise source is given.
+        sevd, or the robust gevd (subspace max(num_sources+2, M/2), refinement) when a noise source is given.
     subspace_dim (signal subspace when it should differ from num_sources), normalize_bins
         (NormMUSIC), refine (sub-grid peak directions).
     num_sources (NUM_SOURCE / num_src), max_peaks (MAXNUM_OUT_PEAKS), window (WINDOW, frames),

@@ -229,7 +229,7 @@ pub fn variants(period: usize) -> Vec<Variant> {
             c.num_sources = 3;
             c.diagonal_loading = 1e-2
         }),
-        v("robust default (gevd Ns=4 refined)", &|c| {
+        v("gevd subspace 4 refined", &|c| {
             c.subspace_dim = Some(4);
             c.refine = true
         }),
@@ -238,6 +238,57 @@ pub fn variants(period: usize) -> Vec<Variant> {
             c.refine = true
         }),
     ]
+}
+
+/// [`variants`], plus the robust default (its signal subspace depends on the array:
+/// [`crate::localizer::robust_subspace_dim`]), other subspace sizes (the ring's 8
+/// microphones allow at most 7), and the robust default with longer windows, another
+/// band, no eigenvalue weight.
+pub fn variants_for(array: StudyArray, period: usize) -> Vec<Variant> {
+    let mut vs = variants(period);
+    let base = vs[0].config.clone();
+    let dims: &[usize] = match array {
+        StudyArray::Ring8 => &[5, 6],
+        StudyArray::Sphere60 => &[6, 8, 12, 16, 20, 24, 30],
+    };
+    let mut push = |name: String, f: &dyn Fn(&mut LocalizeConfig)| {
+        let mut c = base.clone();
+        c.refine = true;
+        f(&mut c);
+        vs.push(Variant { name, config: c });
+    };
+    let mics = match array {
+        StudyArray::Ring8 => 8,
+        StudyArray::Sphere60 => 60,
+    };
+    let robust = crate::localizer::robust_subspace_dim(base.num_sources, mics);
+    push(format!("robust default (subspace {robust} refined)"), &|c| {
+        c.subspace_dim = Some(robust)
+    });
+    for &dim in dims {
+        push(format!("gevd subspace {dim} refined"), &|c| {
+            c.subspace_dim = Some(dim)
+        });
+    }
+    push("robust W=100".into(), &|c| {
+        c.subspace_dim = Some(robust);
+        c.window = 100
+    });
+    push("robust W=150".into(), &|c| {
+        c.subspace_dim = Some(robust);
+        c.window = 150
+    });
+    push("robust W=100 400-3500 Hz".into(), &|c| {
+        c.subspace_dim = Some(robust);
+        c.window = 100;
+        c.lower_freq_hz = 400.0;
+        c.upper_freq_hz = 3500.0
+    });
+    push("robust no eigen weight".into(), &|c| {
+        c.subspace_dim = Some(robust);
+        c.eigenvalue_weight = false
+    });
+    vs
 }
 
 /// Hits and talker-windows of one variant in one condition.

@@ -181,8 +181,8 @@ impl LocalizerSpec {
             None if self.noise_given() => (
                 Algorithm::Gevd,
                 Some(
-                    "a noise source was given: using the robust default, the textbook GEVD with two \
-                     more signal-subspace dimensions than --num-sources (at most M/2) and sub-grid refinement \
+                    "a noise source was given: using the robust default, the textbook GEVD with a \
+                     signal subspace of max(--num-sources + 2, M/2) dimensions and sub-grid refinement \
                      (choose with --algorithm, --subspace-dim, --refine)"
                         .into(),
                 ),
@@ -194,9 +194,10 @@ impl LocalizerSpec {
     /// The analysis that runs for an array of `num_mics` microphones: `analysis` with the
     /// resolved algorithm and, for the robust default (a noise source given, no algorithm
     /// named), the settings the accuracy study chose (`soundloc bench --accuracy`,
-    /// docs/accuracy.md): a signal subspace of `num_sources` + 2, at most M/2 (unless
-    /// `subspace_dim` is set) and sub-grid refinement. An algorithm named explicitly runs as
-    /// asked (HARK-faithful).
+    /// docs/accuracy.md): a signal subspace of max(`num_sources` + 2, M/2) dimensions, below
+    /// M (unless `subspace_dim` is set) — reverberation and the rotors' residue take
+    /// dimensions of their own, the more the larger the array — and sub-grid refinement. An
+    /// algorithm named explicitly runs as asked (HARK-faithful).
     pub fn resolved_analysis(&self, num_mics: usize) -> (LocalizeConfig, Option<String>) {
         let (algorithm, note) = self.resolved_algorithm();
         let mut c = LocalizeConfig {
@@ -205,8 +206,8 @@ impl LocalizerSpec {
         };
         if self.algorithm.is_none() && self.noise_given() {
             if c.subspace_dim.is_none() {
-                let ns = (c.num_sources + 2).min(num_mics / 2).max(c.num_sources);
-                if ns < num_mics {
+                let ns = robust_subspace_dim(c.num_sources, num_mics);
+                if ns < num_mics && ns != c.num_sources {
                     c.subspace_dim = Some(ns);
                 }
             }
@@ -262,6 +263,15 @@ impl LocalizerSpec {
         }?;
         Ok((tf, None))
     }
+}
+
+/// The robust default's signal-subspace dimension for `num_sources` reported sources on
+/// `num_mics` microphones: max(num_sources + 2, M/2), below M, at least num_sources.
+pub fn robust_subspace_dim(num_sources: usize, num_mics: usize) -> usize {
+    (num_sources + 2)
+        .max(num_mics / 2)
+        .min(num_mics.saturating_sub(1))
+        .max(num_sources)
 }
 
 enum Inner {
@@ -507,4 +517,42 @@ fn noise_from_recording(
     let idx = channels.resolve(audio.num_channels()).map_err(ctx)?;
     let picked: Vec<Vec<f32>> = idx.iter().map(|&c| audio.channels[c].clone()).collect();
     crate::noise::estimate(config, audio.sample_rate_hz, &picked, None).map_err(ctx)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The robust default's subspace: num_sources + 2 on small arrays, M/2 on large ones,
+    /// always below M; a named algorithm or an explicit --subspace-dim is left alone.
+    #[test]
+    fn the_robust_subspace_grows_with_the_array() {
+        assert_eq!(robust_subspace_dim(2, 8), 4);
+        assert_eq!(robust_subspace_dim(3, 8), 5);
+        assert_eq!(robust_subspace_dim(2, 60), 30);
+        assert_eq!(robust_subspace_dim(2, 16), 8);
+        assert_eq!(robust_subspace_dim(1, 2), 1);
+        assert_eq!(robust_subspace_dim(2, 4), 3);
+        let mut spec = LocalizerSpec::free_field(vec![[0.0; 3]; 60], GridSpec::Sphere { n: 100 });
+        spec.noise = NoiseSource::Range {
+            start_s: 0.0,
+            end_s: 1.0,
+        };
+        let (c, note) = spec.resolved_analysis(60);
+        assert_eq!(
+            (c.algorithm, c.subspace_dim, c.refine),
+            (Algorithm::Gevd, Some(30), true)
+        );
+        assert!(note.unwrap().contains("M/2"));
+        spec.analysis.subspace_dim = Some(6);
+        assert_eq!(spec.resolved_analysis(60).0.subspace_dim, Some(6));
+        spec.analysis.subspace_dim = None;
+        spec.algorithm = Some(Algorithm::Gevd);
+        let (c, _) = spec.resolved_analysis(60);
+        assert_eq!(
+            (c.subspace_dim, c.refine),
+            (None, false),
+            "named algorithms run as asked"
+        );
+    }
 }
