@@ -226,3 +226,51 @@ fn a_closed_stdout_pipe_ends_the_run_quietly() {
     assert!(first.starts_with("{\"frame\""), "{first}");
     assert!(status.success() && err.is_empty(), "{status:?}: {err}");
 }
+
+/// The command-line fuzzer's findings (FUZZING.md): an FFT length of 2⁶⁴−1 aborted on
+/// allocation, and a geometry "file" that is an endless device (`/dev/full` through a link)
+/// was read forever. Both are clear errors naming what is wrong, exit 2, nothing written.
+#[test]
+fn absurd_fft_lengths_and_endless_files_are_clear_errors() {
+    let (wav, geo, _) = scene("fuzzfind");
+    let out = tmp("fuzzfind-K.zip");
+    fails_with(
+        &[
+            "noisecm",
+            "make",
+            wav.to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+            "--range",
+            "0:0.3",
+            "--fft-length",
+            "18446744073709551615",
+        ],
+        &["FFT length", "65536"],
+    );
+    assert!(!out.exists());
+    fails_with(
+        &[
+            "localize",
+            wav.to_str().unwrap(),
+            "--geometry",
+            geo.to_str().unwrap(),
+            "--fft-length",
+            "1048576",
+        ],
+        &["FFT length"],
+    );
+    let link = tmp("fuzzfind-dev-full.toml");
+    let _ = std::fs::remove_file(&link);
+    std::os::unix::fs::symlink("/dev/full", &link).unwrap();
+    fails_with(
+        &[
+            "localize",
+            wav.to_str().unwrap(),
+            "--geometry",
+            link.to_str().unwrap(),
+            "-q",
+        ],
+        &["fuzzfind-dev-full.toml", "too large for a geometry file"],
+    );
+}

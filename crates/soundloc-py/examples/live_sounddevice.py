@@ -96,13 +96,17 @@ def run(args, sd=None, out=sys.stdout):
                     x = x[: limit - total]
                 total += len(x)
                 if loc is None:  # still collecting the noise-only lead-in
-                    noise.append(x)
-                    noise_len += len(x)
-                    if noise_len >= args.noise_seconds * fs:
-                        loc = soundloc.Localizer(noise=np.concatenate(noise), **kw)
-                        print("noise matrix from %.1f s; algorithm %s" % (noise_len / fs, loc.algorithm),
-                              file=sys.stderr)
-                    continue
+                    take = min(len(x), int(round(args.noise_seconds * fs)) - noise_len)
+                    noise.append(x[:take])
+                    noise_len += take
+                    x = x[take:]
+                    if noise_len < int(round(args.noise_seconds * fs)):
+                        continue
+                    loc = soundloc.Localizer(noise=np.concatenate(noise), **kw)
+                    print("noise matrix from %.2f s; algorithm %s; times count from its end"
+                          % (noise_len / fs, loc.algorithm), file=sys.stderr)
+                    if len(x) == 0:
+                        continue
                 r = loc.push(x)
                 got.append(r)
                 for i in range(len(r)):

@@ -107,11 +107,13 @@ fn complex_array(x: &Bound<'_, PyAny>, what: &str) -> PyResult<(Vec<num_complex:
 }
 
 /// Write a HARK transfer-function zip (harktool's layout, atomically): `tf` complex
-/// (directions, mics, nfft/2 + 1) localization TFs, `directions` (D, 3) and `mics`
-/// (M, 3) in metres, `nfft`, `fs`; `neighbors` (a list per direction) or, when None, the
-/// ring's left/right or the 6 nearest directions. The separation TFs are the conjugates.
+/// (directions, mics, bins) localization TFs for the absolute bins `first_bin ..` (as
+/// `read_tf` returns them; bins the array lacks are written as zeros: a zip holds all
+/// nfft/2 + 1), `directions` (D, 3) and `mics` (M, 3) in metres, `nfft`, `fs`;
+/// `neighbors` (a list per direction) or, when None, the ring's left/right or the 6
+/// nearest directions. The separation TFs are the conjugates.
 #[pyfunction]
-#[pyo3(signature = (path, tf, directions, mics, nfft, fs, neighbors=None))]
+#[pyo3(signature = (path, tf, directions, mics, nfft, fs, neighbors=None, first_bin=0))]
 #[allow(clippy::too_many_arguments)] // mirrors the Python function
 pub(crate) fn write_tf(
     py: Python<'_>,
@@ -122,21 +124,30 @@ pub(crate) fn write_tf(
     nfft: usize,
     fs: u32,
     neighbors: Option<Vec<Vec<usize>>>,
+    first_bin: usize,
 ) -> PyResult<()> {
     use soundloc::array::{Grid, TransferFunctions};
     let (data, shape) = complex_array(tf, "tf")?;
     let dirs = crate::points(directions, "directions")?;
     let mics = crate::points(mics, "mics")?;
     let bins = nfft / 2 + 1;
-    if shape != [dirs.len(), mics.len(), bins] {
+    let given = shape.get(2).copied().unwrap_or(0);
+    if shape.len() != 3 || shape[..2] != [dirs.len(), mics.len()] || given == 0 || first_bin + given > bins {
         return Err(PyValueError::new_err(format!(
-            "tf has shape {shape:?}; {} directions, {} mics and nfft {nfft} need ({}, {}, {bins})",
+            "tf has shape {shape:?}; {} directions and {} mics need ({}, {}, bins) with first_bin + bins ≤ nfft/2 + 1 = {bins}",
             dirs.len(),
             mics.len(),
             dirs.len(),
             mics.len()
         )));
     }
+    // All nfft/2 + 1 bins, zeros outside the given ones.
+    let (d, m) = (dirs.len(), mics.len());
+    let mut full = vec![num_complex::Complex64::new(0.0, 0.0); d * m * bins];
+    for (row, src) in full.chunks_mut(bins).zip(data.chunks(given)) {
+        row[first_bin..first_bin + given].copy_from_slice(src);
+    }
+    let data = full;
     py.allow_threads(|| -> soundloc::Result<()> {
         let grid = match neighbors {
             Some(nb) => Grid::from_table(dirs, nb)?,

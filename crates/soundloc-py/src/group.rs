@@ -15,7 +15,10 @@ struct State {
     outs: Vec<Output>,
 }
 
-/// Streams of several arrays of one kind, localized together.
+/// Streams of several arrays of one kind, localized together. Methods that compute take
+/// `&mut self`: while one thread computes (GIL released), another thread's call on the
+/// same object raises "already borrowed" instead of waiting on the lock with the GIL
+/// held (which would deadlock).
 #[pyclass(module = "soundloc._native", name = "StreamGroup")]
 pub(crate) struct PyGroup {
     state: Mutex<State>,
@@ -51,7 +54,7 @@ impl PyGroup {
     }
 
     /// Add a stream like the others; returns its index.
-    fn add_stream(&self) -> PyResult<usize> {
+    fn add_stream(&mut self) -> PyResult<usize> {
         let mut st = self.lock()?;
         let i = st.group.add_stream().map_err(err)?;
         st.outs.push(Output::default());
@@ -66,7 +69,7 @@ impl PyGroup {
     /// `flush`.
     #[pyo3(signature = (i, x, channels_first=None))]
     fn push(
-        &self,
+        &mut self,
         py: Python<'_>,
         i: usize,
         x: &Bound<'_, PyAny>,
@@ -88,7 +91,7 @@ impl PyGroup {
 
     /// Run every waiting window of every stream (one launch per batch); returns one result
     /// set per stream.
-    fn run<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyList>> {
+    fn run<'py>(&mut self, py: Python<'py>) -> PyResult<Bound<'py, PyList>> {
         let mut guard = self.lock()?;
         let st = &mut *guard;
         let (g, outs) = (&mut st.group, &mut st.outs);
@@ -101,7 +104,7 @@ impl PyGroup {
     /// stream.
     #[pyo3(signature = (blocks, channels_first=None))]
     fn push_all<'py>(
-        &self,
+        &mut self,
         py: Python<'py>,
         blocks: Vec<Bound<'py, PyAny>>,
         channels_first: Option<bool>,
@@ -133,7 +136,7 @@ impl PyGroup {
 
     /// End stream `i`'s input: returns its last results (other streams' windows that ran
     /// meanwhile are returned by the next `run` / `push_all`).
-    fn flush<'py>(&self, py: Python<'py>, i: usize) -> PyResult<Bound<'py, PyDict>> {
+    fn flush<'py>(&mut self, py: Python<'py>, i: usize) -> PyResult<Bound<'py, PyDict>> {
         let mut guard = self.lock()?;
         let st = &mut *guard;
         let (g, outs) = (&mut st.group, &mut st.outs);
@@ -144,7 +147,7 @@ impl PyGroup {
     }
 
     /// Start stream `i` again (same plan and device); its unreturned results are dropped.
-    fn reset(&self, i: usize) -> PyResult<()> {
+    fn reset(&mut self, i: usize) -> PyResult<()> {
         let mut st = self.lock()?;
         st.group.reset(i).map_err(err)?;
         st.outs[i] = Output::default();

@@ -75,7 +75,14 @@ def test_write_tf_noise_cm_and_source_log(tmp_path):
         min(abs((s["azimuth_deg"] - t + 180) % 360 - 180) for s in row["sources"]) <= 10.0
         for row in rows for t in (30.0, -120.0))
     with pytest.raises(ValueError, match="shape"):
-        soundloc.write_tf(tmp_path / "bad.zip", tf[:, :, :100], d, MICS, 512, FS)
+        soundloc.write_tf(tmp_path / "bad.zip", tf[:, :, :100], d, MICS, 512, FS, first_bin=200)
+    # What read_tf returns (bins first_bin..) writes back with first_bin=.
+    part = soundloc.read_tf(path)
+    soundloc.write_tf(tmp_path / "again.zip", part["tf"], part["directions"], part["mics"], 512, FS,
+                      first_bin=part["first_bin"])
+    again = soundloc.read_tf(tmp_path / "again.zip")
+    lo2 = again["first_bin"]
+    np.testing.assert_allclose(again["tf"][:, :, lo - lo2:], part["tf"], atol=1e-6)
 
     # Noise CMs: zip (f32 values) and text pair (full precision), read back.
     rng = np.random.default_rng(3)

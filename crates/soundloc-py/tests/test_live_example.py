@@ -74,14 +74,16 @@ def test_live_example_equals_a_whole_run(tmp_path):
         for t in TALKERS:
             assert min(angle(a, t) for a in row) <= 5.0
 
-    # A noise-only lead-in: K from the first 0.5 s, GEVD on the rest.
+    # A noise-only lead-in: K from the first 0.505 s (not a whole number of 10 ms blocks:
+    # the block across the boundary is split), GEVD on the rest.
     args = ex.parse_args(["--geometry", str(tmp_path / "mics.npy"), "--seconds", "2", "--compute", "cpu",
-                          "--noise-seconds", "0.5"])
+                          "--noise-seconds", "0.505"])
     got = ex.run(args, sd=FakeSoundDevice(x), out=io.StringIO())
-    lead = FS // 2
+    lead = int(round(0.505 * FS))
     xf = x.astype(np.float32)
     want = soundloc.Localizer(geometry=MICS, grid="ring:5", device="cpu", spectrum=False,
                               noise=xf[:lead]).localize(xf[lead:], FS)
+    np.testing.assert_array_equal(np.concatenate([r.frames for r in got if len(r)]), want.frames)
     np.testing.assert_array_equal(np.concatenate([r.azimuth_deg for r in got if len(r)]), want.azimuth_deg)
 
 

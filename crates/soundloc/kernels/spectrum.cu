@@ -144,7 +144,7 @@ __device__ void spectrum_impl(const cplx<T>* __restrict__ St, const T* __restric
         const cplx<T>* e = e_smem ? etile + (size_t)wi * ne * M : E + ((size_t)wl * nb + b) * ne * M;
         T num, den;
         if (kind) {
-            num = quad_form(a, e, M) / (T)(M * M);
+            num = sl_max(quad_form(a, e, M) / (T)(M * M), (T)0);  // ≥ 0, as srp.rs
             den = (T)1;
         } else {
             const T nd = n2den[(size_t)b * D + d];

@@ -57,6 +57,9 @@ pub fn window_function<T: Real>(kind: WindowFunction, n: usize) -> Vec<T> {
         .collect()
 }
 
+/// Largest FFT length N accepted (HARK uses 512; 65 536 is 4 s at 16 kHz).
+pub const MAX_NFFT: usize = 1 << 16;
+
 /// A prepared STFT: FFT plan, window and used bins.
 pub struct Stft<T: Real> {
     nfft: usize,
@@ -69,6 +72,11 @@ pub struct Stft<T: Real> {
 impl<T: Real> Stft<T> {
     /// Prepare an N-point STFT with the given hop, window and kept bins.
     pub fn new(nfft: usize, hop: usize, window: WindowFunction, bins: Range<usize>) -> Result<Self> {
+        if nfft > MAX_NFFT {
+            return Err(Error::Config(format!(
+                "STFT: N = {nfft} exceeds the largest supported FFT length, {MAX_NFFT}"
+            )));
+        }
         if nfft < 2 || hop == 0 || bins.is_empty() || bins.end > nfft / 2 + 1 {
             return Err(Error::Config(format!(
                 "STFT: invalid N = {nfft}, hop = {hop}, bins {}..{}",

@@ -167,7 +167,8 @@ impl Geometry {
 
     /// Read a geometry TOML file.
     pub fn load(path: &Path) -> Result<Self> {
-        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+        let text =
+            crate::formats::read_text_bounded(path, crate::formats::MAX_GEOMETRY_BYTES, "geometry file")?;
         Self::from_toml_str(&text, path)
     }
 

@@ -38,7 +38,7 @@ fn f32_at(b: &[u8], o: usize) -> f32 {
 
 /// Read an HGTF file from disk.
 pub fn read_hgtf_file(path: &Path) -> Result<TransferFunctions> {
-    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    let bytes = super::read_bounded(path, super::MAX_HGTF_BYTES, "HGTF file")?;
     read_hgtf(&bytes, path)
 }
 

@@ -271,8 +271,7 @@ pub fn detect(text: &str) -> SourceLogFormat {
 /// Reads a log of either format (by content, see [`detect`]). `frame_period_s` sets
 /// `time_s` = frame × frame_period_s.
 pub fn read(path: &Path, frame_period_s: f64) -> Result<Vec<LocalizationResult>> {
-    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
-    let text = String::from_utf8(bytes).map_err(|e| Error::format(path, format!("not UTF-8 text: {e}")))?;
+    let text = super::read_text_bounded(path, super::MAX_SOURCE_LOG_BYTES, "source-location log")?;
     match detect(&text) {
         SourceLogFormat::Text => parse_text(&text, path, frame_period_s),
         SourceLogFormat::Xml => parse_xml(&text, path, frame_period_s),

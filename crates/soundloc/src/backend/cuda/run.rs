@@ -273,7 +273,7 @@ impl<T: Real> CudaBackend<T> {
             }
             out.peaks.push(v);
         }
-        if self.debug {
+        if self.debug && !l.srp {
             // Jacobi sweeps or multisection rounds per matrix (SOUNDLOC_CUDA_DEBUG=1).
             let mut info = vec![0i32; nw * nb];
             // SAFETY: synchronous copy after the stream is idle.

@@ -110,7 +110,11 @@ struct TextMatrix {
 
 /// Reads one text file of the pair: N/2 + 1 lines of M² finite numbers.
 fn read_text_matrix(path: &Path, expected: Expected) -> Result<TextMatrix> {
-    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    let text = crate::formats::read_text_bounded(
+        path,
+        crate::formats::MAX_NOISE_TEXT_BYTES,
+        "noise correlation text file",
+    )?;
     let mut rows = Vec::new();
     let mut cols = None;
     for (i, line) in text.lines().enumerate() {
