@@ -84,9 +84,9 @@ for t in "${targets[@]}"; do
             cp "$out/default/$kind"/id:* "fuzz/crashes/$t/"
         fi
     done
-    line=$(printf '%-22s %10s execs %6s s %9s/s corpus %5s edges %8s crashes %3s hangs %3s' \
+    line=$(printf '%-22s %10s execs %6s s %9s/s corpus %5s edges %5s/%s crashes %3s hangs %3s' \
         "$t" "$(get execs_done)" "$wall" "$(get execs_per_sec)" "$(get corpus_count)" \
-        "$(get bitmap_cvg)" "$crashes" "$hangs")
+        "$(get edges_found)" "$(get total_edges)" "$crashes" "$hangs")
     echo "$line"
     summary+=("$line")
 done
