@@ -36,7 +36,7 @@ if ! cargo afl --version >/dev/null 2>&1; then
         echo "fuzz_afl.sh: cargo-afl needs a C compiler and make (apt-get install build-essential)" >&2
         exit 2
     }
-    nice -n 19 cargo install --locked cargo-afl
+    nice -n 19 cargo install --locked cargo-afl --version "^0.18"  # matches afl = "0.18" in fuzz/Cargo.toml
 fi
 # AFL++ itself: built when cargo-afl is installed; this builds it where that did not happen
 # (and refuses, harmlessly, where it did).
