@@ -31,6 +31,10 @@ pub struct Args {
     /// NormMUSIC: normalise each bin's spectrum to a maximum of 1 before the bin sum.
     #[arg(long)]
     pub normalize_bins: bool,
+    /// Signal-subspace dimension when it should differ from --num-sources (the robust
+    /// default uses max(--num-sources + 2, M/2)).
+    #[arg(long)]
+    pub subspace_dim: Option<usize>,
     /// Windows per batch for the throughput figure.
     #[arg(long, default_value_t = 16)]
     pub batch: usize,
@@ -295,6 +299,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
             window: a.window,
             num_sources: a.num_sources,
             normalize_bins: a.normalize_bins,
+            subspace_dim: a.subspace_dim,
             batch: a.batch,
             repeats: a.repeats,
             device: a.device.into(),

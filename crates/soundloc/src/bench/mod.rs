@@ -41,6 +41,8 @@ pub struct BenchConfig {
     pub num_sources: usize,
     /// NormMUSIC's per-bin normalisation.
     pub normalize_bins: bool,
+    /// Signal-subspace dimension when it differs from `num_sources` (None: the same).
+    pub subspace_dim: Option<usize>,
     /// Windows per batch for the throughput figure.
     pub batch: usize,
     /// Timed repeats (median taken).
@@ -58,6 +60,7 @@ impl Default for BenchConfig {
             window: 50,
             num_sources: 2,
             normalize_bins: false,
+            subspace_dim: None,
             batch: 16,
             repeats: 10,
             device: DeviceChoice::Cpu,
@@ -113,6 +116,7 @@ pub fn inputs<T: Real>(cfg: &BenchConfig) -> Result<BenchInputs<T>> {
         period: cfg.window,
         num_sources: cfg.num_sources,
         normalize_bins: cfg.normalize_bins,
+        subspace_dim: cfg.subspace_dim,
         ..Default::default()
     };
     let bins = config.bin_range();
