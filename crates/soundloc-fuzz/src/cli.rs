@@ -100,6 +100,20 @@ impl CliReport {
     pub fn bad(&self) -> u64 {
         self.panics + self.signals + self.timeouts
     }
+
+    /// The outcome counts in one line ("… exit 0, … clean errors, …, slowest … ms").
+    pub fn counts(&self) -> String {
+        format!(
+            "{} exit 0, {} clean errors, {} other errors, {} panics, {} signals, {} time-outs (slowest finished run {:.0} ms)",
+            self.ok,
+            self.clean_errors,
+            self.other_errors,
+            self.panics,
+            self.signals,
+            self.timeouts,
+            self.max_exec.as_secs_f64() * 1e3
+        )
+    }
 }
 
 /// How many findings of one kind are kept.

@@ -122,17 +122,11 @@ fn cli(bin: Option<PathBuf>, iters: u64, seed: u64, timeout: u64, crashes: &Path
         }
     });
     println!(
-        "cli: {} command lines in {:.1} s ({}, seed {seed}, {timeout} s limit): {} exit 0, {} clean errors, {} other errors, {} panics, {} signals, {} time-outs (slowest finished run {:.0} ms)",
+        "cli: {} command lines in {:.1} s ({}, seed {seed}, {timeout} s limit): {}",
         r.execs,
         start.elapsed().as_secs_f64(),
         bin.display(),
-        r.ok,
-        r.clean_errors,
-        r.other_errors,
-        r.panics,
-        r.signals,
-        r.timeouts,
-        r.max_exec.as_secs_f64() * 1e3
+        r.counts()
     );
     let mut text = String::new();
     for f in &r.findings {

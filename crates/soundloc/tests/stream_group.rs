@@ -13,6 +13,19 @@ use soundloc::sim::render;
 use soundloc::{Algorithm, Block, LocalizeConfig, Output, StreamGroup, TrackingSpec, WindowType};
 use std::sync::Arc;
 
+/// Every stream's planar audio in 10 ms ticks: `tick` gets one block per stream.
+fn in_ticks(audio: &[Vec<Vec<f32>>], mut tick: impl FnMut(&[Block<'_>])) {
+    let len = audio[0][0].len();
+    for p0 in (0..len).step_by(160) {
+        let parts: Vec<Vec<Vec<f32>>> = audio
+            .iter()
+            .map(|a| a.iter().map(|c| c[p0..(p0 + 160).min(len)].to_vec()).collect())
+            .collect();
+        let blocks: Vec<Block<'_>> = parts.iter().map(|p| Block::Planar(p)).collect();
+        tick(&blocks);
+    }
+}
+
 #[test]
 fn a_group_gives_every_stream_its_own_results_bit_for_bit() {
     let scenes: Vec<_> = (0..3).map(|s| ring8_drone(0.0, 40 + s).unwrap()).collect();
@@ -102,14 +115,7 @@ fn a_group_gives_every_stream_its_own_results_bit_for_bit() {
             g.add(options.clone()).unwrap();
         }
         let mut outs = vec![Output::default(); 3];
-        for p0 in (0..len).step_by(160) {
-            let parts: Vec<Vec<Vec<f32>>> = audio
-                .iter()
-                .map(|a| a.iter().map(|c| c[p0..(p0 + 160).min(len)].to_vec()).collect())
-                .collect();
-            let blocks: Vec<Block<'_>> = parts.iter().map(|p| Block::Planar(p)).collect();
-            g.push_all(&blocks, &mut outs).unwrap();
-        }
+        in_ticks(&audio, |blocks| g.push_all(blocks, &mut outs).unwrap());
         for i in 0..3 {
             g.flush(i, &mut outs).unwrap();
             assert!(outs[i].results == alone[i].results, "push_all, stream {i}");
@@ -188,15 +194,7 @@ fn a_localizer_group_from_a_spec_equals_one_localizer_per_stream() {
     assert_eq!(g.len(), 2);
     assert_eq!(g.config().algorithm, Algorithm::Gevd, "the robust default");
     let mut outs = vec![Output::default(); 2];
-    let len = audio[0][0].len();
-    for p0 in (0..len).step_by(160) {
-        let parts: Vec<Vec<Vec<f32>>> = audio
-            .iter()
-            .map(|a| a.iter().map(|c| c[p0..(p0 + 160).min(len)].to_vec()).collect())
-            .collect();
-        let blocks: Vec<Block<'_>> = parts.iter().map(|p| Block::Planar(p)).collect();
-        g.push_all(&blocks, &mut outs).unwrap();
-    }
+    in_ticks(&audio, |blocks| g.push_all(blocks, &mut outs).unwrap());
     for i in 0..2 {
         g.flush(i, &mut outs).unwrap();
         let alone = Localizer::new(&spec).unwrap().localize(&audio[i]).unwrap();

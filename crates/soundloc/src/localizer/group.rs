@@ -35,22 +35,6 @@ enum Inner {
     F64(StreamGroup<f64>),
 }
 
-/// Run `$e` on the group whatever its precision.
-macro_rules! dispatch {
-    (mut $self:expr, $g:ident => $body:expr) => {
-        match &mut $self.inner {
-            Inner::F32($g) => $body,
-            Inner::F64($g) => $body,
-        }
-    };
-    ($self:expr, $g:ident => $body:expr) => {
-        match &$self.inner {
-            Inner::F32($g) => $body,
-            Inner::F64($g) => $body,
-        }
-    };
-}
-
 /// Streams of several arrays of one kind, localized together (see the [module docs](self)).
 pub struct LocalizerGroup {
     inner: Inner,

@@ -37,6 +37,23 @@ use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
+/// Run `$e` on `$self.inner` whatever its precision: the `Inner` enum (F32 | F64) of the
+/// module that calls it (an engine here, a stream group in `group.rs`).
+macro_rules! dispatch {
+    (mut $self:expr, $e:ident => $body:expr) => {
+        match &mut $self.inner {
+            Inner::F32($e) => $body,
+            Inner::F64($e) => $body,
+        }
+    };
+    ($self:expr, $e:ident => $body:expr) => {
+        match &$self.inner {
+            Inner::F32($e) => $body,
+            Inner::F64($e) => $body,
+        }
+    };
+}
+
 mod group;
 pub use group::LocalizerGroup;
 
@@ -277,22 +294,6 @@ pub fn robust_subspace_dim(num_sources: usize, num_mics: usize) -> usize {
 enum Inner {
     F32(Engine<f32>),
     F64(Engine<f64>),
-}
-
-/// Run `$e` on the engine whatever its precision.
-macro_rules! dispatch {
-    (mut $self:expr, $e:ident => $body:expr) => {
-        match &mut $self.inner {
-            Inner::F32($e) => $body,
-            Inner::F64($e) => $body,
-        }
-    };
-    ($self:expr, $e:ident => $body:expr) => {
-        match &$self.inner {
-            Inner::F32($e) => $body,
-            Inner::F64($e) => $body,
-        }
-    };
 }
 
 /// A stateful localizer for one array (see the [module docs](self) and
