@@ -14,9 +14,13 @@
 //! Σ_{noise}|aᴴe_m|² = ‖a‖² − Σ_{signal}|aᴴe_m|², which needs only the Ns signal vectors
 //! (a D × M by M × Ns product instead of M × (M − Ns): ~30× less work at M = 60, Ns = 2).
 //! The difference cancels where a lies almost in the signal subspace — exactly at the peaks
-//! — so wherever the complement is below [`REFINE_RATIO`]·‖a‖² it is recomputed with the
-//! full noise-subspace sum. The result equals the full sum to rounding (relative error
-//! ≲ ε/REFINE_RATIO elsewhere), which `tests` check against the naive f64 form.
+//! — so wherever the complement is below [`REFINE_RATIO`]·‖a‖² it is recomputed in double
+//! precision from the f64 signal vectors the decomposition hands on (‖a‖² and aᴴe_m
+//! summed in f64: the cancellation then costs ~10⁻¹⁶‖a‖², far below single precision).
+//! The floor that keeps the denominator positive is ε_f64·‖a‖² there (an f32 floor would
+//! clip the sharpest peaks in rotor noise, docs/precision.md). The result equals the full
+//! noise-subspace sum to rounding, which `tests` check against the naive f64 form; the
+//! decomposition computes only the Ns signal vectors ([`vectors_needed`]).
 //! For the textbook GEVD, a is the whitened a_w = L⁻¹a in the denominator (and its norm in
 //! the complement) while the numerator keeps the raw ‖a‖².
 
@@ -44,6 +48,15 @@ impl<T: Real> SpectrumScratch<T> {
         SpectrumScratch {
             proj: faer::Mat::zeros(plan.num_dirs, cols),
         }
+    }
+}
+
+/// How many leading vectors the decomposition must compute: the Ns signal vectors for the
+/// squared denominator (complement form), all M for the unsquared one.
+pub fn vectors_needed<T: Real>(plan: &Plan<T>) -> usize {
+    match plan.config.denominator {
+        Denominator::Squared => plan.config.signal_dim().min(plan.num_mics),
+        Denominator::Unsquared => plan.num_mics,
     }
 }
 
@@ -95,11 +108,12 @@ pub fn accumulate_bin<T: Real>(
                 for s in 0..ns {
                     sig += scratch.proj[(dir, s)].norm_sqr();
                 }
-                let mut den = n2_den[dir] - sig;
-                if den < tau * n2_den[dir] {
-                    den = noise_sum_squared(&st[dir * m..(dir + 1) * m], dec, ns);
-                }
-                let den = den.max(floor * n2_den[dir]);
+                let den = n2_den[dir] - sig;
+                let den = if den < tau * n2_den[dir] {
+                    T::of_f64(complement64(&st[dir * m..(dir + 1) * m], dec, ns))
+                } else {
+                    den.max(floor * n2_den[dir])
+                };
                 if den > T::zero() {
                     acc[dir] += gain * n2_num[dir] / den;
                 }
@@ -142,22 +156,27 @@ pub fn normalize_bin<T: Real>(acc: &mut [T], weight: T) {
     }
 }
 
-/// Σ_{m ≥ Ns} |aᴴ e_m|² directly.
+/// ‖a‖² − Σ_{m < Ns} |aᴴ e_m|² in f64 from the f64 signal vectors, floored at
+/// ε_f64·‖a‖²: the squared noise-subspace denominator where it is small.
 #[inline]
-pub fn noise_sum_squared<T: Real>(a: &[C<T>], dec: &Decomposition<T>, ns: usize) -> T {
-    let mut den = T::zero();
-    for mm in ns..dec.m {
-        let e = dec.vector(mm);
-        let mut re = T::zero();
-        let mut im = T::zero();
+pub fn complement64<T: Real>(a: &[C<T>], dec: &Decomposition<T>, ns: usize) -> f64 {
+    let n2: f64 = a
+        .iter()
+        .map(|z| z.re.to_f64().powi(2) + z.im.to_f64().powi(2))
+        .sum();
+    let mut sig = 0.0;
+    for c in 0..ns {
+        let e = dec.vector64(c);
+        let (mut re, mut im) = (0.0, 0.0);
         for (ai, ei) in a.iter().zip(e) {
+            let (ar, aim) = (ai.re.to_f64(), ai.im.to_f64());
             // conj(a)·e
-            re += ai.re * ei.re + ai.im * ei.im;
-            im += ai.re * ei.im - ai.im * ei.re;
+            re += ar * ei.re + aim * ei.im;
+            im += ar * ei.im - aim * ei.re;
         }
-        den += re * re + im * im;
+        sig += re * re + im * im;
     }
-    den
+    (n2 - sig).max(f64::EPSILON * n2)
 }
 
 /// 10·log10(P̄ + 1).
@@ -202,11 +221,11 @@ mod tests {
         for (wi, w) in inp.windows.iter().enumerate() {
             let mut pbar = vec![0.0f64; d];
             let mut ws = Workspace::new(m);
-            let mut dec = Decomposition::new(m);
+            let mut dec = Decomposition::<f64>::new(m, m);
             let mut r = vec![C::new(0.0, 0.0); m * m];
             for b in 0..nb {
                 correlate(&inp.spectra, w, b, &mut r);
-                decompose(alg, &r, plan.whitening_matrix(b), &mut ws, &mut dec).unwrap();
+                decompose(alg, &r, plan.whitening_matrix64(b), &mut ws, &mut dec).unwrap();
                 let g = dec.values[0].max(0.0).sqrt();
                 for dir in 0..d {
                     let a = &st[(b * d + dir) * m..(b * d + dir + 1) * m];

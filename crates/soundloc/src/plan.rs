@@ -30,8 +30,10 @@ use std::sync::Arc;
 /// Noise-dependent precomputation (absent for SEVD).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Whitening<T: Real> {
-    /// W_k per used bin, `[bin][i][j]` row-major M × M.
+    /// W_k per used bin, `[bin][i][j]` row-major M × M (what the GPU uploads).
     pub matrix: Vec<C<T>>,
+    /// The same in f64 (the CPU whitens R in double precision).
+    pub matrix64: Vec<c64>,
     /// GEVD only: whitened steering a_w = L⁻¹ a, `[bin][dir][mic]` (else empty).
     pub steering: Vec<C<T>>,
     /// GEVD only: ‖a_w‖², `[bin][dir]` (else empty).
@@ -234,6 +236,12 @@ impl<T: Real> Plan<T> {
         self.whitening.as_ref().map(|w| &w.matrix[b * mm..(b + 1) * mm])
     }
 
+    /// W_k of used bin `b` in f64 (row-major M × M), as the CPU decomposition uses it.
+    pub fn whitening_matrix64(&self, b: usize) -> Option<&[c64]> {
+        let mm = self.num_mics * self.num_mics;
+        self.whitening.as_ref().map(|w| &w.matrix64[b * mm..(b + 1) * mm])
+    }
+
     /// Centre frequency of used bin `b` in Hz.
     pub fn bin_hz(&self, b: usize) -> f64 {
         (self.bins.start + b) as f64 * self.config.sample_rate_hz as f64 / self.config.nfft as f64
@@ -378,19 +386,23 @@ fn whitening<T: Real>(
         .collect();
     let mut w = Whitening {
         matrix: Vec::with_capacity(nb * m * m),
+        matrix64: Vec::with_capacity(nb * m * m),
         steering: Vec::new(),
         steering_norm2: Vec::new(),
     };
     for r in per_bin {
         let (mat, st, n2) = r?;
-        w.matrix.extend(mat);
+        w.matrix
+            .extend(mat.iter().map(|z| C::new(T::of_f64(z.re), T::of_f64(z.im))));
+        w.matrix64.extend(mat);
         w.steering.extend(st);
         w.steering_norm2.extend(n2);
     }
     Ok(w)
 }
 
-type BinWhitening<T> = (Vec<C<T>>, Vec<C<T>>, Vec<T>);
+/// W (row-major, f64), the whitened steering and its norms.
+type BinWhitening<T> = (Vec<c64>, Vec<C<T>>, Vec<T>);
 
 /// One bin: scale K, factor it, and build W (and the whitened steering for GEVD).
 fn bin_whitening<T: Real>(
@@ -434,12 +446,11 @@ fn bin_whitening<T: Real>(
          give more noise frames or use diagonal loading"
             .to_string()
     })?;
-    let to_t = |z: c64| C::new(T::of_f64(z.re), T::of_f64(z.im));
-    let row_major = |w: &Mat<c64>| -> Vec<C<T>> {
+    let row_major = |w: &Mat<c64>| -> Vec<c64> {
         let mut v = Vec::with_capacity(m * m);
         for i in 0..m {
             for j in 0..m {
-                v.push(to_t(w[(i, j)]));
+                v.push(w[(i, j)]);
             }
         }
         v
@@ -501,7 +512,7 @@ fn bin_whitening<T: Real>(
                 for i in 0..m {
                     let z = aw[(i, dir)];
                     acc += z.re * z.re + z.im * z.im;
-                    st.push(to_t(z));
+                    st.push(C::new(T::of_f64(z.re), T::of_f64(z.im)));
                 }
                 n2.push(T::of_f64(acc));
             }

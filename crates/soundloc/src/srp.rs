@@ -26,6 +26,7 @@ use faer::{Accum, MatRef, Par};
 /// Per-thread scratch for [`accumulate_bin`].
 pub struct SrpScratch<T: Real> {
     z: faer::Mat<C<T>>,
+    r: faer::Mat<C<T>>,
 }
 
 impl<T: Real> SrpScratch<T> {
@@ -33,6 +34,7 @@ impl<T: Real> SrpScratch<T> {
     pub fn new(plan: &Plan<T>) -> Self {
         SrpScratch {
             z: faer::Mat::zeros(plan.num_dirs, plan.num_mics),
+            r: faer::Mat::zeros(plan.num_mics, plan.num_mics),
         }
     }
 }
@@ -63,7 +65,7 @@ pub fn correlate_phat<T: Real>(spectra: &Spectra<T>, w: &WindowSpec, bin: usize,
 pub fn accumulate_bin<T: Real>(
     plan: &Plan<T>,
     b: usize,
-    r: &[C<T>],
+    r: &[C<f64>],
     scratch: &mut SrpScratch<T>,
     acc: &mut [T],
 ) {
@@ -74,7 +76,13 @@ pub fn accumulate_bin<T: Real>(
     }
     let st = &plan.steering[b * d * m..(b + 1) * d * m];
     let a = MatRef::from_row_major_slice(st, d, m);
-    let rm = MatRef::from_row_major_slice(r, m, m);
+    for i in 0..m {
+        for j in 0..m {
+            let z = r[i * m + j];
+            scratch.r[(i, j)] = C::new(T::of_f64(z.re), T::of_f64(z.im));
+        }
+    }
+    let rm = scratch.r.as_ref();
     // Z = conj(Ã) R̃: Z_dj = Σ_i conj(ã_di) R̃_ij, then ãᴴR̃ã = Σ_j Z_dj ã_dj.
     faer::linalg::matmul::matmul(
         scratch.z.as_mut(),

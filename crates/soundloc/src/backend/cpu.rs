@@ -10,7 +10,7 @@
 
 use super::{Backend, BatchOutput, Job, StageTimes, StreamId};
 use crate::correlation::running::{run_bin, RunningCorrelation, Step};
-use crate::music::{accumulate_bin, bin_gain, normalize_bin, to_db, SpectrumScratch};
+use crate::music::{accumulate_bin, bin_gain, normalize_bin, to_db, vectors_needed, SpectrumScratch};
 use crate::peaks::find_peaks;
 use crate::plan::Plan;
 use crate::real::{Real, C};
@@ -30,9 +30,8 @@ const KEEP_BYTES: usize = 256 << 20;
 pub struct CpuBackend<T: Real> {
     plan: Arc<Plan<T>>,
     times: StageTimes,
-    r: Vec<C<T>>,
-    /// R of one job, `[bin][window][M×M]` (bins run in parallel).
-    r_bins: Vec<C<T>>,
+    /// R of every window of a call in f64, `[bin][window][M×M]` (bins run in parallel).
+    r: Vec<C<f64>>,
     decs: Vec<Decomposition<T>>,
     contrib: Vec<T>,
     /// Running sums per stream, with the call count of their last use.
@@ -47,7 +46,6 @@ impl<T: Real> CpuBackend<T> {
             plan,
             times: StageTimes::default(),
             r: Vec::new(),
-            r_bins: Vec::new(),
             decs: Vec::new(),
             contrib: Vec::new(),
             running: HashMap::new(),
@@ -55,33 +53,25 @@ impl<T: Real> CpuBackend<T> {
         }
     }
 
-    /// R of every window of `job` into `self.r` from window `w0` on, `[window][bin]`.
-    fn correlate_job(&mut self, job: &Job<'_, T>, w0: usize, phat: bool) {
+    /// R of every window of `job` into `self.r` as windows `w0 …` of `nw` in all.
+    fn correlate_job(&mut self, job: &Job<'_, T>, w0: usize, nw: usize, phat: bool) {
         let (m, nb) = (self.plan.num_mics, self.plan.num_bins());
         let mm = m * m;
-        let nw = job.windows.len();
         let mut rc = match self.running.remove(&job.stream) {
             Some((rc, _)) => rc,
             None => RunningCorrelation::new(m, nb),
         };
         let steps: Vec<Step> = job.windows.iter().map(|w| rc.step(w, job.first)).collect();
-        self.r_bins.resize(nb * nw * mm, C::new(T::zero(), T::zero()));
         let bins: Vec<&mut [C<f64>]> = rc.bins_mut().collect();
         bins.into_par_iter()
-            .zip(self.r_bins.par_chunks_mut(nw * mm))
+            .zip(self.r.par_chunks_mut(nw * mm))
             .enumerate()
             .for_each_init(Vec::new, |y, (b, (sum, rb))| {
                 for (wi, (w, st)) in job.windows.iter().zip(&steps).enumerate() {
-                    run_bin(sum, *st, job, w, b, phat, y, &mut rb[wi * mm..(wi + 1) * mm]);
+                    let o = (w0 + wi) * mm;
+                    run_bin(sum, *st, job, w, b, phat, y, &mut rb[o..o + mm]);
                 }
             });
-        for b in 0..nb {
-            for wi in 0..nw {
-                let dst = ((w0 + wi) * nb + b) * mm;
-                self.r[dst..dst + mm]
-                    .copy_from_slice(&self.r_bins[(b * nw + wi) * mm..(b * nw + wi + 1) * mm]);
-            }
-        }
         if job.stream.is_kept() {
             self.running.insert(job.stream, (rc, self.calls));
             // Drop the least recently used streams' sums beyond the budget.
@@ -126,28 +116,35 @@ impl<T: Real> Backend<T> for CpuBackend<T> {
         // 1. Correlation matrices, [window][bin] (phase-transformed for SRP-PHAT), from
         // each stream's running sums.
         let t = Instant::now();
-        self.r.resize(nw * nb * mm, C::new(T::zero(), T::zero()));
+        self.r.resize(nw * nb * mm, C::new(0.0, 0.0));
         let mut w0 = 0;
         for job in jobs {
-            self.correlate_job(job, w0, srp);
+            self.correlate_job(job, w0, nw, srp);
             w0 += job.windows.len();
         }
         self.times.correlation_ms += ms(t);
 
-        // 2. Decompositions, [window][bin] (none for SRP-PHAT).
+        // 2. Decompositions, [window][bin] (none for SRP-PHAT): the leading vectors the
+        // spectrum needs, in f64.
         let t = Instant::now();
         let r = &self.r;
+        // R of window w, bin b.
+        let r_of = |w: usize, b: usize| &r[(b * nw + w) * mm..(b * nw + w + 1) * mm];
         if srp {
             self.decs.clear();
         } else {
-            self.decs.resize_with(nw * nb, || Decomposition::new(m));
+            let k = vectors_needed(plan);
+            if self.decs.first().is_some_and(|d| d.dim != k) {
+                self.decs.clear();
+            }
+            self.decs.resize_with(nw * nb, || Decomposition::new(m, k));
             self.decs.par_iter_mut().enumerate().try_for_each_init(
                 || Workspace::new(m),
                 |ws, (i, dec)| {
                     decompose(
                         alg,
-                        &r[i * mm..(i + 1) * mm],
-                        plan.whitening_matrix(i % nb),
+                        r_of(i / nb, i % nb),
+                        plan.whitening_matrix64(i % nb),
                         ws,
                         dec,
                     )
@@ -168,7 +165,7 @@ impl<T: Real> Backend<T> for CpuBackend<T> {
             self.contrib.par_chunks_mut(d).enumerate().for_each_init(
                 || SrpScratch::new(plan),
                 |sc, (i, acc)| {
-                    srp::accumulate_bin(plan, i % nb, &r[i * mm..(i + 1) * mm], sc, acc);
+                    srp::accumulate_bin(plan, i % nb, r_of(i / nb, i % nb), sc, acc);
                     if normalize {
                         normalize_bin(acc, plan.weights[i % nb]);
                     }

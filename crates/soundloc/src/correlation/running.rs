@@ -102,9 +102,10 @@ impl RunningCorrelation {
 /// Carry bin `bin`'s sum (`sum`: M × M column-major) through `step` to window `w` of
 /// `job`, then write R (row-major M × M, exactly Hermitian, real diagonal) into `out`;
 /// `phat` applies the phase transform to the frames and skips HARK's scaling. `y` is
-/// scratch. Returns the scale divisor (1 without scaling).
+/// scratch. Returns the scale divisor (1 without scaling). R is written in `U` (f64 for
+/// the CPU's decompositions, which whiten it in double precision).
 #[allow(clippy::too_many_arguments)]
-pub fn run_bin<T: Real>(
+pub fn run_bin<T: Real, U: Real>(
     sum: &mut [C<f64>],
     step: Step,
     job: &Job<'_, T>,
@@ -112,8 +113,8 @@ pub fn run_bin<T: Real>(
     bin: usize,
     phat: bool,
     y: &mut Vec<C<f64>>,
-    out: &mut [C<T>],
-) -> T {
+    out: &mut [C<U>],
+) -> U {
     let sp = job.spectra;
     let m = sp.num_mics;
     debug_assert_eq!(out.len(), m * m);
@@ -165,15 +166,15 @@ pub fn run_bin<T: Real>(
     let k = inv_w / s;
     for i in 0..m {
         // Row i of R from the upper triangle of S (column j, row i ≤ j).
-        out[i * m + i] = C::new(T::of_f64(sum[i * m + i].re * k), T::zero());
+        out[i * m + i] = C::new(U::of_f64(sum[i * m + i].re * k), U::zero());
         for j in i + 1..m {
             let v = sum[j * m + i] * k;
-            let v = C::new(T::of_f64(v.re), T::of_f64(v.im));
+            let v = C::new(U::of_f64(v.re), U::of_f64(v.im));
             out[i * m + j] = v;
             out[j * m + i] = v.conj();
         }
     }
-    T::of_f64(s)
+    U::of_f64(s)
 }
 
 #[cfg(test)]

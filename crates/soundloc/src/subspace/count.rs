@@ -35,14 +35,17 @@ pub fn mdl(values: &[f64], snapshots: usize) -> usize {
         .map(|&x| if x.is_finite() { x.max(floor) } else { floor })
         .collect();
     let n = snapshots as f64;
+    // Tail sums Σ_{i ≥ k} ln λ_i and Σ_{i ≥ k} λ_i, from the smallest value up: O(M).
+    let (mut sum_ln, mut sum) = (0.0f64, 0.0f64);
     let mut best = (f64::INFINITY, 0usize);
-    for k in 0..m {
-        let rest = &v[k..];
-        let q = rest.len() as f64;
-        let log_g = rest.iter().map(|x| x.ln()).sum::<f64>() / q;
-        let a = rest.iter().sum::<f64>() / q;
+    for k in (0..m).rev() {
+        sum_ln += v[k].ln();
+        sum += v[k];
+        let q = (m - k) as f64;
+        let (log_g, a) = (sum_ln / q, sum / q);
         let score = -n * q * (log_g - a.ln()) + 0.5 * (k as f64) * (2.0 * m as f64 - k as f64) * n.ln();
-        if score < best.0 {
+        // Ties go to the smaller k.
+        if score <= best.0 {
             best = (score, k);
         }
     }

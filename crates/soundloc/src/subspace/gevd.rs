@@ -8,21 +8,19 @@
 //! raw ‖a‖² as numerator. This variant keeps the talkers when the noise is coherent and
 //! close to the array; it is soundloc's default when a noise matrix is given.
 
-use super::{hermitian_eig_into, load_row_major, matmul_into, Decomposition, Workspace};
-use crate::real::{Real, C};
+use super::whiten::Right;
+use super::{finish, Decomposition, Workspace};
+use crate::real::Real;
 use crate::Result;
+use faer::c64;
 
-/// Eigendecomposition of W R Wᴴ, W = L⁻¹ (both row-major M × M).
+/// Eigendecomposition of W R Wᴴ, W = L⁻¹ (both row-major M × M, f64).
 pub fn decompose<T: Real>(
-    r: &[C<T>],
-    w: &[C<T>],
-    ws: &mut Workspace<T>,
+    r: &[c64],
+    w: &[c64],
+    ws: &mut Workspace,
     out: &mut Decomposition<T>,
 ) -> Result<()> {
-    let m = ws.m;
-    load_row_major(&mut ws.a, r, m);
-    load_row_major(&mut ws.u, w, m);
-    matmul_into(&mut ws.tmp, ws.u.as_ref(), ws.a.as_ref()); // W R
-    matmul_into(&mut ws.a, ws.tmp.as_ref(), ws.u.as_ref().adjoint()); // W R Wᴴ
-    hermitian_eig_into(ws, out)
+    ws.form(r, w, true, Right::WAdjoint);
+    finish(ws, |l| l, out)
 }

@@ -1,57 +1,75 @@
 //! Subspace decomposition per frequency bin (HARK's `MUSIC_ALGORITHM`).
 //!
-//! Input: the scaled correlation matrix R_k (M × M, Hermitian) of one window and bin, and,
-//! for the noise-aware algorithms, a per-bin whitening matrix W_k precomputed once per
-//! noise matrix K by [`crate::plan`] (in f64). Output: an orthonormal basis
-//! E = [e_1 … e_M] sorted by descending eigen/singular value; the first Ns columns span
-//! the signal subspace, the remaining M − Ns the noise subspace.
+//! Input: the scaled correlation matrix R_k (M × M, Hermitian, in f64 as the correlation
+//! stage sums it) of one window and bin, and, for the noise-aware algorithms, the per-bin
+//! whitening matrix W_k that [`crate::plan`] computes once per noise matrix K (in f64).
+//! Output: every eigen/singular value (descending) and an orthonormal basis
+//! E = [e_1 … e_k] of the k leading vectors — the signal subspace, which is all the
+//! squared MUSIC denominator needs (see [`crate::music`]); k = M when the whole noise
+//! subspace is wanted (the unsquared denominator).
 //!
-//! | algorithm | matrix decomposed | E | steering used by the spectrum |
+//! | algorithm | matrix decomposed (Hermitian, f64) | E | steering used by the spectrum |
 //! |---|---|---|---|
 //! | [`sevd`] | R | eigenvectors | a |
 //! | [`gevd`] (textbook) | L⁻¹ R L⁻ᴴ, K = L Lᴴ | eigenvectors f_m | a_w = L⁻¹ a (≡ aᴴ e_m with e_m = L⁻ᴴ f_m) |
 //! | [`gevd_hark`] | K^{-1/2} R K^{-1/2} | eigenvectors | a (no back-transform: HARK's choice) |
-//! | [`gsvd`] | K⁻¹ R | left singular vectors | a |
+//! | [`gsvd`] | (K⁻¹R)(K⁻¹R)ᴴ | eigenvectors = left singular vectors of K⁻¹R, σ = √λ | a |
 //!
-//! Every E is orthonormal, so the MUSIC denominator may use the signal-subspace
-//! complement (see [`crate::music`]).
+//! Everything runs in double precision whatever the pipeline's precision: the whitening
+//! products (an ε-relative error in R grows like cond(K) once whitened — rotor noise makes
+//! K's condition number 10⁶–10⁸, docs/precision.md) and the partial eigensolver
+//! [`eigh`]; the vectors are handed on in both precisions.
 
 pub mod count;
+pub mod eigh;
 mod gevd;
 pub mod gevd_hark;
 pub mod gsvd;
 pub mod sevd;
+pub mod simd;
+mod whiten;
 
 use crate::config::Algorithm;
 use crate::real::{Real, C};
 use crate::{Error, Result};
-use faer::dyn_stack::{MemBuffer, MemStack};
-use faer::{Accum, Mat, Par};
+use eigh::Eigh;
+use faer::c64;
 
-/// One bin's decomposition: `vectors` is M × M column-major (column m is e_m, so
-/// `vectors[m * M + i]` is component i of e_m), `values` descending.
+/// One bin's decomposition.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Decomposition<T: Real> {
     /// Number of microphones M.
     pub m: usize,
-    /// Column-major basis, sorted by descending value.
+    /// Number of leading vectors held (k ≤ M).
+    pub dim: usize,
+    /// The k leading vectors, M × k column-major (column c is e_{c+1}), in the pipeline's
+    /// precision.
     pub vectors: Vec<C<T>>,
-    /// Eigen- or singular values, descending.
+    /// The same vectors in f64 (for the spectrum's exact recomputation near peaks).
+    pub vectors64: Vec<c64>,
+    /// All M eigen- or singular values, descending.
     pub values: Vec<T>,
 }
 
 impl<T: Real> Decomposition<T> {
-    /// An empty decomposition for M microphones.
-    pub fn new(m: usize) -> Self {
+    /// An empty decomposition for M microphones holding k vectors.
+    pub fn new(m: usize, k: usize) -> Self {
+        let k = k.min(m);
         Decomposition {
             m,
-            vectors: vec![C::new(T::zero(), T::zero()); m * m],
+            dim: k,
+            vectors: vec![C::new(T::zero(), T::zero()); m * k],
+            vectors64: vec![c64::new(0.0, 0.0); m * k],
             values: vec![T::zero(); m],
         }
     }
-    /// Column m (e_m).
-    pub fn vector(&self, m: usize) -> &[C<T>] {
-        &self.vectors[m * self.m..(m + 1) * self.m]
+    /// Column c (e_{c+1}), c < k.
+    pub fn vector(&self, c: usize) -> &[C<T>] {
+        &self.vectors[c * self.m..(c + 1) * self.m]
+    }
+    /// Column c in f64.
+    pub fn vector64(&self, c: usize) -> &[c64] {
+        &self.vectors64[c * self.m..(c + 1) * self.m]
     }
     /// The largest value (λ_max or σ_max).
     pub fn largest(&self) -> T {
@@ -60,99 +78,53 @@ impl<T: Real> Decomposition<T> {
 }
 
 /// Reusable scratch for one thread's decompositions of M × M matrices.
-pub struct Workspace<T: Real> {
+pub struct Workspace {
     m: usize,
-    a: Mat<C<T>>,
-    tmp: Mat<C<T>>,
-    u: Mat<C<T>>,
-    s: faer::diag::Diag<C<T>>,
-    mem: MemBuffer,
+    products: whiten::Products,
+    eigh: Eigh,
 }
 
-impl<T: Real> Workspace<T> {
+impl Workspace {
     /// Scratch for M × M problems (any algorithm).
     pub fn new(m: usize) -> Self {
-        use faer::linalg::{evd, svd};
-        let par = Par::Seq;
-        let req =
-            evd::self_adjoint_evd_scratch::<C<T>>(m, evd::ComputeEigenvectors::Yes, par, Default::default())
-                .or(svd::svd_scratch::<C<T>>(
-                    m,
-                    m,
-                    svd::ComputeSvdVectors::Full,
-                    svd::ComputeSvdVectors::No,
-                    par,
-                    Default::default(),
-                ));
         Workspace {
             m,
-            a: Mat::zeros(m, m),
-            tmp: Mat::zeros(m, m),
-            u: Mat::zeros(m, m),
-            s: faer::diag::Diag::zeros(m),
-            mem: MemBuffer::new(req),
+            products: whiten::Products::new(m),
+            eigh: Eigh::new(m),
         }
     }
     /// The matrix size this workspace was built for.
     pub fn dim(&self) -> usize {
         self.m
     }
-}
-
-fn load_row_major<T: Real>(dst: &mut Mat<C<T>>, src: &[C<T>], m: usize) {
-    for i in 0..m {
-        for j in 0..m {
-            dst[(i, j)] = src[i * m + j];
-        }
+    /// Form A from R and W (see [`whiten`]) in the eigensolver's input.
+    fn form(&mut self, r: &[c64], w: &[c64], lower: bool, right: whiten::Right) {
+        let (ar, ai) = self.eigh.matrix_mut();
+        self.products.form(r, w, lower, right, ar, ai);
     }
 }
 
-/// Hermitian eigendecomposition of `ws.a` into `out`, sorted descending.
-fn hermitian_eig_into<T: Real>(ws: &mut Workspace<T>, out: &mut Decomposition<T>) -> Result<()> {
-    let m = ws.m;
-    faer::linalg::evd::self_adjoint_evd(
-        ws.a.as_ref(),
-        ws.s.as_mut(),
-        Some(ws.u.as_mut()),
-        Par::Seq,
-        MemStack::new(&mut ws.mem),
-        Default::default(),
-    )
-    .map_err(|e| Error::numerical("decompose", format!("eigendecomposition failed: {e:?}")))?;
-    // faer returns ascending eigenvalues; store descending.
-    for k in 0..m {
-        let src = m - 1 - k;
-        out.values[k] = ws.s[src].re;
-        for i in 0..m {
-            out.vectors[k * m + i] = ws.u[(i, src)];
-        }
+/// Decompose the matrix in `ws`'s eigensolver into `out`: values through `value`
+/// (descending), `out.dim` leading vectors in both precisions.
+fn finish<T: Real>(ws: &mut Workspace, value: impl Fn(f64) -> f64, out: &mut Decomposition<T>) -> Result<()> {
+    ws.eigh.solve(out.dim, &mut out.vectors64)?;
+    for (v, &l) in out.values.iter_mut().zip(ws.eigh.values()) {
+        *v = T::of_f64(value(l));
+    }
+    for (v, z) in out.vectors.iter_mut().zip(&out.vectors64) {
+        *v = C::new(T::of_f64(z.re), T::of_f64(z.im));
     }
     Ok(())
 }
 
-/// ws.a ← lhs · rhs (all M × M, faer matrices).
-fn matmul_into<T: Real, R: faer::traits::Conjugate<Canonical = C<T>>>(
-    dst: &mut Mat<C<T>>,
-    lhs: faer::MatRef<'_, C<T>>,
-    rhs: faer::MatRef<'_, R>,
-) {
-    faer::linalg::matmul::matmul(
-        dst.as_mut(),
-        Accum::Replace,
-        lhs,
-        rhs,
-        C::new(T::one(), T::zero()),
-        Par::Seq,
-    );
-}
-
-/// Decompose one bin: `r` is the scaled R_k (row-major M × M), `w` the plan's whitening
-/// matrix W_k (row-major) for the noise-aware algorithms.
+/// Decompose one bin: `r` is the scaled R_k (row-major M × M, f64), `w` the plan's
+/// whitening matrix W_k (row-major, f64) for the noise-aware algorithms. `out.dim` sets
+/// how many leading vectors are computed.
 pub fn decompose<T: Real>(
     algorithm: Algorithm,
-    r: &[C<T>],
-    w: Option<&[C<T>]>,
-    ws: &mut Workspace<T>,
+    r: &[c64],
+    w: Option<&[c64]>,
+    ws: &mut Workspace,
     out: &mut Decomposition<T>,
 ) -> Result<()> {
     let need_w =
@@ -212,9 +184,25 @@ mod tests {
         let w: Vec<C<T>> = (0..m * m)
             .map(|k| (w[k] + w[(k % m) * m + k / m].conj()) * T::of_f64(0.5))
             .collect();
+        // Lower triangular for GEVD, as the plan's L⁻¹ is.
+        let w: Vec<C<T>> = if alg == Algorithm::Gevd {
+            (0..m * m)
+                .map(|k| {
+                    if k % m > k / m {
+                        C::new(T::zero(), T::zero())
+                    } else {
+                        w[k]
+                    }
+                })
+                .collect()
+        } else {
+            w
+        };
         let mut ws = Workspace::new(m);
-        let mut dec = Decomposition::new(m);
-        decompose(alg, &r, Some(&w), &mut ws, &mut dec).unwrap();
+        let mut dec = Decomposition::<T>::new(m, m);
+        let c64s =
+            |v: &[C<T>]| -> Vec<c64> { v.iter().map(|z| c64::new(z.re.to_f64(), z.im.to_f64())).collect() };
+        decompose(alg, &c64s(&r), Some(&c64s(&w)), &mut ws, &mut dec).unwrap();
         for k in 1..m {
             assert!(
                 dec.values[k - 1] >= dec.values[k],

@@ -1,13 +1,16 @@
-//! SEVD-MUSIC: Hermitian eigendecomposition R = E Λ Eᴴ of the correlation matrix.
-//! E's columns sorted by descending λ; plain MUSIC, the HARK default.
+//! SEVD-MUSIC: the standard eigendecomposition R = E Λ Eᴴ (no noise model).
 
-use super::{hermitian_eig_into, load_row_major, Decomposition, Workspace};
-use crate::real::{Real, C};
+use super::{finish, Decomposition, Workspace};
+use crate::real::Real;
 use crate::Result;
+use faer::c64;
 
-/// Eigendecomposition of R (row-major M × M).
-pub fn decompose<T: Real>(r: &[C<T>], ws: &mut Workspace<T>, out: &mut Decomposition<T>) -> Result<()> {
-    let m = ws.m;
-    load_row_major(&mut ws.a, r, m);
-    hermitian_eig_into(ws, out)
+/// Eigendecomposition of R (row-major M × M, f64, Hermitian).
+pub fn decompose<T: Real>(r: &[c64], ws: &mut Workspace, out: &mut Decomposition<T>) -> Result<()> {
+    let (re, im) = ws.eigh.matrix_mut();
+    for ((z, a), b) in r.iter().zip(re.iter_mut()).zip(im.iter_mut()) {
+        *a = z.re;
+        *b = z.im;
+    }
+    finish(ws, |l| l, out)
 }

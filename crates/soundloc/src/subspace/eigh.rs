@@ -1,0 +1,626 @@
+//! Partial Hermitian eigendecomposition in f64: every eigenvalue, and the eigenvectors of
+//! the k largest only — what the MUSIC spectrum (signal-subspace complement) and the
+//! source count need, at a fraction of a full decomposition's cost.
+//!
+//! 1. **Householder tridiagonalisation** (LAPACK `zhetd2`, lower): A = Q T Qᴴ with T real
+//!    symmetric tridiagonal and Q = H₀ H₁ ⋯ H_{n−2}, H_j = I − τ_j v_j v_jᴴ. Per step j,
+//!    with v spanning rows j+1 … n−1: p = τ A₂₂ v, w = p − ½ τ (pᴴv) v,
+//!    A₂₂ ← A₂₂ − v wᴴ − w vᴴ. The matrix is kept in full storage with split real and
+//!    imaginary parts, rows contiguous, so both loops run over contiguous memory and
+//!    vectorise (AVX2 where the CPU has it; the same operations in the same order either
+//!    way, so results do not depend on the instruction set). ≈ n³ complex multiply-adds.
+//! 2. **Eigenvalues of T** by the rational (square-root free) implicit QL method
+//!    (EISPACK `tqlrat`), no vectors: O(n²).
+//! 3. **The k largest eigenvectors of T** by inverse iteration, re-orthogonalised within
+//!    clusters of close eigenvalues (LAPACK `dstein`'s rules: clusters closer than
+//!    10⁻³‖T‖₁, equal eigenvalues perturbed apart by 10ε|λ|): O(n·k) plus the
+//!    cluster work.
+//! 4. **Back-transformation** x = Q z: O(n²·k).
+//!
+//! A full decomposition with vectors adds ≈ 3–4 n³ (the QL rotations applied to all n
+//! vectors, then Q applied to all of them). Measured on the 2-core development machine
+//! (2026-11-26, n = 60, one thread): tridiagonalisation 85–117 µs, eigenvalues 31–33 µs,
+//! k = 2 vectors a few µs, against faer's `self_adjoint_evd` with vectors at 278 µs (c32)
+//! and 415 µs (c64).
+
+use super::simd::{self, axpy, conj_axpy, dotc, rank2_row};
+use crate::real::C;
+use crate::{Error, Result};
+
+/// Scratch and result of one partial decomposition of an n × n Hermitian matrix.
+pub struct Eigh {
+    n: usize,
+    /// The matrix, row-major, real and imaginary parts; row j holds v_j after step j.
+    re: Vec<f64>,
+    im: Vec<f64>,
+    tau: Vec<C<f64>>,
+    diag: Vec<f64>,
+    off: Vec<f64>,
+    /// Eigenvalues, descending.
+    values: Vec<f64>,
+    /// Eigenvectors of T (k of them, n each), then scratch for the solver.
+    z: Vec<f64>,
+    lu: TriLu,
+    vr: Vec<f64>,
+    vi: Vec<f64>,
+    pr: Vec<f64>,
+    pi: Vec<f64>,
+}
+
+impl Eigh {
+    /// Scratch for n × n problems.
+    pub fn new(n: usize) -> Self {
+        Eigh {
+            n,
+            re: vec![0.0; n * n],
+            im: vec![0.0; n * n],
+            tau: vec![C::new(0.0, 0.0); n],
+            diag: vec![0.0; n],
+            off: vec![0.0; n],
+            values: vec![0.0; n],
+            z: Vec::new(),
+            lu: TriLu::new(n),
+            vr: vec![0.0; n],
+            vi: vec![0.0; n],
+            pr: vec![0.0; n],
+            pi: vec![0.0; n],
+        }
+    }
+
+    /// The matrix size.
+    pub fn dim(&self) -> usize {
+        self.n
+    }
+
+    /// The matrix to decompose, row-major real and imaginary parts (n × n each). Fill both
+    /// triangles: A must be Hermitian (the strictly upper triangle is what is read).
+    pub fn matrix_mut(&mut self) -> (&mut [f64], &mut [f64]) {
+        (&mut self.re, &mut self.im)
+    }
+
+    /// Eigenvalues of the last [`Eigh::solve`], descending.
+    pub fn values(&self) -> &[f64] {
+        &self.values
+    }
+
+    /// Decompose the matrix in [`Eigh::matrix_mut`] (destroyed): every eigenvalue into
+    /// [`Eigh::values`] (descending), and the eigenvectors of the `k` largest into
+    /// `vectors` (n × k column-major: column c is the eigenvector of the c-th largest
+    /// eigenvalue, unit norm).
+    pub fn solve(&mut self, k: usize, vectors: &mut [C<f64>]) -> Result<()> {
+        let n = self.n;
+        assert!(k <= n && vectors.len() >= n * k);
+        if n == 0 {
+            return Ok(());
+        }
+        if self.re.iter().chain(&self.im).any(|x| !x.is_finite()) {
+            return Err(Error::numerical(
+                "decompose",
+                "the matrix holds non-finite values",
+            ));
+        }
+        tridiagonalize(self);
+        self.values.copy_from_slice(&self.diag);
+        let mut e = self.off.clone();
+        ql_values(&mut self.values, &mut e)?;
+        self.values.sort_by(|a, b| b.total_cmp(a));
+        self.tridiagonal_vectors(k);
+        // x = Q z for each of the k vectors.
+        for c in 0..k {
+            let (xr, xi) = (&mut self.vr, &mut self.vi);
+            xr.copy_from_slice(&self.z[c * n..(c + 1) * n]);
+            xi.iter_mut().for_each(|x| *x = 0.0);
+            for j in (0..n.saturating_sub(1)).rev() {
+                let t = self.tau[j];
+                if t == C::new(0.0, 0.0) {
+                    continue;
+                }
+                // y ← y − τ v (vᴴ y) on rows j+1 …; v_j is stored in row j, columns j+1 …
+                let (hr, hi) = (
+                    &self.re[j * n + j + 1..(j + 1) * n],
+                    &self.im[j * n + j + 1..(j + 1) * n],
+                );
+                let (yr, yi) = (&mut xr[j + 1..], &mut xi[j + 1..]);
+                let s = dotc(hr, hi, yr, yi);
+                let f = -(t * s);
+                axpy(f, hr, hi, yr, yi);
+            }
+            for i in 0..n {
+                vectors[c * n + i] = C::new(xr[i], xi[i]);
+            }
+        }
+        Ok(())
+    }
+
+    /// Eigenvectors of T for the k largest eigenvalues into `self.z` by inverse iteration.
+    fn tridiagonal_vectors(&mut self, k: usize) {
+        let n = self.n;
+        self.z.clear();
+        self.z.resize(n * k, 0.0);
+        let (d, e) = (&self.diag, &self.off[..n - 1]);
+        let norm1 = (0..n)
+            .map(|i| {
+                d[i].abs()
+                    + if i > 0 { e[i - 1].abs() } else { 0.0 }
+                    + if i + 1 < n { e[i].abs() } else { 0.0 }
+            })
+            .fold(0.0, f64::max);
+        if norm1 == 0.0 {
+            // T = 0: every vector is an eigenvector.
+            for c in 0..k {
+                self.z[c * n + c] = 1.0;
+            }
+            return;
+        }
+        let ortol = 1e-3 * norm1;
+        let tiny = f64::EPSILON * norm1;
+        let mut cluster_start = 0;
+        let mut prev = f64::INFINITY;
+        for c in 0..k {
+            let mut lam = self.values[c];
+            if c > 0 {
+                if prev - lam > ortol {
+                    cluster_start = c;
+                }
+                let pertol = 10.0 * (f64::EPSILON * lam).abs().max(tiny);
+                if prev - lam < pertol {
+                    lam = prev - pertol;
+                }
+            }
+            prev = lam;
+            self.lu.factor(d, e, lam, tiny);
+            let (done, rest) = self.z.split_at_mut(c * n);
+            let x = &mut rest[..n];
+            // A fixed, non-degenerate start (dstein starts from random numbers).
+            let mut s = 0x9e37_79b9_7f4a_7c15u64 ^ (c as u64).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+            for xi in x.iter_mut() {
+                s ^= s << 13;
+                s ^= s >> 7;
+                s ^= s << 17;
+                *xi = (s >> 11) as f64 / (1u64 << 53) as f64 - 0.5;
+            }
+            for _ in 0..3 {
+                let mx = x.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+                if mx > 0.0 {
+                    x.iter_mut().for_each(|v| *v /= mx);
+                }
+                self.lu.solve(x);
+                for q in cluster_start..c {
+                    let zq = &done[q * n..(q + 1) * n];
+                    let dot: f64 = zq.iter().zip(x.iter()).map(|(a, b)| a * b).sum();
+                    x.iter_mut().zip(zq).for_each(|(v, a)| *v -= dot * a);
+                }
+            }
+            let nrm = x.iter().map(|v| v * v).sum::<f64>().sqrt();
+            if nrm > 0.0 && nrm.is_finite() {
+                x.iter_mut().for_each(|v| *v /= nrm);
+            } else {
+                x.iter_mut().for_each(|v| *v = 0.0);
+                x[c.min(n - 1)] = 1.0;
+            }
+        }
+    }
+}
+
+simd::dispatch!(
+    /// Householder reduction of `s.re/s.im` to tridiagonal form: diagonal into `s.diag`,
+    /// the (real) subdiagonal into `s.off`, v_j into row j and τ_j into `s.tau`.
+    fn tridiagonalize(s: &mut Eigh) => tridiagonalize_impl
+);
+
+#[inline(always)]
+fn tridiagonalize_impl(s: &mut Eigh) {
+    let n = s.n;
+    for j in 0..n {
+        s.diag[j] = s.re[j * n + j];
+        s.off[j] = 0.0;
+        s.tau[j] = C::new(0.0, 0.0);
+        if j + 1 >= n {
+            break;
+        }
+        let len = n - j - 1;
+        let row = j * n + j + 1;
+        // x = A[j+1.., j] = conj(A[j, j+1..]).
+        let alpha = C::new(s.re[row], -s.im[row]);
+        let xnorm2: f64 = (1..len)
+            .map(|i| s.re[row + i].powi(2) + s.im[row + i].powi(2))
+            .sum();
+        if xnorm2 == 0.0 && alpha.im == 0.0 {
+            // Already reduced: H = I.
+            s.off[j] = alpha.re;
+            s.re[row] = 1.0;
+            s.im[row] = 0.0;
+            for i in 1..len {
+                s.re[row + i] = 0.0;
+                s.im[row + i] = 0.0;
+            }
+            continue;
+        }
+        let nrm = (alpha.norm_sqr() + xnorm2).sqrt();
+        let beta = if alpha.re >= 0.0 { -nrm } else { nrm };
+        let tau = C::new((beta - alpha.re) / beta, -alpha.im / beta);
+        let scale = C::new(1.0, 0.0) / (alpha - beta);
+        let (vr, vi) = (&mut s.vr[..len], &mut s.vi[..len]);
+        vr[0] = 1.0;
+        vi[0] = 0.0;
+        for i in 1..len {
+            let x = C::new(s.re[row + i], -s.im[row + i]) * scale;
+            vr[i] = x.re;
+            vi[i] = x.im;
+        }
+        s.off[j] = beta;
+        s.tau[j] = tau;
+        // p = τ A₂₂ v = τ Σ_i conj(row i of A₂₂) v_i (A₂₂ is Hermitian): row-wise axpys.
+        let (pr, pi) = (&mut s.pr[..len], &mut s.pi[..len]);
+        pr.iter_mut().chain(pi.iter_mut()).for_each(|x| *x = 0.0);
+        for i in 0..len {
+            let r0 = (j + 1 + i) * n + j + 1;
+            let f = tau * C::new(vr[i], vi[i]);
+            conj_axpy(f, &s.re[r0..r0 + len], &s.im[r0..r0 + len], pr, pi);
+        }
+        // w = p − ½ τ (pᴴ v) v.
+        let a = tau * dotc(pr, pi, vr, vi) * -0.5;
+        axpy(a, vr, vi, pr, pi);
+        // A₂₂ ← A₂₂ − v wᴴ − w vᴴ.
+        for i in 0..len {
+            let r0 = (j + 1 + i) * n + j + 1;
+            let (v, w) = (C::new(vr[i], vi[i]), C::new(pr[i], pi[i]));
+            rank2_row(
+                &mut s.re[r0..r0 + len],
+                &mut s.im[r0..r0 + len],
+                v,
+                w,
+                vr,
+                vi,
+                pr,
+                pi,
+            );
+        }
+        // Keep v_j in row j for the back-transformation.
+        s.re[row..row + len].copy_from_slice(vr);
+        s.im[row..row + len].copy_from_slice(vi);
+    }
+}
+
+/// Eigenvalues of the symmetric tridiagonal (d, e) (e[i] couples i and i+1; length
+/// n − 1 or n) into `d`, unsorted: implicit QL with Wilkinson shifts.
+/// Eigenvalues of the symmetric tridiagonal (d, e) (e[i] couples i and i+1; length
+/// n − 1 or n) into `d`, unsorted: the implicit QL method in its rational, square-root
+/// free form (EISPACK `tqlrat`, the method of LAPACK `dsterf`'s QL branch).
+fn ql_values(d: &mut [f64], e: &mut [f64]) -> Result<()> {
+    let n = d.len();
+    if n < 2 {
+        return Ok(());
+    }
+    // e2[i] = e[i]², e2[n−1] = 0.
+    let mut e2 = vec![0.0; n];
+    for i in 0..n - 1 {
+        e2[i] = e[i] * e[i];
+    }
+    let (mut f, mut t) = (0.0f64, 0.0f64);
+    let (mut b, mut c) = (0.0f64, 0.0f64);
+    for l in 0..n {
+        let mut j = 0;
+        let h = d[l].abs() + e2[l].sqrt();
+        if t < h {
+            t = h;
+            b = f64::EPSILON * t;
+            c = b * b;
+        }
+        let mut m = l;
+        while m < n - 1 && e2[m] > c {
+            m += 1;
+        }
+        if m != l {
+            loop {
+                if j == 60 {
+                    return Err(Error::numerical(
+                        "decompose",
+                        "tridiagonal QL did not converge in 60 iterations",
+                    ));
+                }
+                j += 1;
+                // Form the shift.
+                let s = e2[l].sqrt();
+                let g = d[l];
+                let p = (d[l + 1] - g) / (2.0 * s);
+                let r = (p * p + 1.0).sqrt();
+                d[l] = s / (p + if p >= 0.0 { r } else { -r });
+                let h = g - d[l];
+                for di in &mut d[l + 1..] {
+                    *di -= h;
+                }
+                f += h;
+                // Rational QL transformation.
+                let mut g = d[m];
+                if g == 0.0 {
+                    g = b;
+                }
+                let mut h = g;
+                let mut s = 0.0;
+                for i in (l..m).rev() {
+                    let p = g * h;
+                    let r = p + e2[i];
+                    e2[i + 1] = s * r;
+                    s = e2[i] / r;
+                    d[i + 1] = h + s * (h + d[i]);
+                    g = d[i] - e2[i] / g;
+                    if g == 0.0 {
+                        g = b;
+                    }
+                    h = g * p / r;
+                }
+                e2[l] = s * g;
+                d[l] = h;
+                // Guard against underflow in the convergence test.
+                if h == 0.0 || e2[l].abs() <= (c / h).abs() {
+                    break;
+                }
+                e2[l] *= h;
+                if e2[l] == 0.0 {
+                    break;
+                }
+                // Look again for a small squared subdiagonal element.
+                m = l;
+                while m < n - 1 && e2[m] > c {
+                    m += 1;
+                }
+                if m == l {
+                    break;
+                }
+            }
+        }
+        d[l] += f;
+    }
+    if d.iter().any(|x| !x.is_finite()) {
+        return Err(Error::numerical("decompose", "non-finite eigenvalue"));
+    }
+    Ok(())
+}
+
+/// LU factorisation with partial pivoting of a shifted tridiagonal T − λI (LAPACK
+/// `dgttrf`), for inverse iteration; zero pivots are replaced by a tiny value.
+struct TriLu {
+    dl: Vec<f64>,
+    dd: Vec<f64>,
+    du: Vec<f64>,
+    du2: Vec<f64>,
+    swap: Vec<bool>,
+}
+
+impl TriLu {
+    fn new(n: usize) -> Self {
+        TriLu {
+            dl: vec![0.0; n],
+            dd: vec![0.0; n],
+            du: vec![0.0; n],
+            du2: vec![0.0; n],
+            swap: vec![false; n],
+        }
+    }
+
+    fn factor(&mut self, d: &[f64], e: &[f64], lam: f64, tiny: f64) {
+        let n = d.len();
+        for i in 0..n {
+            self.dd[i] = d[i] - lam;
+            self.dl[i] = if i + 1 < n { e[i] } else { 0.0 };
+            self.du[i] = if i + 1 < n { e[i] } else { 0.0 };
+            self.du2[i] = 0.0;
+            self.swap[i] = false;
+        }
+        for i in 0..n.saturating_sub(1) {
+            if self.dd[i].abs() >= self.dl[i].abs() {
+                if self.dd[i] == 0.0 {
+                    self.dd[i] = tiny;
+                }
+                let fact = self.dl[i] / self.dd[i];
+                self.dl[i] = fact;
+                self.dd[i + 1] -= fact * self.du[i];
+            } else {
+                let fact = self.dd[i] / self.dl[i];
+                self.dd[i] = self.dl[i];
+                self.dl[i] = fact;
+                let temp = self.du[i];
+                self.du[i] = self.dd[i + 1];
+                self.dd[i + 1] = temp - fact * self.dd[i + 1];
+                if i + 2 < n {
+                    self.du2[i] = self.du[i + 1];
+                    self.du[i + 1] *= -fact;
+                }
+                self.swap[i] = true;
+            }
+        }
+        if self.dd[n - 1] == 0.0 {
+            self.dd[n - 1] = tiny;
+        }
+    }
+
+    /// x ← (T − λI)⁻¹ x.
+    fn solve(&self, x: &mut [f64]) {
+        let n = x.len();
+        for i in 0..n.saturating_sub(1) {
+            if self.swap[i] {
+                let t = x[i];
+                x[i] = x[i + 1];
+                x[i + 1] = t - self.dl[i] * x[i];
+            } else {
+                x[i + 1] -= self.dl[i] * x[i];
+            }
+        }
+        for i in (0..n).rev() {
+            let mut v = x[i];
+            if i + 1 < n {
+                v -= self.du[i] * x[i + 1];
+            }
+            if i + 2 < n {
+                v -= self.du2[i] * x[i + 2];
+            }
+            x[i] = v / self.dd[i];
+            if !x[i].is_finite() {
+                // Overflow from a tiny pivot: the vector is all but found; rescale.
+                let mx = x
+                    .iter()
+                    .fold(0.0f64, |a, v| if v.is_finite() { a.max(v.abs()) } else { a });
+                let s = if mx > 0.0 { 1.0 / mx } else { 1.0 };
+                for v in x.iter_mut() {
+                    *v = if v.is_finite() { *v * s } else { v.signum() };
+                }
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::{Rng, SeedableRng};
+
+    type Z = C<f64>;
+
+    /// A random Hermitian matrix Σ_s σ_s u_s u_sᴴ + floor·I with the given spectrum shape.
+    fn scene(n: usize, strong: &[f64], floor: f64, jitter: f64, seed: u64) -> Vec<Z> {
+        let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
+        let mut a = vec![Z::new(0.0, 0.0); n * n];
+        for &sigma in strong {
+            let u: Vec<Z> = (0..n)
+                .map(|_| Z::new(rng.gen_range(-1.0..1.0), rng.gen_range(-1.0..1.0)))
+                .collect();
+            for i in 0..n {
+                for j in 0..n {
+                    a[i * n + j] += u[i] * u[j].conj() * sigma;
+                }
+            }
+        }
+        // Noise: a random Hermitian of small norm around floor·I.
+        for i in 0..n {
+            a[i * n + i] += Z::new(floor, 0.0);
+            for j in 0..=i {
+                let z = Z::new(rng.gen_range(-1.0..1.0), rng.gen_range(-1.0..1.0)) * jitter;
+                let z = if i == j { Z::new(z.re, 0.0) } else { z };
+                a[i * n + j] += z;
+                if i != j {
+                    a[j * n + i] += z.conj();
+                }
+            }
+        }
+        a
+    }
+
+    fn reference(a: &[Z], n: usize) -> (Vec<f64>, faer::Mat<Z>) {
+        let m = faer::Mat::<Z>::from_fn(n, n, |i, j| a[i * n + j]);
+        let evd = m.self_adjoint_eigen(faer::Side::Lower).unwrap();
+        let mut vals: Vec<f64> = (0..n).map(|i| evd.S()[i].re).collect();
+        vals.reverse();
+        let u = faer::Mat::<Z>::from_fn(n, n, |i, j| evd.U()[(i, n - 1 - j)]);
+        (vals, u)
+    }
+
+    /// Largest value error relative to ‖A‖, residual ‖A x − λ x‖/‖A‖, orthonormality, and
+    /// the distance between the computed k-subspace and faer's (‖P − P_ref‖_max).
+    fn check(a: &[Z], n: usize, k: usize) -> (f64, f64, f64, f64) {
+        let mut s = Eigh::new(n);
+        {
+            let (re, im) = s.matrix_mut();
+            for (i, z) in a.iter().enumerate() {
+                re[i] = z.re;
+                im[i] = z.im;
+            }
+        }
+        let mut vecs = vec![Z::new(0.0, 0.0); n * k];
+        s.solve(k, &mut vecs).unwrap();
+        let (vals, u) = reference(a, n);
+        let norm = vals.iter().fold(0.0f64, |x, v| x.max(v.abs())).max(1e-300);
+        let val_err = vals
+            .iter()
+            .zip(s.values())
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0, f64::max)
+            / norm;
+        let mut resid = 0.0f64;
+        let mut orth = 0.0f64;
+        for c in 0..k {
+            let x = &vecs[c * n..(c + 1) * n];
+            for i in 0..n {
+                let ax: Z = (0..n).map(|j| a[i * n + j] * x[j]).sum();
+                resid = resid.max((ax - x[i] * s.values()[c]).norm() / norm);
+            }
+            for q in 0..k {
+                let y = &vecs[q * n..(q + 1) * n];
+                let g: Z = x.iter().zip(y).map(|(a, b)| a.conj() * b).sum();
+                orth = orth.max((g - Z::new(if q == c { 1.0 } else { 0.0 }, 0.0)).norm());
+            }
+        }
+        // Subspace distance, only meaningful when λ_k > λ_{k+1} clearly.
+        let mut sub = 0.0f64;
+        for i in 0..n {
+            for j in 0..n {
+                let p: Z = (0..k).map(|c| vecs[c * n + i] * vecs[c * n + j].conj()).sum();
+                let q: Z = (0..k).map(|c| u[(i, c)] * u[(j, c)].conj()).sum();
+                sub = sub.max((p - q).norm());
+            }
+        }
+        (val_err, resid, orth, sub)
+    }
+
+    #[test]
+    fn matches_a_full_decomposition_on_music_like_matrices() {
+        for (n, strong, k, seed) in [
+            (8, vec![50.0, 20.0], 2, 1u64),
+            (8, vec![50.0, 20.0], 4, 2),
+            (8, vec![1e4, 3.0, 1.5], 8, 3),
+            (16, vec![100.0, 90.0, 10.0], 5, 4),
+            (60, vec![1e3, 300.0], 2, 5),
+            (60, vec![1e3, 300.0, 40.0, 39.0], 30, 6),
+            (60, vec![1e6, 2.0], 4, 7),
+            (3, vec![5.0], 3, 8),
+            (1, vec![5.0], 1, 9),
+            (2, vec![], 2, 10),
+        ] {
+            let a = scene(n, &strong, 1.0, 0.05, seed);
+            let (val, resid, orth, sub) = check(&a, n, k);
+            let tol = 1e-12 * n as f64;
+            assert!(val < tol, "n={n} k={k}: eigenvalues off by {val:e}");
+            assert!(resid < tol, "n={n} k={k}: residual {resid:e}");
+            assert!(orth < tol, "n={n} k={k}: orthonormality {orth:e}");
+            if k == strong.len() {
+                assert!(sub < 1e-9, "n={n} k={k}: signal subspace differs by {sub:e}");
+            }
+        }
+    }
+
+    #[test]
+    fn clusters_and_exact_multiplicity_give_orthonormal_vectors() {
+        // Identity (every eigenvalue equal), rank-one plus identity, and a diagonal with
+        // a tight cluster: inverse iteration must still return an orthonormal basis.
+        for (n, strong, jitter, k) in [
+            (12, vec![], 0.0, 12),
+            (12, vec![10.0], 0.0, 6),
+            (40, vec![], 1e-9, 20),
+        ] {
+            let a = scene(n, &strong, 1.0, jitter, 11);
+            let (val, resid, orth, _) = check(&a, n, k);
+            assert!(val < 1e-12, "n={n}: eigenvalues off by {val:e}");
+            assert!(resid < 1e-10, "n={n}: residual {resid:e}");
+            assert!(orth < 1e-10, "n={n}: orthonormality {orth:e}");
+        }
+        // Already diagonal (every Householder step is the identity) and zero.
+        let n = 5;
+        let mut a = vec![Z::new(0.0, 0.0); n * n];
+        for i in 0..n {
+            a[i * n + i] = Z::new(i as f64 - 2.0, 0.0);
+        }
+        let (val, resid, orth, _) = check(&a, n, n);
+        assert!(val < 1e-15 && resid < 1e-15 && orth < 1e-15);
+        let z = vec![Z::new(0.0, 0.0); 16];
+        let (val, _, orth, _) = check(&z, 4, 4);
+        assert!(val == 0.0 && orth < 1e-15);
+    }
+
+    #[test]
+    fn non_finite_input_is_an_error_not_a_panic() {
+        let mut s = Eigh::new(3);
+        s.matrix_mut().0[4] = f64::NAN;
+        let mut v = vec![Z::new(0.0, 0.0); 3];
+        assert!(s.solve(1, &mut v).is_err());
+    }
+}
