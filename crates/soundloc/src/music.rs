@@ -33,6 +33,12 @@ use faer::{Accum, MatRef, Par};
 /// Complement values below this fraction of ‖a‖² are recomputed with the full sum.
 pub const REFINE_RATIO: f64 = 1e-2;
 
+/// Directions per block of the spectrum: the backend runs a bin's directions in blocks of
+/// this many and every window of a batch through each block, so the block's steering
+/// vectors (≈ 120 KB at M = 60 in f32) are read from memory once per batch rather than
+/// once per window. Fixed, so a window's result does not depend on its batch.
+pub const DIR_BLOCK: usize = 256;
+
 /// Per-thread scratch for [`accumulate_bin`].
 pub struct SpectrumScratch<T: Real> {
     proj: faer::Mat<C<T>>,
@@ -46,7 +52,7 @@ impl<T: Real> SpectrumScratch<T> {
             Denominator::Unsquared => plan.num_mics - plan.config.signal_dim(),
         };
         SpectrumScratch {
-            proj: faer::Mat::zeros(plan.num_dirs, cols),
+            proj: faer::Mat::zeros(plan.num_dirs.min(DIR_BLOCK), cols),
         }
     }
 }
@@ -69,21 +75,26 @@ pub fn bin_gain<T: Real>(plan: &Plan<T>, dec: &Decomposition<T>) -> T {
     }
 }
 
-/// Adds w_k·g_k·P_k(d) for every direction d of used bin `b` to `acc` (length D).
+/// Adds w_k·g_k·P_k(d) for the directions `dirs` (at most [`DIR_BLOCK`] of them) of used
+/// bin `b` to `acc` (one value per direction of `dirs`).
 pub fn accumulate_bin<T: Real>(
     plan: &Plan<T>,
     b: usize,
+    dirs: std::ops::Range<usize>,
     dec: &Decomposition<T>,
     scratch: &mut SpectrumScratch<T>,
     acc: &mut [T],
 ) {
     let m = plan.num_mics;
-    let d = plan.num_dirs;
+    let nd = plan.num_dirs;
+    let d = dirs.len();
+    debug_assert!(d <= DIR_BLOCK && acc.len() == d);
     let ns = plan.config.signal_dim();
     let (st_all, n2_all) = plan.denominator_steering();
-    let st = &st_all[b * d * m..(b + 1) * d * m];
-    let n2_den = &n2_all[b * d..(b + 1) * d];
-    let n2_num = &plan.steering_norm2[b * d..(b + 1) * d];
+    let (d0, d1) = (b * nd + dirs.start, b * nd + dirs.end);
+    let st = &st_all[d0 * m..d1 * m];
+    let n2_den = &n2_all[d0..d1];
+    let n2_num = &plan.steering_norm2[d0..d1];
     let gain = plan.weights[b] * bin_gain(plan, dec);
     if gain == T::zero() {
         return;
@@ -95,7 +106,7 @@ pub fn accumulate_bin<T: Real>(
         Denominator::Squared => {
             let es = MatRef::from_column_major_slice(&dec.vectors[..m * ns], m, ns);
             faer::linalg::matmul::matmul(
-                scratch.proj.as_mut(),
+                scratch.proj.as_mut().subrows_mut(0, d),
                 Accum::Replace,
                 a.conjugate(),
                 es,
@@ -122,7 +133,7 @@ pub fn accumulate_bin<T: Real>(
         Denominator::Unsquared => {
             let en = MatRef::from_column_major_slice(&dec.vectors[m * ns..], m, m - ns);
             faer::linalg::matmul::matmul(
-                scratch.proj.as_mut(),
+                scratch.proj.as_mut().subrows_mut(0, d),
                 Accum::Replace,
                 a.conjugate(),
                 en,

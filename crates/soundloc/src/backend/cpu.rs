@@ -10,7 +10,9 @@
 
 use super::{Backend, BatchOutput, Job, StageTimes, StreamId};
 use crate::correlation::running::{run_bin, RunningCorrelation, Step};
-use crate::music::{accumulate_bin, bin_gain, normalize_bin, to_db, vectors_needed, SpectrumScratch};
+use crate::music::{
+    accumulate_bin, bin_gain, normalize_bin, to_db, vectors_needed, SpectrumScratch, DIR_BLOCK,
+};
 use crate::peaks::find_peaks;
 use crate::plan::Plan;
 use crate::real::{Real, C};
@@ -153,34 +155,47 @@ impl<T: Real> Backend<T> for CpuBackend<T> {
         }
         self.times.decomposition_ms += ms(t);
 
-        // 3. Broadband spectrum per window: Σ_k w_k g_k P_k(d), then dB.
+        // 3. Broadband spectrum per window: Σ_k w_k g_k P_k(d), then dB. Per-bin
+        // contributions `[bin][window][dir]` with the bins in parallel; within a bin the
+        // directions run in fixed blocks and every window passes through each block (its
+        // steering vectors stay in cache). The sum over bins runs in bin order: the result
+        // depends neither on how rayon splits the work nor on the batch (bit-reproducible).
         let t = Instant::now();
-        // Per-bin contributions in parallel, then the sum over bins in bin order: the
-        // result does not depend on how rayon splits the work (bit-reproducible).
         let decs = &self.decs;
         self.contrib.clear();
         self.contrib.resize(nw * nb * d, T::zero());
         let normalize = plan.config.normalize_bins;
+        let blocks = || {
+            (0..d)
+                .step_by(DIR_BLOCK)
+                .map(move |d0| d0..(d0 + DIR_BLOCK).min(d))
+        };
         if srp {
-            self.contrib.par_chunks_mut(d).enumerate().for_each_init(
+            self.contrib.par_chunks_mut(nw * d).enumerate().for_each_init(
                 || SrpScratch::new(plan),
-                |sc, (i, acc)| {
-                    srp::accumulate_bin(plan, i % nb, r_of(i / nb, i % nb), sc, acc);
-                    if normalize {
-                        normalize_bin(acc, plan.weights[i % nb]);
+                |sc, (b, cb)| {
+                    for (w, acc) in cb.chunks_mut(d).enumerate() {
+                        srp::accumulate_bin(plan, b, r_of(w, b), sc, acc);
                     }
                 },
             );
         } else {
-            self.contrib.par_chunks_mut(d).enumerate().for_each_init(
+            self.contrib.par_chunks_mut(nw * d).enumerate().for_each_init(
                 || SpectrumScratch::new(plan),
-                |sc, (i, acc)| {
-                    accumulate_bin(plan, i % nb, &decs[i], sc, acc);
-                    if normalize {
-                        normalize_bin(acc, plan.weights[i % nb]);
+                |sc, (b, cb)| {
+                    for dirs in blocks() {
+                        for (w, acc) in cb.chunks_mut(d).enumerate() {
+                            let acc = &mut acc[dirs.clone()];
+                            accumulate_bin(plan, b, dirs.clone(), &decs[w * nb + b], sc, acc);
+                        }
                     }
                 },
             );
+        }
+        if normalize {
+            self.contrib.par_chunks_mut(d).enumerate().for_each(|(i, acc)| {
+                normalize_bin(acc, plan.weights[i / nw]);
+            });
         }
         let contrib = &self.contrib;
         let spectra_lin: Vec<Vec<T>> = (0..nw)
@@ -190,7 +205,7 @@ impl<T: Real> Backend<T> for CpuBackend<T> {
                 for b in 0..nb {
                     for (x, y) in acc
                         .iter_mut()
-                        .zip(&contrib[(w * nb + b) * d..(w * nb + b + 1) * d])
+                        .zip(&contrib[(b * nw + w) * d..(b * nw + w + 1) * d])
                     {
                         *x += *y;
                     }
