@@ -69,6 +69,33 @@ pub fn dot4<const CONJ: bool>(ar: &[f64], ai: &[f64], br: &[f64], bi: &[f64]) ->
     C::new(tr, ti)
 }
 
+/// Σ a_i b_i over reals, four partial sums.
+#[inline(always)]
+pub fn dot_real(a: &[f64], b: &[f64]) -> f64 {
+    let n = a.len();
+    let b = &b[..n];
+    let mut s = [0.0f64; 4];
+    for (x, y) in a.chunks_exact(4).zip(b.chunks_exact(4)) {
+        for l in 0..4 {
+            s[l] += x[l] * y[l];
+        }
+    }
+    let mut t = (s[0] + s[2]) + (s[1] + s[3]);
+    for i in n / 4 * 4..n {
+        t += a[i] * b[i];
+    }
+    t
+}
+
+/// y ← y + f·x over reals.
+#[inline(always)]
+pub fn axpy_real(f: f64, x: &[f64], y: &mut [f64]) {
+    let n = x.len();
+    for (yi, xi) in y[..n].iter_mut().zip(x) {
+        *yi += f * xi;
+    }
+}
+
 /// y ← y + f·x.
 #[inline(always)]
 pub fn axpy(f: C<f64>, xr: &[f64], xi: &[f64], yr: &mut [f64], yi: &mut [f64]) {
