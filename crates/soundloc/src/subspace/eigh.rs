@@ -637,6 +637,62 @@ mod tests {
         assert!(val == 0.0 && orth < 1e-15);
     }
 
+    /// Σ_noise |aᴴe_m| (the unsquared MUSIC denominator) depends on each noise vector, not
+    /// only on the subspace: it must match a full decomposition's vectors.
+    #[test]
+    fn every_vector_matches_a_full_decomposition() {
+        let mut rng = rand::rngs::StdRng::seed_from_u64(21);
+        for (n, strong, jitter) in [
+            (8, vec![40.0, 10.0], 0.3),
+            (8, vec![40.0], 0.02),
+            (60, vec![500.0, 80.0], 0.1),
+        ] {
+            let a = scene(n, &strong, 1.0, jitter, 13);
+            let mut s = Eigh::new(n);
+            {
+                let (re, im) = s.matrix_mut();
+                for (i, z) in a.iter().enumerate() {
+                    re[i] = z.re;
+                    im[i] = z.im;
+                }
+            }
+            let mut v = vec![Z::new(0.0, 0.0); n * n];
+            s.solve(n, &mut v).unwrap();
+            let (vals, u) = reference(&a, n);
+            for c in 0..n {
+                // Same vector up to a phase where the eigenvalue is isolated.
+                let gap = (0..n)
+                    .filter(|&q| q != c)
+                    .map(|q| (vals[q] - vals[c]).abs())
+                    .fold(f64::INFINITY, f64::min);
+                let ov: Z = (0..n).map(|i| v[c * n + i].conj() * u[(i, c)]).sum();
+                let tol = 1e-10 * vals[0].abs() / gap;
+                assert!(
+                    (ov.norm() - 1.0).abs() < tol.max(1e-12),
+                    "n={n} vector {c}: |overlap| {} (gap {gap:e})",
+                    ov.norm()
+                );
+            }
+            for _ in 0..5 {
+                let st: Vec<Z> = (0..n)
+                    .map(|_| Z::new(rng.gen_range(-1.0..1.0), rng.gen_range(-1.0..1.0)))
+                    .collect();
+                let ns = strong.len();
+                let sum = |e: &dyn Fn(usize, usize) -> Z| -> f64 {
+                    (ns..n)
+                        .map(|c| (0..n).map(|i| st[i].conj() * e(i, c)).sum::<Z>().norm())
+                        .sum()
+                };
+                let mine = sum(&|i, c| v[c * n + i]);
+                let want = sum(&|i, c| u[(i, c)]);
+                assert!(
+                    (mine - want).abs() < 1e-9 * want,
+                    "n={n}: unsquared sum {mine} vs {want}"
+                );
+            }
+        }
+    }
+
     #[test]
     fn non_finite_input_is_an_error_not_a_panic() {
         let mut s = Eigh::new(3);
