@@ -1,9 +1,11 @@
-//! The CPU backend: faer for the per-bin decompositions and products, rayon across
-//! (window, bin) pairs — never inside faer (`Par::Seq`), so small 60 × 60 problems do not
-//! pay for nested threading.
+//! The CPU backend: rayon across (window, bin) pairs for the correlation and the
+//! decompositions (which run in f64: [`crate::subspace`]), across bins for the spectrum
+//! (faer products over fixed blocks of directions, every window of the batch through each
+//! block) — never inside faer (`Par::Seq`), so small problems do not pay for nested
+//! threading.
 //!
-//! Each batch runs the stages one after another over all (window, bin) pairs, which keeps
-//! every core busy even for a single window (73 bins) and gives exact stage times. The
+//! Each batch runs the stages one after another, which keeps every core busy even for a
+//! single window (73 bins) and gives exact stage times. The
 //! correlation keeps each stream's running sums between calls
 //! ([`crate::correlation::running`]): at PERIOD 1 a window costs two outer products per
 //! bin instead of W.
