@@ -27,6 +27,7 @@ pub mod gevd_hark;
 pub mod gsvd;
 pub mod sevd;
 pub mod simd;
+mod tridiag;
 mod whiten;
 
 use crate::config::Algorithm;
