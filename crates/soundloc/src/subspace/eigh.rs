@@ -37,6 +37,8 @@ pub struct Eigh {
     tau: Vec<C<f64>>,
     diag: Vec<f64>,
     off: Vec<f64>,
+    /// Squared off-diagonal, scratch for the eigenvalues.
+    e2: Vec<f64>,
     /// Eigenvalues, descending.
     values: Vec<f64>,
     /// Eigenvectors of T (k of them, n each), then scratch for the solver.
@@ -61,6 +63,7 @@ impl Eigh {
             tau: vec![C::new(0.0, 0.0); n],
             diag: vec![0.0; n],
             off: vec![0.0; n],
+            e2: vec![0.0; n],
             values: vec![0.0; n],
             z: Vec::new(),
             yr: Vec::new(),
@@ -107,8 +110,10 @@ impl Eigh {
         }
         tridiagonalize(self);
         self.values.copy_from_slice(&self.diag);
-        let mut e = self.off.clone();
-        ql_values(&mut self.values, &mut e)?;
+        for (e2, e) in self.e2.iter_mut().zip(&self.off) {
+            *e2 = e * e;
+        }
+        ql_values(&mut self.values, &mut self.e2)?;
         self.values.sort_by(|a, b| b.total_cmp(a));
         leading_vectors(self, k, vectors);
         Ok(())
@@ -340,6 +345,17 @@ mod tests {
         a
     }
 
+    /// A solver holding the row-major matrix `a`.
+    fn loaded(a: &[Z], n: usize) -> Eigh {
+        let mut s = Eigh::new(n);
+        let (re, im) = s.matrix_mut();
+        for (i, z) in a.iter().enumerate() {
+            re[i] = z.re;
+            im[i] = z.im;
+        }
+        s
+    }
+
     fn reference(a: &[Z], n: usize) -> (Vec<f64>, faer::Mat<Z>) {
         let m = faer::Mat::<Z>::from_fn(n, n, |i, j| a[i * n + j]);
         let evd = m.self_adjoint_eigen(faer::Side::Lower).unwrap();
@@ -352,14 +368,7 @@ mod tests {
     /// Largest value error relative to ‖A‖, residual ‖A x − λ x‖/‖A‖, orthonormality, and
     /// the distance between the computed k-subspace and faer's (‖P − P_ref‖_max).
     fn check(a: &[Z], n: usize, k: usize) -> (f64, f64, f64, f64) {
-        let mut s = Eigh::new(n);
-        {
-            let (re, im) = s.matrix_mut();
-            for (i, z) in a.iter().enumerate() {
-                re[i] = z.re;
-                im[i] = z.im;
-            }
-        }
+        let mut s = loaded(a, n);
         let mut vecs = vec![Z::new(0.0, 0.0); n * k];
         s.solve(k, &mut vecs).unwrap();
         let (vals, u) = reference(a, n);
@@ -461,14 +470,7 @@ mod tests {
             (60, vec![500.0, 80.0], 0.1),
         ] {
             let a = scene(n, &strong, 1.0, jitter, 13);
-            let mut s = Eigh::new(n);
-            {
-                let (re, im) = s.matrix_mut();
-                for (i, z) in a.iter().enumerate() {
-                    re[i] = z.re;
-                    im[i] = z.im;
-                }
-            }
+            let mut s = loaded(&a, n);
             let mut v = vec![Z::new(0.0, 0.0); n * n];
             s.solve(n, &mut v).unwrap();
             let (vals, u) = reference(&a, n);

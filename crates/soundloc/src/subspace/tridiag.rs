@@ -3,21 +3,17 @@
 
 use crate::{Error, Result};
 
-/// Eigenvalues of the symmetric tridiagonal (d, e) (e[i] couples i and i+1; length
-/// n − 1 or n) into `d`, unsorted: implicit QL with Wilkinson shifts.
-/// Eigenvalues of the symmetric tridiagonal (d, e) (e[i] couples i and i+1; length
-/// n − 1 or n) into `d`, unsorted: the implicit QL method in its rational, square-root
-/// free form (EISPACK `tqlrat`, the method of LAPACK `dsterf`'s QL branch).
-pub(super) fn ql_values(d: &mut [f64], e: &mut [f64]) -> Result<()> {
+/// Eigenvalues of the symmetric tridiagonal with diagonal `d` and off-diagonal e (e[i]
+/// couples i and i+1) into `d`, unsorted: the implicit QL method in its rational,
+/// square-root free form (EISPACK `tqlrat`, the method of LAPACK `dsterf`'s QL branch).
+/// `e2` holds e[i]² for i < n − 1 on entry (its last element is set to 0; it is
+/// overwritten).
+pub(super) fn ql_values(d: &mut [f64], e2: &mut [f64]) -> Result<()> {
     let n = d.len();
     if n < 2 {
         return Ok(());
     }
-    // e2[i] = e[i]², e2[n−1] = 0.
-    let mut e2 = vec![0.0; n];
-    for i in 0..n - 1 {
-        e2[i] = e[i] * e[i];
-    }
+    e2[n - 1] = 0.0;
     let (mut f, mut t) = (0.0f64, 0.0f64);
     let (mut b, mut c) = (0.0f64, 0.0f64);
     for l in 0..n {
