@@ -3,14 +3,17 @@
 //
 // X       [frame][bin][mic]   the uploaded frames (frame 0 = first uploaded frame)
 // win     [window][2]         (first frame relative to X, number of frames)
-// R       [window][bin][M×M]  column-major output (R[j*M+i] = R_ij)
-// scale   [window][bin]       the divisor max|Re R_ij| + 1 (for the decomposition's
+// R       [window][bin][M×M]  column-major output (R[j*M+i] = R_ij), in double for the
+//                             decompositions whatever the frames' precision (TR = double:
+//                             one rounding of the double sums, none to T); SRP-PHAT's R̃ in
+//                             T (TR = T), which its spectrum reads directly
+// scale   [window][bin]       the divisor max|Re R_ij| + 1 in TR (for the decomposition's
 //                             factor form, which rebuilds R's factor from the frames)
 // phat    SRP-PHAT: every coefficient reduced to its phase x/|x| (0 where |x| = 0) as it is
 //         loaded, and R̃ = (1/W) Σ x̃ x̃ᴴ unscaled (scale = 1; srp.rs)
 // Grid: (windows × bins) blocks, matrix index = window * nb + bin. Dynamic shared
-// memory: fc × M complex (a chunk of fc frames) + 32 doubles. Sums in double, one
-// rounding to T (as the CPU's running correlation).
+// memory: fc × M complex (a chunk of fc frames) + 32 doubles. Sums in double, as the CPU's
+// running correlation, which also hands R on in double.
 #include "common.cuh"
 
 #define SL_CORR_EPT 8
@@ -24,9 +27,9 @@ __device__ __forceinline__ cplx<T> load_x(const cplx<T>& x, int phat) {
     return czero<T>();
 }
 
-template <typename T>
+template <typename T, typename TR>
 __device__ void correlate_impl(const cplx<T>* __restrict__ X, int nb, int M, const int* __restrict__ win, int fc,
-                               int mat0, int phat, cplx<T>* __restrict__ R, T* __restrict__ scale) {
+                               int mat0, int phat, cplx<TR>* __restrict__ R, TR* __restrict__ scale) {
     SL_DYN_SMEM(sl_smem);
     cplx<T>* xs = reinterpret_cast<cplx<T>*>(sl_smem);
     double* red = reinterpret_cast<double*>(xs + (size_t)fc * M);
@@ -35,7 +38,7 @@ __device__ void correlate_impl(const cplx<T>* __restrict__ X, int nb, int M, con
     const int start = win[2 * w], len = win[2 * w + 1];
     const int tid = threadIdx.x, nt = blockDim.x;
     const int ntri = M * (M + 1) / 2;
-    cplx<T>* Rm = R + (size_t)blockIdx.x * M * M;
+    cplx<TR>* Rm = R + (size_t)blockIdx.x * M * M;
     const double inv_len = 1.0 / (double)len;
     // The divisor first: for Hermitian PSD R, max_ij |Re R_ij| is the largest diagonal
     // entry (|R_ij| ≤ √(R_ii R_jj)), so R is scaled as it is written — one rounding to T.
@@ -58,7 +61,7 @@ __device__ void correlate_impl(const cplx<T>* __restrict__ X, int nb, int M, con
     const double mx = block_max(tid < M ? diag * inv_len : 0.0, red);
     const double div = phat ? 1.0 : mx + 1.0;
     const double k = inv_len / div;
-    if (tid == 0) scale[blockIdx.x] = (T)div;
+    if (tid == 0) scale[blockIdx.x] = (TR)div;
     for (int base = 0; base < ntri; base += SL_CORR_EPT * nt) {
         // Sums in double: f32 frames multiply exactly, and 50-term sums keep their digits.
         cplx<double> acc[SL_CORR_EPT];
@@ -103,8 +106,8 @@ __device__ void correlate_impl(const cplx<T>* __restrict__ X, int nb, int M, con
         for (int e = 0; e < SL_CORR_EPT; ++e) {
             if (jj[e] >= 0) {
                 const int i = ii[e], j = jj[e];
-                cplx<T> v{(T)(acc[e].re * k), (T)(acc[e].im * k)};
-                if (i == j) v.im = (T)0;
+                cplx<TR> v{(TR)(acc[e].re * k), (TR)(acc[e].im * k)};
+                if (i == j) v.im = (TR)0;
                 Rm[(size_t)j * M + i] = v;
                 Rm[(size_t)i * M + j] = cconj(v);
             }
@@ -112,15 +115,24 @@ __device__ void correlate_impl(const cplx<T>* __restrict__ X, int nb, int M, con
     }
 }
 
+// correlate_T: R in double for the decompositions; correlate_phat_T: SRP-PHAT's R̃ in T.
 #ifndef SL_NO_F32
 extern "C" __global__ void correlate_f32(const cplx<float>* X, int nb, int M, const int* win, int fc, int mat0,
-                                         int phat, cplx<float>* R, float* scale) {
-    correlate_impl<float>(X, nb, M, win, fc, mat0, phat, R, scale);
+                                         int phat, cplx<double>* R, double* scale) {
+    correlate_impl<float, double>(X, nb, M, win, fc, mat0, phat, R, scale);
+}
+extern "C" __global__ void correlate_phat_f32(const cplx<float>* X, int nb, int M, const int* win, int fc, int mat0,
+                                              int phat, cplx<float>* R, float* scale) {
+    correlate_impl<float, float>(X, nb, M, win, fc, mat0, phat, R, scale);
 }
 #endif
 #ifndef SL_NO_F64
 extern "C" __global__ void correlate_f64(const cplx<double>* X, int nb, int M, const int* win, int fc, int mat0,
                                          int phat, cplx<double>* R, double* scale) {
-    correlate_impl<double>(X, nb, M, win, fc, mat0, phat, R, scale);
+    correlate_impl<double, double>(X, nb, M, win, fc, mat0, phat, R, scale);
+}
+extern "C" __global__ void correlate_phat_f64(const cplx<double>* X, int nb, int M, const int* win, int fc,
+                                              int mat0, int phat, cplx<double>* R, double* scale) {
+    correlate_impl<double, double>(X, nb, M, win, fc, mat0, phat, R, scale);
 }
 #endif

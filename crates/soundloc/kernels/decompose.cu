@@ -21,9 +21,15 @@
 // pairs all n columns (n = M rounded up to even, a zero column added when M is odd);
 // n − 1 rounds make a sweep; a sweep with no rotation ends the iteration.
 //
+// Precision: the rotations run in double whatever the plan's type P (R and W arrive in
+// double, the frames of the factor form in P are widened), as the CPU decomposes in double;
+// the vectors are stored in P (E) and, for the spectrum's near-peak recomputation, in double
+// (E64, the signal vectors; may be null).
+//
 // Outputs per matrix (index mat = mat0 + blockIdx.x, bin = mat % nb; R, E and the
 // scratch slots are indexed by blockIdx.x, i.e. relative to the sub-batch):
 //   E     [blk][nout][M]  vectors (row s = vector of rank s), nout = vec_all ? M : ns
+//   E64   [blk][nout][M]  the same in double (when not null)
 //   gain  [mat]           w_b · g (g = √σ_max when eigw, else 1)
 //   bw    [mat]           g as f32
 //   info  [mat]           sweeps used (diagnostics)
@@ -145,14 +151,15 @@ __device__ void cgs2(cplx<T>* G, int ld, int M, int ncols, cplx<T>* coef, T* red
     }
 }
 
-template <typename T, bool SMEM, bool WANT_V>
-__device__ void decompose_impl(const cplx<T>* __restrict__ R, const cplx<T>* __restrict__ X,
-                               const int* __restrict__ win, const T* __restrict__ scale,
-                               const cplx<T>* __restrict__ Wcm, const cplx<T>* __restrict__ Wrm, int M, int nb,
-                               int ld, int ncf, int factor, int left, int right, int ns, int vec_all, int max_sweeps,
-                               int eigw, int valmode, const T* __restrict__ weights, int mat0,
-                               cplx<T>* __restrict__ E, T* __restrict__ gain, float* __restrict__ bw,
-                               int* __restrict__ info, cplx<T>* __restrict__ scratch) {
+template <typename P, bool SMEM, bool WANT_V>
+__device__ void decompose_impl(const cplx<double>* __restrict__ R, const cplx<P>* __restrict__ X,
+                               const int* __restrict__ win, const double* __restrict__ scale,
+                               const cplx<double>* __restrict__ Wcm, const cplx<double>* __restrict__ Wrm, int M,
+                               int nb, int ld, int ncf, int factor, int left, int right, int ns, int vec_all,
+                               int max_sweeps, int eigw, int valmode, const P* __restrict__ weights, int mat0,
+                               cplx<P>* __restrict__ E, cplx<double>* __restrict__ E64, P* __restrict__ gain,
+                               float* __restrict__ bw, int* __restrict__ info, cplx<double>* __restrict__ scratch) {
+    typedef double T;  // the arithmetic
     SL_DYN_SMEM(sl_smem);
 #ifdef SL_NFIX
     // The device build fixes n = M rounded up to even at compile time (-DSL_NFIX).
@@ -196,7 +203,12 @@ __device__ void decompose_impl(const cplx<T>* __restrict__ R, const cplx<T>* __r
         const T c = (T)1 / sl_sqrt((T)len * scale[blockIdx.x]);
         for (int idx = tid; idx < n * ld; idx += nt) {
             const int j = idx / ld, i = idx - j * ld;
-            G[idx] = (i < M && j < len) ? cscale(X[((size_t)(start + j) * nb + b) * M + i], c) : czero<T>();
+            if (i < M && j < len) {
+                const cplx<P> x = X[((size_t)(start + j) * nb + b) * M + i];
+                G[idx] = cscale(cx<T>((T)x.re, (T)x.im), c);
+            } else {
+                G[idx] = czero<T>();
+            }
         }
         __syncthreads();
         if (factor == 2) {
@@ -364,20 +376,13 @@ __device__ void decompose_impl(const cplx<T>* __restrict__ R, const cplx<T>* __r
     for (int j = warp; j < ncr; j += nwarps) {
         const int rk = rank[j];
         if (rk < nout) {
-            cplx<T>* dst = E + ((size_t)blockIdx.x * nout + rk) * M;
-            if (WANT_V) {
-                for (int i = lane; i < M; i += 32) {
-                    const cplx<T> v = V[(size_t)j * ld + i];
-                    dst[i] = v;
-                    if (rk == 0) u1[i] = v;
-                }
-            } else {
-                const T inv = sig[j] > (T)0 ? (T)1 / sig[j] : (T)0;
-                for (int i = lane; i < M; i += 32) {
-                    const cplx<T> v = cscale(G[(size_t)j * ld + i], inv);
-                    dst[i] = v;
-                    if (rk == 0) u1[i] = v;
-                }
+            const size_t off = ((size_t)blockIdx.x * nout + rk) * M;
+            const T inv = WANT_V ? (T)1 : (sig[j] > (T)0 ? (T)1 / sig[j] : (T)0);
+            for (int i = lane; i < M; i += 32) {
+                const cplx<T> v = WANT_V ? V[(size_t)j * ld + i] : cscale(G[(size_t)j * ld + i], inv);
+                E[off + i] = cx<P>((P)v.re, (P)v.im);
+                if (E64 != nullptr) E64[off + i] = v;
+                if (rk == 0) u1[i] = v;
             }
         }
     }
@@ -419,7 +424,7 @@ __device__ void decompose_impl(const cplx<T>* __restrict__ R, const cplx<T>* __r
     if (tid == 0) {
         const T val = valmode == 3 ? sl_sqrt(sl_max(tot, (T)0)) : tot;
         const T g = eigw ? sl_sqrt(sl_max(val, (T)0)) : (T)1;
-        gain[mat] = weights[b] * g;
+        gain[mat] = weights[b] * (P)g;
         bw[mat] = (float)g;
         info[mat] = sweep + 1;
     }
@@ -430,29 +435,27 @@ __device__ void decompose_impl(const cplx<T>* __restrict__ R, const cplx<T>* __r
 #define SL_DEC_WARPS ((SL_MAXN / 2 * SL_LPP + 31) / 32)
 #define SL_DEC_THREADS (SL_DEC_WARPS > 32 ? 1024 : SL_DEC_WARPS * 32)
 
-#define SL_DECOMPOSE(NAME, T, SMEM, WANT_V, MINB)                                                                     \
-    extern "C" __global__ void __launch_bounds__(SL_DEC_THREADS, MINB)                                               \
-        NAME(const cplx<T>* R, const cplx<T>* X, const int* win, const T* scale, const cplx<T>* Wcm,                  \
-             const cplx<T>* Wrm, int M, int nb, int ld, int ncf, int factor, int left, int right, int ns, int vec_all, \
-             int max_sweeps, int eigw, int valmode, const T* weights, int mat0, cplx<T>* E, T* gain, float* bw,       \
-             int* info, cplx<T>* scratch) {                                                                         \
-        decompose_impl<T, SMEM, WANT_V>(R, X, win, scale, Wcm, Wrm, M, nb, ld, ncf, factor, left, right, ns, vec_all,  \
-                                        max_sweeps, eigw, valmode, weights, mat0, E, gain, bw, info, scratch);       \
+#define SL_DECOMPOSE(NAME, P, SMEM, WANT_V)                                                                        \
+    extern "C" __global__ void __launch_bounds__(SL_DEC_THREADS, 1)                                                  \
+        NAME(const cplx<double>* R, const cplx<P>* X, const int* win, const double* scale, const cplx<double>* Wcm,  \
+             const cplx<double>* Wrm, int M, int nb, int ld, int ncf, int factor, int left, int right, int ns,         \
+             int vec_all, int max_sweeps, int eigw, int valmode, const P* weights, int mat0, cplx<P>* E,              \
+             cplx<double>* E64, P* gain, float* bw, int* info, cplx<double>* scratch) {                             \
+        decompose_impl<P, SMEM, WANT_V>(R, X, win, scale, Wcm, Wrm, M, nb, ld, ncf, factor, left, right, ns, vec_all,  \
+                                        max_sweeps, eigw, valmode, weights, mat0, E, E64, gain, bw, info, scratch);  \
     }
 
-// f32 with 128-thread blocks: at most 128 registers, four blocks per multiprocessor.
-#ifndef SL_F32_MINB
-#define SL_F32_MINB (SL_DEC_THREADS <= 128 ? 4 : 1)
-#endif
+// The _f32 kernels differ from the _f64 ones only in the types of the frames they read and
+// the vectors and gains they store.
 #ifndef SL_NO_F32
-SL_DECOMPOSE(decompose_sn_f32, float, true, false, SL_F32_MINB)
-SL_DECOMPOSE(decompose_sv_f32, float, true, true, SL_F32_MINB)
-SL_DECOMPOSE(decompose_gn_f32, float, false, false, SL_F32_MINB)
-SL_DECOMPOSE(decompose_gv_f32, float, false, true, SL_F32_MINB)
+SL_DECOMPOSE(decompose_sn_f32, float, true, false)
+SL_DECOMPOSE(decompose_sv_f32, float, true, true)
+SL_DECOMPOSE(decompose_gn_f32, float, false, false)
+SL_DECOMPOSE(decompose_gv_f32, float, false, true)
 #endif
 #ifndef SL_NO_F64
-SL_DECOMPOSE(decompose_sn_f64, double, true, false, 1)
-SL_DECOMPOSE(decompose_sv_f64, double, true, true, 1)
-SL_DECOMPOSE(decompose_gn_f64, double, false, false, 1)
-SL_DECOMPOSE(decompose_gv_f64, double, false, true, 1)
+SL_DECOMPOSE(decompose_sn_f64, double, true, false)
+SL_DECOMPOSE(decompose_sv_f64, double, true, true)
+SL_DECOMPOSE(decompose_gn_f64, double, false, false)
+SL_DECOMPOSE(decompose_gv_f64, double, false, true)
 #endif

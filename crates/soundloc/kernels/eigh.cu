@@ -30,7 +30,9 @@
 // so column reads are conflict-free), p (M), v (2 × M), τ (M), d, e, e² (M each), λ (Ns),
 // Z (Ns × M), inverse-iteration scratch (min(Ns, EH_VEC) × 5M), 1 + 32 ints.
 //
-// Outputs as decompose.cu: E [blk][Ns][M] (rank order), gain[mat] = w_b·g,
+// R and W arrive in double whatever T is (the correlation hands R on unrounded).
+// Outputs as decompose.cu: E [blk][Ns][M] (rank order) in T and, when E64 is not null, the
+// same vectors in double (the spectrum's near-peak recomputation), gain[mat] = w_b·g,
 // bw[mat] = g (g = √val with eigw, else 1; val = λ_0, or σ_0 = √λ_0 for GSVD), info[mat]
 // = multisection rounds (diagnostics).
 #include "common.cuh"
@@ -167,17 +169,16 @@ __device__ void make_reflector(zd* A, int lda, int n, int k, zd* tau, double* ee
 // H = W R Wᴴ | W R W | (W R)(W R)ᴴ (mode 1 | 2 | 3) in double, one block per matrix, into
 // Hg [blk][M][M] (column-major). A kernel of its own: its register tiles would otherwise
 // cap the eigensolver's occupancy.
-template <typename T>
-__device__ void form_h_impl(const cplx<T>* __restrict__ R, const cplx<T>* __restrict__ Wcm,
-                            const cplx<T>* __restrict__ Wrm, int M, int nb, int mode, int mat0, zd* __restrict__ Hg) {
+__device__ void form_h_impl(const zd* __restrict__ R, const zd* __restrict__ Wcm, const zd* __restrict__ Wrm, int M,
+                            int nb, int mode, int mat0, zd* __restrict__ Hg) {
     SL_DYN_SMEM(sm);
     const int n = M, lda = M | 1;
     const int tid = threadIdx.x, nt = blockDim.x;
     const int b = (mat0 + blockIdx.x) % nb;
     zd* A = reinterpret_cast<zd*>(sm);
-    const cplx<T>* Rm = R + (size_t)blockIdx.x * M * M;  // column-major, R_ik = Rm[k*M + i]
-    const cplx<T>* Wc = Wcm + (size_t)b * M * M;         // W_ik = Wc[k*M + i]
-    const cplx<T>* Wr = Wrm + (size_t)b * M * M;         // W_kj = Wr[k*M + j]
+    const zd* Rm = R + (size_t)blockIdx.x * M * M;  // column-major, R_ik = Rm[k*M + i]
+    const zd* Wc = Wcm + (size_t)b * M * M;         // W_ik = Wc[k*M + i]
+    const zd* Wr = Wrm + (size_t)b * M * M;         // W_kj = Wr[k*M + j]
     for (int idx = tid; idx < n * n; idx += nt) {
         const int j = idx / n, i = idx - j * n;
         A[(size_t)j * lda + i] = to_zd(Rm[idx]);
@@ -216,8 +217,9 @@ __device__ void form_h_impl(const cplx<T>* __restrict__ R, const cplx<T>* __rest
 }
 
 template <typename T>
-__device__ void eigh_impl(const cplx<T>* __restrict__ R, const zd* __restrict__ Hg, int M, int nb, int mode, int ns, int eigw,
-                          const T* __restrict__ weights, int mat0, cplx<T>* __restrict__ E, T* __restrict__ gain,
+__device__ void eigh_impl(const zd* __restrict__ R, const zd* __restrict__ Hg, int M, int nb, int mode, int ns, int eigw,
+                          const T* __restrict__ weights, int mat0, cplx<T>* __restrict__ E, zd* __restrict__ E64,
+                          T* __restrict__ gain,
                           float* __restrict__ bw, int* __restrict__ info, long long* __restrict__ prof) {
     SL_DYN_SMEM(sm);
     const int n = M, lda = M | 1;
@@ -243,7 +245,7 @@ __device__ void eigh_impl(const cplx<T>* __restrict__ R, const zd* __restrict__ 
     double* scr = zs + (size_t)ns * n;         // EH_VEC × 5n
     int* steps = reinterpret_cast<int*>(scr + (size_t)min(ns, EH_VEC) * 5 * n);
     int* bfirst = steps + 1;  // per warp, multisection
-    const cplx<T>* Rm = R + (size_t)blockIdx.x * M * M;    // column-major, R_ik = Rm[k*M + i]
+    const zd* Rm = R + (size_t)blockIdx.x * M * M;    // column-major, R_ik = Rm[k*M + i]
 
     // ---- H in A: R itself (mode 0) or the product form_h wrote ----
     for (int idx = tid; idx < n * n; idx += nt) {
@@ -563,11 +565,14 @@ __device__ void eigh_impl(const cplx<T>* __restrict__ R, const zd* __restrict__ 
                 u[h].im -= v[h].re * f.im + v[h].im * f.re;
             }
         }
-        cplx<T>* dst = E + ((size_t)blockIdx.x * ns + r) * M;
+        const size_t off = ((size_t)blockIdx.x * ns + r) * M;
 #pragma unroll
         for (int h = 0; h < 2; ++h) {
             const int i = lane + 32 * h;
-            if (i < n) dst[i] = cx<T>((T)u[h].re, (T)u[h].im);
+            if (i < n) {
+                E[off + i] = cx<T>((T)u[h].re, (T)u[h].im);
+                if (E64 != nullptr) E64[off + i] = u[h];
+            }
         }
     }
     EH_PROF(5);
@@ -584,13 +589,13 @@ __device__ void eigh_impl(const cplx<T>* __restrict__ R, const zd* __restrict__ 
 
 #define SL_EIGH(NAME, FORM, T)                                                                                 \
     extern "C" __global__ void __launch_bounds__(EH_THREADS, EH_FORM_MINB)                                    \
-        FORM(const cplx<T>* R, const cplx<T>* Wcm, const cplx<T>* Wrm, int M, int nb, int mode, int mat0, zd* Hg) { \
-        form_h_impl<T>(R, Wcm, Wrm, M, nb, mode, mat0, Hg);                                                    \
+        FORM(const zd* R, const zd* Wcm, const zd* Wrm, int M, int nb, int mode, int mat0, zd* Hg) {             \
+        form_h_impl(R, Wcm, Wrm, M, nb, mode, mat0, Hg);                                                       \
     }                                                                                                          \
     extern "C" __global__ void __launch_bounds__(EH_THREADS, EH_MINB)                                         \
-        NAME(const cplx<T>* R, const zd* Hg, int M, int nb, int mode, int ns, int eigw, const T* weights,        \
-             int mat0, cplx<T>* E, T* gain, float* bw, int* info, long long* prof) {                           \
-        eigh_impl<T>(R, Hg, M, nb, mode, ns, eigw, weights, mat0, E, gain, bw, info, prof);                    \
+        NAME(const zd* R, const zd* Hg, int M, int nb, int mode, int ns, int eigw, const T* weights, int mat0,   \
+             cplx<T>* E, zd* E64, T* gain, float* bw, int* info, long long* prof) {                           \
+        eigh_impl<T>(R, Hg, M, nb, mode, ns, eigw, weights, mat0, E, E64, gain, bw, info, prof);               \
     }
 
 // Three eigensolver blocks of 256 threads per multiprocessor (85 registers; its shared

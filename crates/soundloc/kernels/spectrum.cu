@@ -9,14 +9,15 @@
 // the plain sum.
 //
 // Squared: Σ_noise |aᴴe_m|² = ‖a‖² − Σ_signal |aᴴe_s|² (orthonormal basis); where that
-// complement is below tau·‖a‖² (music::REFINE_RATIO, as the CPU) it is recomputed as
-// ‖(I − E_s E_sᴴ) a‖² with two passes of modified Gram–Schmidt, which equals the full
-// noise-subspace sum to rounding. Then den ← max(den, ε‖a‖²) and bins with den ≤ 0 or
-// gain 0 add nothing — the CPU's rules.
+// complement is below tau·‖a‖² (music::REFINE_RATIO, as the CPU) it is recomputed in
+// double from the double signal vectors E64 (music::complement64: ‖a‖² and aᴴe_s summed
+// in double, floored at ε_f64·‖a‖²); elsewhere den ← max(den, ε_T‖a‖²). Bins with den ≤ 0
+// or gain 0 add nothing — the CPU's rules.
 //
 // St [bin][dir][M] the denominator's steering (whitened for the textbook GEVD),
 // n2den/n2num [bin][dir] its ‖·‖² and the raw ‖a‖², E [wl*nb + b][ne][M] the basis of the
-// sub-batch's windows (ne = ns, or M for the unsquared form), gain [wl*nb + b].
+// sub-batch's windows (ne = ns, or M for the unsquared form), E64 the same signal vectors
+// in double (squared form), gain [wl*nb + b].
 // Block: dt directions × (blockDim.x / dt) windows, one (direction, window) per thread;
 // per bin the block stages the steering tile (dt × M) and, when e_smem, the windows'
 // vectors in shared memory. Grid: x = direction tiles, y = window groups, z = groups of
@@ -27,26 +28,23 @@
 // Signal vectors per pass over a (independent accumulators).
 #define SL_SPEC_NSB 4
 
-// ‖(I − E Eᴴ) a‖² for the ns rows of E (each of length M), two MGS passes.
+// ‖a‖² − Σ_s |aᴴ e_s|² in double over the ns rows of e (double), floored at ε_f64·‖a‖².
 template <typename T>
-__device__ __noinline__ T residual_norm2(const cplx<T>* a, const cplx<T>* e, int M, int ns) {
-    cplx<T> r[SL_MAXN];
-    for (int i = 0; i < M; ++i) r[i] = a[i];
-    for (int pass = 0; pass < 2; ++pass) {
-        for (int s = 0; s < ns; ++s) {
-            const cplx<T>* es = e + (size_t)s * M;
-            cplx<T> c = czero<T>();
-            for (int i = 0; i < M; ++i) cmacc(c, es[i], r[i]);  // e_sᴴ r
-            for (int i = 0; i < M; ++i) {
-                const cplx<T> v = es[i];
-                r[i].re -= v.re * c.re - v.im * c.im;
-                r[i].im -= v.re * c.im + v.im * c.re;
-            }
+__device__ __noinline__ double complement64(const cplx<T>* a, const cplx<double>* e, int M, int ns) {
+    double n2 = 0.0;
+    for (int i = 0; i < M; ++i) n2 += (double)a[i].re * (double)a[i].re + (double)a[i].im * (double)a[i].im;
+    double sig = 0.0;
+    for (int s = 0; s < ns; ++s) {
+        const cplx<double>* es = e + (size_t)s * M;
+        double re = 0.0, im = 0.0;
+        for (int i = 0; i < M; ++i) {
+            const double ar = (double)a[i].re, ai = (double)a[i].im;
+            re += ar * es[i].re + ai * es[i].im;  // conj(a)·e
+            im += ar * es[i].im - ai * es[i].re;
         }
+        sig += re * re + im * im;
     }
-    T s2 = (T)0;
-    for (int i = 0; i < M; ++i) s2 += cnorm2(r[i]);
-    return s2;
+    return sl_max(n2 - sig, sl_eps<double>::v() * n2);
 }
 
 // Σ_{s0 ≤ s < s1} f(aᴴ e_s), SL_SPEC_NSB vectors per pass; f = |·|² (sq) or |·|.
@@ -100,7 +98,8 @@ __device__ __noinline__ T quad_form(const cplx<T>* a, const cplx<T>* R, int M) {
 
 template <typename T>
 __device__ void spectrum_impl(const cplx<T>* __restrict__ St, const T* __restrict__ n2den,
-                              const T* __restrict__ n2num, const cplx<T>* __restrict__ E, int ne,
+                              const T* __restrict__ n2num, const cplx<T>* __restrict__ E,
+                              const cplx<double>* __restrict__ E64, int ne,
                               const T* __restrict__ gain, int M, int nb, int D, int ns, int squared, int nwin, T tau,
                               int dt, int e_smem, int kind, int pass, const T* __restrict__ weights,
                               T* __restrict__ binmax, T* __restrict__ Ppart) {
@@ -151,8 +150,10 @@ __device__ void spectrum_impl(const cplx<T>* __restrict__ St, const T* __restric
             num = n2num[(size_t)b * D + d];
             if (squared) {
                 den = nd - proj_sum<T, true>(a, e, M, 0, ns);
-                if (den < tau * nd) den = residual_norm2(a, e, M, ns);
-                den = sl_max(den, eps * nd);
+                if (den < tau * nd)
+                    den = (T)complement64(a, E64 + ((size_t)wl * nb + b) * ns * M, M, ns);
+                else
+                    den = sl_max(den, eps * nd);
             } else {
                 den = proj_sum<T, false>(a, e, M, ns, M);
                 den = sl_max(den, eps * sl_sqrt(nd));
@@ -174,19 +175,19 @@ __device__ void spectrum_impl(const cplx<T>* __restrict__ St, const T* __restric
 
 #ifndef SL_NO_F32
 extern "C" __global__ void spectrum_f32(const cplx<float>* St, const float* n2den, const float* n2num,
-                                        const cplx<float>* E, int ne, const float* gain, int M, int nb, int D, int ns,
+                                        const cplx<float>* E, const cplx<double>* E64, int ne, const float* gain, int M, int nb, int D, int ns,
                                         int squared, int nwin, float tau, int dt, int e_smem, int kind, int pass,
                                         const float* weights, float* binmax, float* Ppart) {
-    spectrum_impl<float>(St, n2den, n2num, E, ne, gain, M, nb, D, ns, squared, nwin, tau, dt, e_smem, kind, pass,
+    spectrum_impl<float>(St, n2den, n2num, E, E64, ne, gain, M, nb, D, ns, squared, nwin, tau, dt, e_smem, kind, pass,
                          weights, binmax, Ppart);
 }
 #endif
 #ifndef SL_NO_F64
 extern "C" __global__ void spectrum_f64(const cplx<double>* St, const double* n2den, const double* n2num,
-                                        const cplx<double>* E, int ne, const double* gain, int M, int nb, int D,
+                                        const cplx<double>* E, const cplx<double>* E64, int ne, const double* gain, int M, int nb, int D,
                                         int ns, int squared, int nwin, double tau, int dt, int e_smem, int kind,
                                         int pass, const double* weights, double* binmax, double* Ppart) {
-    spectrum_impl<double>(St, n2den, n2num, E, ne, gain, M, nb, D, ns, squared, nwin, tau, dt, e_smem, kind, pass,
+    spectrum_impl<double>(St, n2den, n2num, E, E64, ne, gain, M, nb, D, ns, squared, nwin, tau, dt, e_smem, kind, pass,
                           weights, binmax, Ppart);
 }
 #endif

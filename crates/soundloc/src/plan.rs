@@ -30,9 +30,8 @@ use std::sync::Arc;
 /// Noise-dependent precomputation (absent for SEVD).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Whitening<T: Real> {
-    /// W_k per used bin, `[bin][i][j]` row-major M × M (what the GPU uploads).
-    pub matrix: Vec<C<T>>,
-    /// The same in f64 (the CPU whitens R in double precision).
+    /// W_k per used bin in f64, `[bin][i][j]` row-major M × M: the CPU and the GPU whiten
+    /// R in double precision whatever T is.
     pub matrix64: Vec<c64>,
     /// GEVD only: whitened steering a_w = L⁻¹ a, `[bin][dir][mic]` (else empty).
     pub steering: Vec<C<T>>,
@@ -230,13 +229,8 @@ impl<T: Real> Plan<T> {
         }
     }
 
-    /// W_k of used bin `b` (row-major M × M), for the noise-aware algorithms.
-    pub fn whitening_matrix(&self, b: usize) -> Option<&[C<T>]> {
-        let mm = self.num_mics * self.num_mics;
-        self.whitening.as_ref().map(|w| &w.matrix[b * mm..(b + 1) * mm])
-    }
-
-    /// W_k of used bin `b` in f64 (row-major M × M), as the CPU decomposition uses it.
+    /// W_k of used bin `b` in f64 (row-major M × M), as the decompositions use it (CPU and
+    /// GPU whiten in double whatever T is).
     pub fn whitening_matrix64(&self, b: usize) -> Option<&[c64]> {
         let mm = self.num_mics * self.num_mics;
         self.whitening.as_ref().map(|w| &w.matrix64[b * mm..(b + 1) * mm])
@@ -385,15 +379,12 @@ fn whitening<T: Real>(
         })
         .collect();
     let mut w = Whitening {
-        matrix: Vec::with_capacity(nb * m * m),
         matrix64: Vec::with_capacity(nb * m * m),
         steering: Vec::new(),
         steering_norm2: Vec::new(),
     };
     for r in per_bin {
         let (mat, st, n2) = r?;
-        w.matrix
-            .extend(mat.iter().map(|z| C::new(T::of_f64(z.re), T::of_f64(z.im))));
         w.matrix64.extend(mat);
         w.steering.extend(st);
         w.steering_norm2.extend(n2);
@@ -550,12 +541,12 @@ mod tests {
         assert!(Arc::ptr_eq(&p.steering, &q.steering));
         assert!(Arc::ptr_eq(&p.steering_norm2, &q.steering_norm2));
         // GSVD's W = K⁻¹ after HARK's scaling (K / max|Re K| = diag(1, 1/4, 1/4, 1/4)).
-        let w = q.whitening_matrix(0).unwrap();
+        let w = q.whitening_matrix64(0).unwrap();
         assert!(
             (w[0].re - 1.0).abs() < 1e-6 && (w[5].re - 4.0).abs() < 1e-5,
             "{:?}",
             &w[..6]
         );
-        assert_eq!(p.whitening_matrix(0).unwrap()[5].re, 1.0);
+        assert_eq!(p.whitening_matrix64(0).unwrap()[5].re, 1.0);
     }
 }

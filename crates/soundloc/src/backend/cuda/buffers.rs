@@ -52,6 +52,7 @@ pub(super) enum Scratch {
     Win,
     R,
     E,
+    E64,
     Jacobi,
     Ppart,
     Gain,
@@ -129,8 +130,9 @@ impl<T: Real> CudaBackend<T> {
         } else {
             0
         };
-        let per_sub_window = l.nb * l.m * l.m * cs
+        let per_sub_window = l.nb * l.m * l.m * l.r_size
             + l.nb * l.ne * l.m * cs
+            + if l.e64 { l.nb * l.ns * l.m * 16 } else { 0 }
             + l.nb * (l.dec_scratch_per_mat + h_per_mat)
             + l.nb * l.d * ts;
         let (free, _) = self.gpu.mem_info()?;
@@ -150,6 +152,7 @@ impl<T: Real> CudaBackend<T> {
             Scratch::Win => &mut self.d_win,
             Scratch::R => &mut self.d_r,
             Scratch::E => &mut self.d_e,
+            Scratch::E64 => &mut self.d_e64,
             Scratch::Jacobi => &mut self.d_scratch,
             Scratch::Ppart => &mut self.d_ppart,
             Scratch::Gain => &mut self.d_gain,

@@ -59,6 +59,17 @@ pub(super) struct DecMode {
 }
 
 impl<T: Real> CudaBackend<T> {
+    /// Where the decompositions put the signal vectors in double (0: not needed).
+    pub(super) fn e64_ptr(&self) -> DevPtr {
+        if !self.lay.e64 {
+            0
+        } else if std::mem::size_of::<T>() == 8 {
+            self.d_e.ptr
+        } else {
+            self.d_e64.ptr
+        }
+    }
+
     pub(super) fn bin_groups(&self, nwb: usize) -> usize {
         let l = &self.lay;
         let xy = l.d.div_ceil(l.spec_dt) * nwb.div_ceil(l.spec_wg.min(nwb).max(1));
@@ -128,6 +139,7 @@ impl<T: Real> CudaBackend<T> {
             .p(self.d_weights.ptr)
             .i(mat0)
             .p(self.d_e.ptr)
+            .p(self.e64_ptr())
             .p(self.d_gain.ptr)
             .p(self.d_bw.ptr)
             .p(self.d_info.ptr)
@@ -161,6 +173,7 @@ impl<T: Real> CudaBackend<T> {
             .p(self.d_weights.ptr)
             .i(mat0)
             .p(self.d_e.ptr)
+            .p(self.e64_ptr())
             .p(self.d_gain.ptr)
             .p(self.d_bw.ptr)
             .p(self.d_info.ptr)
@@ -232,6 +245,7 @@ impl<T: Real> CudaBackend<T> {
                 .p(n2den)
                 .p(self.d_n2num.ptr)
                 .p(if l.srp { self.d_r.ptr } else { self.d_e.ptr })
+                .p(self.e64_ptr())
                 .i(l.ne)
                 .p(self.d_gain.ptr + (mat0 * ts) as u64)
                 .i(l.m)

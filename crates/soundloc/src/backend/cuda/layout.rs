@@ -11,6 +11,12 @@ pub(super) struct Layout {
     pub(super) ns: usize,
     /// Vectors kept per matrix (ns, or M for the unsquared denominator).
     pub(super) ne: usize,
+    /// Bytes per element of R on the device: complex double for the decompositions,
+    /// the plan's complex type for SRP-PHAT's R̃ (its scale factors take half of that).
+    pub(super) r_size: usize,
+    /// Whether the signal vectors are also kept in double (squared MUSIC: the spectrum
+    /// recomputes near peaks from them). In an f64 plan they are `E` itself.
+    pub(super) e64: bool,
     pub(super) squared: bool,
     pub(super) left: usize,
     pub(super) right: usize,
@@ -53,7 +59,7 @@ pub(super) struct Layout {
 pub(super) const EIGH_VEC: usize = 8;
 
 pub(super) fn layout<T: Real>(plan: &Plan<T>, gpu: &dyn Gpu) -> Result<Layout> {
-    let (cs, ts) = (csize::<T>(), std::mem::size_of::<T>());
+    let cs = csize::<T>();
     let m = plan.num_mics;
     let nb = plan.num_bins();
     let d = plan.num_dirs;
@@ -92,8 +98,9 @@ pub(super) fn layout<T: Real>(plan: &Plan<T>, gpu: &dyn Gpu) -> Result<Layout> {
         ld += 1;
     }
     let optin = gpu.max_smem_optin().max(SMEM_DEFAULT);
-    let mats = if want_v { 2 } else { 1 } * n * ld * cs;
-    let small = (3 * n * cs + n * ts + 32 * ts + 2 * n * 4).div_ceil(16) * 16;
+    // The Jacobi kernel rotates in double whatever T is.
+    let mats = if want_v { 2 } else { 1 } * n * ld * 16;
+    let small = (3 * n * 16 + n * 8 + 32 * 8 + 2 * n * 4).div_ceil(16) * 16;
     let dec_smem_mode = mats + small <= optin;
     let (dec_smem, dec_scratch_per_mat) = if dec_smem_mode {
         (mats + small, 0)
@@ -137,6 +144,8 @@ pub(super) fn layout<T: Real>(plan: &Plan<T>, gpu: &dyn Gpu) -> Result<Layout> {
         d,
         ns,
         ne,
+        r_size: if srp { cs } else { 16 },
+        e64: squared && !srp,
         squared,
         left,
         right,

@@ -33,7 +33,10 @@
 //! For the squared denominator with M ≤ 64 the signal vectors come instead from a
 //! Householder tridiagonalisation of the Hermitian H (eigh.cu): ~(16/3)·M³ flops instead
 //! of the Jacobi's ~10 sweeps × 8·M³, and H is formed and reduced in double precision, so
-//! GSVD's A Aᴴ does not square the f32 rounding. `docs/gpu.md` has the measurements.
+//! GSVD's A Aᴴ does not square the f32 rounding. Whatever the plan's precision, R leaves the
+//! correlation in double, W is uploaded in double and both decomposition kernels compute in
+//! double (as the CPU does); the vectors go to the spectrum in T, and in double for its
+//! near-peak recomputation. `docs/gpu.md` has the measurements.
 //!
 //! **Batching.** `process` splits its windows into sub-batches sized to fill the GPU a
 //! few times over; STFT frames go up through two pinned staging buffers on a copy stream
@@ -74,6 +77,7 @@ use crate::plan::Plan;
 use crate::real::{Real, C};
 use crate::{Error, Result};
 use device::{CudaGpu, DevPtr, Event, Func, Gpu, Stream};
+use faer::c64;
 use kernels::Variant;
 use rayon::prelude::*;
 use std::ffi::c_void;
@@ -203,6 +207,9 @@ pub struct CudaBackend<T: Real> {
     d_win: Buf,
     d_r: Buf,
     d_e: Buf,
+    /// The signal vectors in double for the spectrum's near-peak recomputation (f32 plans;
+    /// an f64 plan's `d_e` already is).
+    d_e64: Buf,
     d_scratch: Buf,
     d_ppart: Buf,
     d_gain: Buf,
@@ -270,6 +277,7 @@ impl<T: Real> CudaBackend<T> {
             d_win: Buf::default(),
             d_r: Buf::default(),
             d_e: Buf::default(),
+            d_e64: Buf::default(),
             d_scratch: Buf::default(),
             d_ppart: Buf::default(),
             d_gain: Buf::default(),
@@ -309,7 +317,11 @@ impl<T: Real> CudaBackend<T> {
             if l.want_v { 'v' } else { 'n' }
         );
         self.f = Funcs {
-            correlate: self.gpu.function(&format!("correlate_{t}"))?,
+            correlate: self.gpu.function(&if l.srp {
+                format!("correlate_phat_{t}")
+            } else {
+                format!("correlate_{t}")
+            })?,
             decompose: self.gpu.function(&dec)?,
             eigh: self.gpu.function(&format!("eigh_{t}"))?,
             form_h: self.gpu.function(&format!("form_h_{t}"))?,
@@ -376,11 +388,12 @@ impl<T: Real> CudaBackend<T> {
             self.upload(BufId::N2Den, as_bytes(n2den))?;
             self.upload(BufId::N2Num, as_bytes(&plan.steering_norm2))?;
         }
+        // W in double whatever T is: the decompositions whiten in double (as the CPU).
         if let Some(w) = &plan.whitening {
-            if w.matrix.len() == nb * m * m {
-                let mut wcm = vec![C::new(T::zero(), T::zero()); nb * m * m];
+            if w.matrix64.len() == nb * m * m {
+                let mut wcm = vec![c64::new(0.0, 0.0); nb * m * m];
                 for b in 0..nb {
-                    let src = &w.matrix[b * m * m..(b + 1) * m * m];
+                    let src = &w.matrix64[b * m * m..(b + 1) * m * m];
                     let dst = &mut wcm[b * m * m..(b + 1) * m * m];
                     for i in 0..m {
                         for k in 0..m {
@@ -389,7 +402,7 @@ impl<T: Real> CudaBackend<T> {
                     }
                 }
                 self.upload(BufId::Wcm, as_bytes(&wcm))?;
-                self.upload(BufId::Wrm, as_bytes(&w.matrix))?;
+                self.upload(BufId::Wrm, as_bytes(&w.matrix64))?;
             }
         }
         if (self.lay.left != 0 || self.lay.right != 0) && self.d_wcm.bytes == 0 {
@@ -480,6 +493,7 @@ impl<T: Real> Drop for CudaBackend<T> {
             self.d_win.ptr,
             self.d_r.ptr,
             self.d_e.ptr,
+            self.d_e64.ptr,
             self.d_scratch.ptr,
             self.d_ppart.ptr,
             self.d_gain.ptr,

@@ -48,9 +48,12 @@ impl<T: Real> CudaBackend<T> {
 
         // Device buffers.
         self.ensure(Scratch::Win, nw * 8)?;
-        self.ensure(Scratch::R, nwb_max * nb * m * m * cs)?;
+        self.ensure(Scratch::R, nwb_max * nb * m * m * l.r_size)?;
         if !l.srp {
             self.ensure(Scratch::E, nwb_max * nb * l.ne * m * cs)?;
+        }
+        if l.e64 {
+            self.ensure(Scratch::E64, nwb_max * nb * l.ns * m * 16)?;
         }
         if l.normalize {
             self.ensure(Scratch::BinMax, nwb_max * nb * ts)?;
@@ -73,7 +76,7 @@ impl<T: Real> CudaBackend<T> {
         if l.eigh && l.valmode != 0 {
             self.ensure(Scratch::H, nwb_max * nb * m * m * 16)?;
         }
-        self.ensure(Scratch::Scale, nwb_max * nb * ts)?;
+        self.ensure(Scratch::Scale, nwb_max * nb * l.r_size / 2)?;
         self.ensure(Scratch::Db, nw * d * 8)?;
         if want_spectrum {
             self.ensure(Scratch::Spec, nw * d * 4)?;
