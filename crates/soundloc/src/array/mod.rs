@@ -7,6 +7,7 @@
 pub mod freefield;
 pub mod geometry;
 pub mod grid;
+mod neighbors;
 pub mod tf_cache;
 pub mod transfer;
 
