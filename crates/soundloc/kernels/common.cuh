@@ -60,6 +60,22 @@ __device__ __forceinline__ cplx<T> cconj(cplx<T> a) {
     return cx<T>(a.re, -a.im);
 }
 
+// A complex number in another precision.
+template <typename T, typename S>
+__device__ __forceinline__ cplx<T> cto(cplx<S> a) {
+    return cx<T>((T)a.re, (T)a.im);
+}
+
+// sl_if<B, A, C>::type is A when B, else C (no <type_traits> under NVRTC).
+template <bool B, typename A, typename C>
+struct sl_if {
+    typedef A type;
+};
+template <typename A, typename C>
+struct sl_if<false, A, C> {
+    typedef C type;
+};
+
 template <typename T>
 __device__ __forceinline__ cplx<T> cscale(cplx<T> a, T s) {
     return cx<T>(a.re * s, a.im * s);

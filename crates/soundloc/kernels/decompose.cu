@@ -21,10 +21,11 @@
 // pairs all n columns (n = M rounded up to even, a zero column added when M is odd);
 // n − 1 rounds make a sweep; a sweep with no rotation ends the iteration.
 //
-// Precision: the rotations run in double whatever the plan's type P (R and W arrive in
-// double, the frames of the factor form in P are widened), as the CPU decomposes in double;
-// the vectors are stored in P (E) and, for the spectrum's near-peak recomputation, in double
-// (E64, the signal vectors; may be null).
+// Precision: R and W arrive in double. The rotations run in double for the unsquared
+// denominator (every noise vector counts individually, as the CPU's f64 decomposition) and
+// for f64 plans; the squared path of an f32 plan (M > 64 only: below, eigh.cu serves it in
+// double) rotates in f32, as before, for twice the throughput. The vectors are stored in
+// P (E) and, for the spectrum's near-peak recomputation, in double (E64; may be null).
 //
 // Outputs per matrix (index mat = mat0 + blockIdx.x, bin = mat % nb; R, E and the
 // scratch slots are indexed by blockIdx.x, i.e. relative to the sub-batch):
@@ -51,8 +52,8 @@ __device__ __forceinline__ void rr_pair(int r, int k, int n, int& p, int& q) {
 
 // G[:, j] ← A · G[:, j] for j < ncols (A column-major M × M, A_ik = A[k*M + i]); one warp
 // per column, in place (column j only depends on column j).
-template <typename T>
-__device__ void left_mul(cplx<T>* G, int ld, int ncols, const cplx<T>* __restrict__ A, int M) {
+template <typename T, typename TA>
+__device__ void left_mul(cplx<T>* G, int ld, int ncols, const cplx<TA>* __restrict__ A, int M) {
     const int lane = threadIdx.x & 31, warp = threadIdx.x >> 5, nwarps = blockDim.x >> 5;
     for (int j = warp; j < ncols; j += nwarps) {
         cplx<T> acc[SL_R32];
@@ -63,7 +64,7 @@ __device__ void left_mul(cplx<T>* G, int ld, int ncols, const cplx<T>* __restric
 #pragma unroll
             for (int t = 0; t < SL_R32; ++t) {
                 const int i = lane + 32 * t;
-                if (i < M) cmac(acc[t], A[(size_t)k * M + i], g);
+                if (i < M) cmac(acc[t], cto<T>(A[(size_t)k * M + i]), g);
             }
         }
         __syncwarp();
@@ -79,8 +80,8 @@ __device__ void left_mul(cplx<T>* G, int ld, int ncols, const cplx<T>* __restric
 
 // G[i, :] ← G[i, :] Wᴴ (which = 1: conj(W_jk) = conj(Wcm[k*M + j])) or G[i, :] W
 // (which = 2: W_kj = Wrm[k*M + j]); one warp per row, in place.
-template <typename T>
-__device__ void right_mul(cplx<T>* G, int ld, const cplx<T>* __restrict__ Wc, const cplx<T>* __restrict__ Wr,
+template <typename T, typename TA>
+__device__ void right_mul(cplx<T>* G, int ld, const cplx<TA>* __restrict__ Wc, const cplx<TA>* __restrict__ Wr,
                           int M, int which) {
     const int lane = threadIdx.x & 31, warp = threadIdx.x >> 5, nwarps = blockDim.x >> 5;
     for (int i = warp; i < M; i += nwarps) {
@@ -94,9 +95,9 @@ __device__ void right_mul(cplx<T>* G, int ld, const cplx<T>* __restrict__ Wc, co
                 const int j = lane + 32 * t;
                 if (j < M) {
                     if (which == 1)
-                        cmac_cb(acc[t], g, Wc[(size_t)k * M + j]);
+                        cmac_cb(acc[t], g, cto<T>(Wc[(size_t)k * M + j]));
                     else
-                        cmac(acc[t], g, Wr[(size_t)k * M + j]);
+                        cmac(acc[t], g, cto<T>(Wr[(size_t)k * M + j]));
                 }
             }
         }
@@ -159,7 +160,11 @@ __device__ void decompose_impl(const cplx<double>* __restrict__ R, const cplx<P>
                                int max_sweeps, int eigw, int valmode, const P* __restrict__ weights, int mat0,
                                cplx<P>* __restrict__ E, cplx<double>* __restrict__ E64, P* __restrict__ gain,
                                float* __restrict__ bw, int* __restrict__ info, cplx<double>* __restrict__ scratch) {
-    typedef double T;  // the arithmetic
+    // The arithmetic: double when every vector counts (unsquared) or the plan is f64; the
+    // plan's f32 otherwise (the Jacobi's squared path serves only M > 64, where the
+    // double-precision tridiagonal eigensolver does not reach: rotating in double there
+    // halves the throughput, and --precision f64 gives the double path).
+    typedef typename sl_if<WANT_V || sizeof(P) == 8, double, P>::type T;
     SL_DYN_SMEM(sl_smem);
 #ifdef SL_NFIX
     // The device build fixes n = M rounded up to even at compile time (-DSL_NFIX).
@@ -178,7 +183,7 @@ __device__ void decompose_impl(const cplx<double>* __restrict__ R, const cplx<P>
         G = reinterpret_cast<cplx<T>*>(sl_smem);
         small = sl_smem + (WANT_V ? 2 : 1) * mat_elems * sizeof(cplx<T>);
     } else {
-        G = scratch + (size_t)blockIdx.x * (WANT_V ? 2 : 1) * mat_elems;
+        G = reinterpret_cast<cplx<T>*>(scratch) + (size_t)blockIdx.x * (WANT_V ? 2 : 1) * mat_elems;
         small = sl_smem;
     }
     cplx<T>* V = G + mat_elems;
@@ -188,9 +193,9 @@ __device__ void decompose_impl(const cplx<double>* __restrict__ R, const cplx<P>
     T* red = sig + n;
     int* rank = reinterpret_cast<int*>(red + 32);
     int* perm = rank + n;
-    const cplx<T>* Rm = R + (size_t)blockIdx.x * M * M;
-    const cplx<T>* Wc = Wcm + (size_t)b * M * M;
-    const cplx<T>* Wr = Wrm + (size_t)b * M * M;
+    const cplx<double>* Rm = R + (size_t)blockIdx.x * M * M;
+    const cplx<double>* Wc = Wcm + (size_t)b * M * M;
+    const cplx<double>* Wr = Wrm + (size_t)b * M * M;
     // Columns the Jacobi works on (even), and those that are real (not padding).
     const int nc = factor ? ncf : n;
     const int ncr = factor ? ncf : M;
@@ -200,7 +205,7 @@ __device__ void decompose_impl(const cplx<double>* __restrict__ R, const cplx<P>
         // G = Yᴴ, the window's frames as columns, scaled so that Yᴴ Y = R (this block's R).
         const int w = mat / nb;
         const int start = win[2 * w], len = win[2 * w + 1];
-        const T c = (T)1 / sl_sqrt((T)len * scale[blockIdx.x]);
+        const T c = (T)1 / sl_sqrt((T)len * (T)scale[blockIdx.x]);
         for (int idx = tid; idx < n * ld; idx += nt) {
             const int j = idx / ld, i = idx - j * ld;
             if (i < M && j < len) {
@@ -221,7 +226,7 @@ __device__ void decompose_impl(const cplx<double>* __restrict__ R, const cplx<P>
     } else {
         for (int idx = tid; idx < n * ld; idx += nt) {
             const int j = idx / ld, i = idx - j * ld;
-            G[idx] = (i < M && j < M) ? Rm[(size_t)j * M + i] : czero<T>();
+            G[idx] = (i < M && j < M) ? cto<T>(Rm[(size_t)j * M + i]) : czero<T>();
             if (WANT_V) V[idx] = cx<T>((i == j) ? (T)1 : (T)0, (T)0);
         }
         __syncthreads();
@@ -381,7 +386,7 @@ __device__ void decompose_impl(const cplx<double>* __restrict__ R, const cplx<P>
             for (int i = lane; i < M; i += 32) {
                 const cplx<T> v = WANT_V ? V[(size_t)j * ld + i] : cscale(G[(size_t)j * ld + i], inv);
                 E[off + i] = cx<P>((P)v.re, (P)v.im);
-                if (E64 != nullptr) E64[off + i] = v;
+                if (E64 != nullptr) E64[off + i] = cto<double>(v);
                 if (rk == 0) u1[i] = v;
             }
         }
@@ -400,10 +405,10 @@ __device__ void decompose_impl(const cplx<double>* __restrict__ R, const cplx<P>
         if (valmode == 0) {
             a = u1[k];
         } else {
-            for (int i = 0; i < M; ++i) cmacc(a, Wc[(size_t)k * M + i], u1[i]);  // Σ_i conj(W_ik) u_i
+            for (int i = 0; i < M; ++i) cmacc(a, cto<T>(Wc[(size_t)k * M + i]), u1[i]);  // Σ_i conj(W_ik) u_i
         }
         if (valmode == 2) {
-            for (int j = 0; j < M; ++j) cmac(c, Wr[(size_t)k * M + j], u1[j]);  // Σ_j W_kj u_j
+            for (int j = 0; j < M; ++j) cmac(c, cto<T>(Wr[(size_t)k * M + j]), u1[j]);  // Σ_j W_kj u_j
         } else {
             c = a;
         }
@@ -414,7 +419,7 @@ __device__ void decompose_impl(const cplx<double>* __restrict__ R, const cplx<P>
     T part = (T)0;
     for (int i = tid; i < M; i += nt) {
         cplx<T> y = czero<T>();
-        for (int k = 0; k < M; ++k) cmac(y, Rm[(size_t)k * M + i], w1[k]);  // (R w)_i
+        for (int k = 0; k < M; ++k) cmac(y, cto<T>(Rm[(size_t)k * M + i]), w1[k]);  // (R w)_i
         if (valmode == 3)
             part += cnorm2(y);
         else
@@ -435,8 +440,8 @@ __device__ void decompose_impl(const cplx<double>* __restrict__ R, const cplx<P>
 #define SL_DEC_WARPS ((SL_MAXN / 2 * SL_LPP + 31) / 32)
 #define SL_DEC_THREADS (SL_DEC_WARPS > 32 ? 1024 : SL_DEC_WARPS * 32)
 
-#define SL_DECOMPOSE(NAME, P, SMEM, WANT_V)                                                                        \
-    extern "C" __global__ void __launch_bounds__(SL_DEC_THREADS, 1)                                                  \
+#define SL_DECOMPOSE(NAME, P, SMEM, WANT_V, MINB)                                                                  \
+    extern "C" __global__ void __launch_bounds__(SL_DEC_THREADS, MINB)                                               \
         NAME(const cplx<double>* R, const cplx<P>* X, const int* win, const double* scale, const cplx<double>* Wcm,  \
              const cplx<double>* Wrm, int M, int nb, int ld, int ncf, int factor, int left, int right, int ns,         \
              int vec_all, int max_sweeps, int eigw, int valmode, const P* weights, int mat0, cplx<P>* E,              \
@@ -445,17 +450,20 @@ __device__ void decompose_impl(const cplx<double>* __restrict__ R, const cplx<P>
                                         max_sweeps, eigw, valmode, weights, mat0, E, E64, gain, bw, info, scratch);  \
     }
 
-// The _f32 kernels differ from the _f64 ones only in the types of the frames they read and
-// the vectors and gains they store.
+// f32 rotating in f32 (the squared _n kernels) with 128-thread blocks: at most 128
+// registers, four blocks per multiprocessor. The _v kernels rotate in double.
+#ifndef SL_F32_MINB
+#define SL_F32_MINB (SL_DEC_THREADS <= 128 ? 4 : 1)
+#endif
 #ifndef SL_NO_F32
-SL_DECOMPOSE(decompose_sn_f32, float, true, false)
-SL_DECOMPOSE(decompose_sv_f32, float, true, true)
-SL_DECOMPOSE(decompose_gn_f32, float, false, false)
-SL_DECOMPOSE(decompose_gv_f32, float, false, true)
+SL_DECOMPOSE(decompose_sn_f32, float, true, false, SL_F32_MINB)
+SL_DECOMPOSE(decompose_sv_f32, float, true, true, 1)
+SL_DECOMPOSE(decompose_gn_f32, float, false, false, SL_F32_MINB)
+SL_DECOMPOSE(decompose_gv_f32, float, false, true, 1)
 #endif
 #ifndef SL_NO_F64
-SL_DECOMPOSE(decompose_sn_f64, double, true, false)
-SL_DECOMPOSE(decompose_sv_f64, double, true, true)
-SL_DECOMPOSE(decompose_gn_f64, double, false, false)
-SL_DECOMPOSE(decompose_gv_f64, double, false, true)
+SL_DECOMPOSE(decompose_sn_f64, double, true, false, 1)
+SL_DECOMPOSE(decompose_sv_f64, double, true, true, 1)
+SL_DECOMPOSE(decompose_gn_f64, double, false, false, 1)
+SL_DECOMPOSE(decompose_gv_f64, double, false, true, 1)
 #endif

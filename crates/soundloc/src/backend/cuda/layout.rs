@@ -98,9 +98,11 @@ pub(super) fn layout<T: Real>(plan: &Plan<T>, gpu: &dyn Gpu) -> Result<Layout> {
         ld += 1;
     }
     let optin = gpu.max_smem_optin().max(SMEM_DEFAULT);
-    // The Jacobi kernel rotates in double whatever T is.
-    let mats = if want_v { 2 } else { 1 } * n * ld * 16;
-    let small = (3 * n * 16 + n * 8 + 32 * 8 + 2 * n * 4).div_ceil(16) * 16;
+    // The Jacobi kernel rotates in double for the unsquared denominator and f64 plans, in
+    // T otherwise (decompose.cu).
+    let jcs = if want_v { 16 } else { cs };
+    let mats = if want_v { 2 } else { 1 } * n * ld * jcs;
+    let small = (3 * n * jcs + n * jcs / 2 + 32 * jcs / 2 + 2 * n * 4).div_ceil(16) * 16;
     let dec_smem_mode = mats + small <= optin;
     let (dec_smem, dec_scratch_per_mat) = if dec_smem_mode {
         (mats + small, 0)

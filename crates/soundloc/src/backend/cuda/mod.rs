@@ -34,9 +34,10 @@
 //! Householder tridiagonalisation of the Hermitian H (eigh.cu): ~(16/3)·M³ flops instead
 //! of the Jacobi's ~10 sweeps × 8·M³, and H is formed and reduced in double precision, so
 //! GSVD's A Aᴴ does not square the f32 rounding. Whatever the plan's precision, R leaves the
-//! correlation in double, W is uploaded in double and both decomposition kernels compute in
-//! double (as the CPU does); the vectors go to the spectrum in T, and in double for its
-//! near-peak recomputation. `docs/gpu.md` has the measurements.
+//! correlation in double, W is uploaded in double, and the tridiagonal eigensolver and the
+//! unsquared Jacobi compute in double (as the CPU does; only the squared Jacobi of an f32
+//! plan, M > 64, rotates in f32); the vectors go to the spectrum in T, and in double for
+//! its near-peak recomputation. `docs/gpu.md` has the measurements.
 //!
 //! **Batching.** `process` splits its windows into sub-batches sized to fill the GPU a
 //! few times over; STFT frames go up through two pinned staging buffers on a copy stream
