@@ -59,14 +59,24 @@ pub(super) struct DecMode {
 }
 
 impl<T: Real> CudaBackend<T> {
-    /// Where the decompositions put the signal vectors in double (0: not needed).
-    pub(super) fn e64_ptr(&self) -> DevPtr {
-        if !self.lay.e64 {
+    /// Where the decompositions put a second, double copy of the signal vectors (0: none).
+    pub(super) fn e64_out(&self) -> DevPtr {
+        if self.lay.e64 {
+            self.d_e64.ptr
+        } else {
             0
+        }
+    }
+
+    /// Where the spectrum reads the signal vectors in double: that copy, or an f64 plan's
+    /// `E` itself (0: an f32 plan without the copy, which never recomputes near peaks).
+    pub(super) fn e64_in(&self) -> DevPtr {
+        if self.lay.e64 {
+            self.d_e64.ptr
         } else if std::mem::size_of::<T>() == 8 {
             self.d_e.ptr
         } else {
-            self.d_e64.ptr
+            0
         }
     }
 
@@ -139,7 +149,7 @@ impl<T: Real> CudaBackend<T> {
             .p(self.d_weights.ptr)
             .i(mat0)
             .p(self.d_e.ptr)
-            .p(self.e64_ptr())
+            .p(self.e64_out())
             .p(self.d_gain.ptr)
             .p(self.d_bw.ptr)
             .p(self.d_info.ptr)
@@ -173,7 +183,7 @@ impl<T: Real> CudaBackend<T> {
             .p(self.d_weights.ptr)
             .i(mat0)
             .p(self.d_e.ptr)
-            .p(self.e64_ptr())
+            .p(self.e64_out())
             .p(self.d_gain.ptr)
             .p(self.d_bw.ptr)
             .p(self.d_info.ptr)
@@ -245,7 +255,7 @@ impl<T: Real> CudaBackend<T> {
                 .p(n2den)
                 .p(self.d_n2num.ptr)
                 .p(if l.srp { self.d_r.ptr } else { self.d_e.ptr })
-                .p(self.e64_ptr())
+                .p(self.e64_in())
                 .i(l.ne)
                 .p(self.d_gain.ptr + (mat0 * ts) as u64)
                 .i(l.m)

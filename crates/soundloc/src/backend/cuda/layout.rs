@@ -14,8 +14,8 @@ pub(super) struct Layout {
     /// Bytes per element of R on the device: complex double for the decompositions,
     /// the plan's complex type for SRP-PHAT's R̃ (its scale factors take half of that).
     pub(super) r_size: usize,
-    /// Whether the signal vectors are also kept in double (squared MUSIC: the spectrum
-    /// recomputes near peaks from them). In an f64 plan they are `E` itself.
+    /// Whether a double copy of the signal vectors is kept (f32 plans, squared MUSIC: the
+    /// spectrum recomputes near peaks from it; an f64 plan's `E` already is double).
     pub(super) e64: bool,
     pub(super) squared: bool,
     pub(super) left: usize,
@@ -147,7 +147,7 @@ pub(super) fn layout<T: Real>(plan: &Plan<T>, gpu: &dyn Gpu) -> Result<Layout> {
         ns,
         ne,
         r_size: if srp { cs } else { 16 },
-        e64: squared && !srp,
+        e64: squared && !srp && cs == 8,
         squared,
         left,
         right,
