@@ -23,7 +23,7 @@
 //
 // Precision: R and W arrive in double. The rotations run in double for the unsquared
 // denominator (every noise vector counts individually, as the CPU's f64 decomposition) and
-// for f64 plans; the squared path of an f32 plan (M > 64 only: below, eigh.cu serves it in
+// for f64 plans; the squared path of an f32 plan (M > 64, or forced: below, eigh.cu serves it in
 // double) rotates in f32, as before, for twice the throughput. The vectors are stored in
 // P (E) and, for the spectrum's near-peak recomputation, in double (E64; may be null).
 //
@@ -161,7 +161,7 @@ __device__ void decompose_impl(const cplx<double>* __restrict__ R, const cplx<P>
                                cplx<P>* __restrict__ E, cplx<double>* __restrict__ E64, P* __restrict__ gain,
                                float* __restrict__ bw, int* __restrict__ info, cplx<double>* __restrict__ scratch) {
     // The arithmetic: double when every vector counts (unsquared) or the plan is f64; the
-    // plan's f32 otherwise (the Jacobi's squared path serves only M > 64, where the
+    // plan's f32 otherwise (the Jacobi's squared path serves M > 64, where the
     // double-precision tridiagonal eigensolver does not reach: rotating in double there
     // halves the throughput, and --precision f64 gives the double path).
     typedef typename sl_if<WANT_V || sizeof(P) == 8, double, P>::type T;

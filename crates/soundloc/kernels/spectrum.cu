@@ -11,7 +11,10 @@
 // Squared: Σ_noise |aᴴe_m|² = ‖a‖² − Σ_signal |aᴴe_s|² (orthonormal basis); where that
 // complement is below tau·‖a‖² (music::REFINE_RATIO, as the CPU) it is recomputed in
 // double from the double signal vectors E64 (music::complement64: ‖a‖² and aᴴe_s summed
-// in double, floored at ε_f64·‖a‖²); elsewhere den ← max(den, ε_T‖a‖²). Bins with den ≤ 0
+// in double, floored at ε_f64·‖a‖²); elsewhere den ← max(den, ε_T‖a‖²). Where E64 is
+// null (an f32 plan's vectors from the f32 Jacobi, M > 64: only f32-accurate, so a double
+// complement of them would not be exact) the recomputation is ‖(I − E_sE_sᴴ)a‖² in T by
+// two Gram–Schmidt passes, floored at ε_T‖a‖². Bins with den ≤ 0
 // or gain 0 add nothing — the CPU's rules.
 //
 // St [bin][dir][M] the denominator's steering (whitened for the textbook GEVD),
@@ -27,6 +30,28 @@
 
 // Signal vectors per pass over a (independent accumulators).
 #define SL_SPEC_NSB 4
+
+// ‖(I − E Eᴴ) a‖² for the ns rows of E (each of length M), two MGS passes.
+template <typename T>
+__device__ __noinline__ T residual_norm2(const cplx<T>* a, const cplx<T>* e, int M, int ns) {
+    cplx<T> r[SL_MAXN];
+    for (int i = 0; i < M; ++i) r[i] = a[i];
+    for (int pass = 0; pass < 2; ++pass) {
+        for (int s = 0; s < ns; ++s) {
+            const cplx<T>* es = e + (size_t)s * M;
+            cplx<T> c = czero<T>();
+            for (int i = 0; i < M; ++i) cmacc(c, es[i], r[i]);  // e_sᴴ r
+            for (int i = 0; i < M; ++i) {
+                const cplx<T> v = es[i];
+                r[i].re -= v.re * c.re - v.im * c.im;
+                r[i].im -= v.re * c.im + v.im * c.re;
+            }
+        }
+    }
+    T s2 = (T)0;
+    for (int i = 0; i < M; ++i) s2 += cnorm2(r[i]);
+    return s2;
+}
 
 // ‖a‖² − Σ_s |aᴴ e_s|² in double over the ns rows of e (double), floored at ε_f64·‖a‖².
 template <typename T>
@@ -150,10 +175,14 @@ __device__ void spectrum_impl(const cplx<T>* __restrict__ St, const T* __restric
             num = n2num[(size_t)b * D + d];
             if (squared) {
                 den = nd - proj_sum<T, true>(a, e, M, 0, ns);
-                if (den < tau * nd)
+                if (den < tau * nd && E64 != nullptr) {
                     den = (T)complement64(a, E64 + ((size_t)wl * nb + b) * ns * M, M, ns);
-                else
+                } else {
+                    // Without double vectors (the f32 Jacobi of an f32 plan): the residual
+                    // in T by two Gram–Schmidt passes, floored at ε_T.
+                    if (den < tau * nd) den = residual_norm2(a, e, M, ns);
                     den = sl_max(den, eps * nd);
+                }
             } else {
                 den = proj_sum<T, false>(a, e, M, ns, M);
                 den = sl_max(den, eps * sl_sqrt(nd));

@@ -68,12 +68,14 @@ impl<T: Real> CudaBackend<T> {
         }
     }
 
-    /// Where the spectrum reads the signal vectors in double: that copy, or an f64 plan's
-    /// `E` itself (0: an f32 plan without the copy, which never recomputes near peaks).
+    /// Where the spectrum reads the signal vectors in double for its near-peak
+    /// recomputation: that copy, or an f64 plan's `E` itself (0: none — not squared MUSIC,
+    /// or the f32 Jacobi's vectors, recomputed from in f32).
     pub(super) fn e64_in(&self) -> DevPtr {
-        if self.lay.e64 {
+        let l = &self.lay;
+        if l.e64 {
             self.d_e64.ptr
-        } else if std::mem::size_of::<T>() == 8 {
+        } else if std::mem::size_of::<T>() == 8 && l.squared && !l.srp {
             self.d_e.ptr
         } else {
             0

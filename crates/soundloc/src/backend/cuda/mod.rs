@@ -25,8 +25,10 @@
 //! GSVD uses — without forming V. The squared MUSIC denominator needs only the Ns signal
 //! vectors: Σ_noise|aᴴe|² = ‖a‖² − Σ_signal|aᴴe|², and where that complement cancels
 //! (< 1 % of ‖a‖², the CPU's `music::REFINE_RATIO`) the spectrum kernel recomputes
-//! ‖(I − E_sE_sᴴ)a‖² by two Gram–Schmidt passes, which is the full noise-subspace sum to
-//! rounding. The unsquared form needs every noise vector individually: then V is
+//! the complement in double from double signal vectors (`music::complement64`, floor
+//! ε_f64·‖a‖², as the CPU), or — for the f32 Jacobi's vectors, which are only f32-accurate —
+//! ‖(I − E_sE_sᴴ)a‖² by two Gram–Schmidt passes in f32; either is the full noise-subspace
+//! sum to rounding. The unsquared form needs every noise vector individually: then V is
 //! accumulated (on Aᴴ for GSVD) and all M vectors are kept. The small products that
 //! whiten R are fused into the Jacobi kernel's prologue (no cuBLAS round trip); the
 //! correlation is its own small kernel so that stage times stay separate.
@@ -35,9 +37,10 @@
 //! of the Jacobi's ~10 sweeps × 8·M³, and H is formed and reduced in double precision, so
 //! GSVD's A Aᴴ does not square the f32 rounding. Whatever the plan's precision, R leaves the
 //! correlation in double, W is uploaded in double, and the tridiagonal eigensolver and the
-//! unsquared Jacobi compute in double (as the CPU does; only the squared Jacobi of an f32
-//! plan, M > 64, rotates in f32); the vectors go to the spectrum in T, and in double for
-//! its near-peak recomputation. `docs/gpu.md` has the measurements.
+//! unsquared Jacobi compute in double (as the CPU does; only the squared Jacobi path of an
+//! f32 plan — M > 64 or `SOUNDLOC_CUDA_DEC=jacobi` — rotates in f32); the vectors go to the
+//! spectrum in T, and, from the double eigensolver, in double for its near-peak
+//! recomputation. `docs/gpu.md` has the measurements.
 //!
 //! **Batching.** `process` splits its windows into sub-batches sized to fill the GPU a
 //! few times over; STFT frames go up through two pinned staging buffers on a copy stream
@@ -449,7 +452,9 @@ impl<T: Real> Backend<T> for CudaBackend<T> {
         self.gpu.sync(Stream::Compute)?;
         let old = std::mem::replace(&mut self.plan, plan);
         let lay = layout(&self.plan, &*self.gpu)?;
-        let relayout = lay.left != self.lay.left
+        let relayout = lay.srp != self.lay.srp
+            || lay.eigh != self.lay.eigh
+            || lay.left != self.lay.left
             || lay.right != self.lay.right
             || lay.want_v != self.lay.want_v
             || lay.ne != self.lay.ne
