@@ -25,12 +25,12 @@
 // denominator (every noise vector counts individually, as the CPU's f64 decomposition) and
 // for f64 plans; the squared path of an f32 plan (M > 64, or forced: below, eigh.cu serves it in
 // double) rotates in f32, as before, for twice the throughput. The vectors are stored in
-// P (E) and, for the spectrum's near-peak recomputation, in double (E64; may be null).
+// P (E): the double copy the spectrum recomputes near peaks from comes from eigh.cu only
+// (an f64 plan's E is double; the f32 Jacobi's vectors are f32-accurate).
 //
 // Outputs per matrix (index mat = mat0 + blockIdx.x, bin = mat % nb; R, E and the
 // scratch slots are indexed by blockIdx.x, i.e. relative to the sub-batch):
 //   E     [blk][nout][M]  vectors (row s = vector of rank s), nout = vec_all ? M : ns
-//   E64   [blk][nout][M]  the same in double (when not null)
 //   gain  [mat]           w_b · g (g = √σ_max when eigw, else 1)
 //   bw    [mat]           g as f32
 //   info  [mat]           sweeps used (diagnostics)
@@ -158,7 +158,7 @@ __device__ void decompose_impl(const cplx<double>* __restrict__ R, const cplx<P>
                                const cplx<double>* __restrict__ Wcm, const cplx<double>* __restrict__ Wrm, int M,
                                int nb, int ld, int ncf, int factor, int left, int right, int ns, int vec_all,
                                int max_sweeps, int eigw, int valmode, const P* __restrict__ weights, int mat0,
-                               cplx<P>* __restrict__ E, cplx<double>* __restrict__ E64, P* __restrict__ gain,
+                               cplx<P>* __restrict__ E, P* __restrict__ gain,
                                float* __restrict__ bw, int* __restrict__ info, cplx<double>* __restrict__ scratch) {
     // The arithmetic: double when every vector counts (unsquared) or the plan is f64; the
     // plan's f32 otherwise (the Jacobi's squared path serves M > 64, where the
@@ -386,7 +386,6 @@ __device__ void decompose_impl(const cplx<double>* __restrict__ R, const cplx<P>
             for (int i = lane; i < M; i += 32) {
                 const cplx<T> v = WANT_V ? V[(size_t)j * ld + i] : cscale(G[(size_t)j * ld + i], inv);
                 E[off + i] = cx<P>((P)v.re, (P)v.im);
-                if (E64 != nullptr) E64[off + i] = cto<double>(v);
                 if (rk == 0) u1[i] = v;
             }
         }
@@ -444,10 +443,10 @@ __device__ void decompose_impl(const cplx<double>* __restrict__ R, const cplx<P>
     extern "C" __global__ void __launch_bounds__(SL_DEC_THREADS, MINB)                                               \
         NAME(const cplx<double>* R, const cplx<P>* X, const int* win, const double* scale, const cplx<double>* Wcm,  \
              const cplx<double>* Wrm, int M, int nb, int ld, int ncf, int factor, int left, int right, int ns,         \
-             int vec_all, int max_sweeps, int eigw, int valmode, const P* weights, int mat0, cplx<P>* E,              \
-             cplx<double>* E64, P* gain, float* bw, int* info, cplx<double>* scratch) {                             \
+             int vec_all, int max_sweeps, int eigw, int valmode, const P* weights, int mat0, cplx<P>* E, P* gain,     \
+             float* bw, int* info, cplx<double>* scratch) {                                                         \
         decompose_impl<P, SMEM, WANT_V>(R, X, win, scale, Wcm, Wrm, M, nb, ld, ncf, factor, left, right, ns, vec_all,  \
-                                        max_sweeps, eigw, valmode, weights, mat0, E, E64, gain, bw, info, scratch);  \
+                                        max_sweeps, eigw, valmode, weights, mat0, E, gain, bw, info, scratch);  \
     }
 
 // f32 rotating in f32 (the squared _n kernels) with 128-thread blocks: at most 128

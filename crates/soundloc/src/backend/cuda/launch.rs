@@ -59,7 +59,7 @@ pub(super) struct DecMode {
 }
 
 impl<T: Real> CudaBackend<T> {
-    /// Where the decompositions put a second, double copy of the signal vectors (0: none).
+    /// Where the eigensolver puts a second, double copy of the signal vectors (0: none).
     pub(super) fn e64_out(&self) -> DevPtr {
         if self.lay.e64 {
             self.d_e64.ptr
@@ -185,7 +185,6 @@ impl<T: Real> CudaBackend<T> {
             .p(self.d_weights.ptr)
             .i(mat0)
             .p(self.d_e.ptr)
-            .p(self.e64_out())
             .p(self.d_gain.ptr)
             .p(self.d_bw.ptr)
             .p(self.d_info.ptr)

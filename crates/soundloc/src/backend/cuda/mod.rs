@@ -211,8 +211,8 @@ pub struct CudaBackend<T: Real> {
     d_win: Buf,
     d_r: Buf,
     d_e: Buf,
-    /// The signal vectors in double for the spectrum's near-peak recomputation (f32 plans;
-    /// an f64 plan's `d_e` already is).
+    /// The eigensolver's signal vectors in double for the spectrum's near-peak
+    /// recomputation (f32 plans; an f64 plan's `d_e` already is).
     d_e64: Buf,
     d_scratch: Buf,
     d_ppart: Buf,
