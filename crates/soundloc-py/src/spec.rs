@@ -45,7 +45,7 @@ impl PySpec {
     noise=None, noise_range=None, noise_cm=None, noise_segments=None, noise_preceding=None,
     track=false, tracker_thresh_db=0.0, device="auto", precision="f32", channels=None,
     input_channels=None, spectrum=true, grid_radius=1.0, speed_of_sound=343.0, channels_first=false,
-    subspace_dim=None, normalize_bins=false, refine=false))]
+    subspace_dim=None, normalize_bins=false, refine=false, subspace_tracking=false))]
 #[allow(clippy::too_many_arguments)] // mirrors the Python keywords
 pub(crate) fn spec(
     tf: Option<PathBuf>,
@@ -79,6 +79,7 @@ pub(crate) fn spec(
     subspace_dim: Option<usize>,
     normalize_bins: bool,
     refine: bool,
+    subspace_tracking: bool,
 ) -> PyResult<PySpec> {
     let grid_spec: Option<GridSpec> = match grid {
         Some(g) => match g.extract::<String>() {
@@ -120,6 +121,7 @@ pub(crate) fn spec(
     a.normalize_bins = normalize_bins;
     // The robust default (a noise source, no algorithm) turns refinement on itself.
     a.refine = refine;
+    a.subspace_tracking = subspace_tracking;
     a.max_peaks = max_peaks;
     a.window = window;
     a.period = period;

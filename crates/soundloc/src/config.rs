@@ -179,6 +179,12 @@ pub struct LocalizeConfig {
     /// direction is the maximum of a quadratic fitted to the dB spectrum at the peak and
     /// its grid neighbours, within one grid step. Off in HARK (grid directions only).
     pub refine: bool,
+    /// Approximate mode for streams (see [`crate::subspace::tracking`]): each window's
+    /// leading vectors by warm-started subspace iteration from the previous window's,
+    /// checked by their residual, with an exact decomposition at the start, on every
+    /// failed check and once per ⌈W / PERIOD⌉ windows. Pays off at small PERIOD and small
+    /// `signal_dim`; CPU only; no source count. Off (exact) by default.
+    pub subspace_tracking: bool,
 }
 
 impl Default for LocalizeConfig {
@@ -205,6 +211,7 @@ impl Default for LocalizeConfig {
             diagonal_loading: 0.0,
             normalize_bins: false,
             refine: false,
+            subspace_tracking: false,
         }
     }
 }

@@ -286,6 +286,17 @@ fn validate_config(c: &LocalizeConfig) -> Result<()> {
             c.diagonal_loading
         ));
     }
+    if c.subspace_tracking {
+        if !c.algorithm.is_music() {
+            return bad(format!(
+                "subspace tracking needs a MUSIC algorithm; {} has no subspace",
+                c.algorithm.name()
+            ));
+        }
+        if c.denominator == crate::config::Denominator::Unsquared {
+            return bad("subspace tracking needs the squared denominator (the unsquared one sums over every noise vector)".into());
+        }
+    }
     Ok(())
 }
 

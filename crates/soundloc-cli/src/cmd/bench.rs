@@ -58,6 +58,10 @@ pub struct Args {
     /// tick pushes a block into each, their windows run in one launch). Repeatable.
     #[arg(long = "streams", default_values_t = [1usize])]
     pub streams: Vec<usize>,
+    /// With --stream: the approximate mode (subspace tracking between windows, CPU); also
+    /// prints how far its results are from the exact path's on simulated scenes.
+    #[arg(long, requires = "stream")]
+    pub subspace_tracking: bool,
     /// With --stream: which arrays (repeatable; default: both).
     #[arg(long = "array", value_enum)]
     pub arrays: Vec<ArrayArg>,
@@ -138,6 +142,7 @@ fn run_stream(a: &Args, algs: &[AlgorithmArg]) -> anyhow::Result<ExitCode> {
                     PrecisionArg::F64 => soundloc::Precision::F64,
                 },
                 streams: streams.max(1),
+                subspace_tracking: a.subspace_tracking,
             };
             let r = run(&cfg)?;
             if a.json {
@@ -173,6 +178,43 @@ fn run_stream(a: &Args, algs: &[AlgorithmArg]) -> anyhow::Result<ExitCode> {
                     r.rtf * 1e3 * cfg.period as f64 / 100.0 / cfg.streams as f64
                         - (s.correlation_ms + s.decomposition_ms + s.spectrum_ms + s.peaks_ms)
                 );
+            }
+        }
+        if a.subspace_tracking {
+            let study = match arr {
+                ArrayArg::Ring8 => soundloc::bench::accuracy::StudyArray::Ring8,
+                ArrayArg::Seed => soundloc::bench::accuracy::StudyArray::Sphere60,
+            };
+            for &alg in algs {
+                let g = soundloc::bench::tracking::agreement(study, alg.into(), a.period, 2_000_000, 2)?;
+                if a.json {
+                    println!("{}", serde_json::to_string(&g)?);
+                } else {
+                    println!(
+                        "tracking vs exact, {:?} {} PERIOD {}: {} scenes (2 talkers, rotor noise, SNR 0 dB, RT60 0-0.6 s), {} windows",
+                        g.array,
+                        g.algorithm.name(),
+                        g.period,
+                        g.scenes,
+                        g.windows
+                    );
+                    println!(
+                        "  spectrum difference: RMS {:.4} dB, p99 {:.4} dB, max {:.3} dB; same top peak {:.1}% of windows",
+                        g.rms_db,
+                        g.p99_db,
+                        g.max_db,
+                        100.0 * g.same_top_peak
+                    );
+                    println!(
+                        "  talker-windows within 5 deg: exact {:.1}%, tracked {:.1}%; decomposition {:.3} -> {:.3} ms per window; engine {:.2} -> {:.2} s",
+                        100.0 * g.hits_exact,
+                        100.0 * g.hits_tracked,
+                        g.decomposition_ms_exact,
+                        g.decomposition_ms_tracked,
+                        g.seconds_exact,
+                        g.seconds_tracked
+                    );
+                }
             }
         }
     }

@@ -137,6 +137,12 @@ pub struct AnalysisArgs {
     /// spectrum around it, not at the grid point.
     #[arg(long)]
     pub refine: bool,
+    /// Approximate mode for streams (CPU): track each bin's leading vectors from window to
+    /// window by warm-started subspace iteration, checked by their residual, instead of an
+    /// exact decomposition per window. Pays off at small --period with few signal vectors
+    /// (HARK's algorithms at --num-sources 2); no source count. Off by default.
+    #[arg(long)]
+    pub subspace_tracking: bool,
 }
 
 /// `soundloc localize`: an input, and what to do with it.
@@ -304,6 +310,7 @@ impl AnalysisArgs {
             diagonal_loading: self.diagonal_loading,
             normalize_bins: self.normalize_bins,
             refine: self.refine,
+            subspace_tracking: self.subspace_tracking,
         }
     }
 }

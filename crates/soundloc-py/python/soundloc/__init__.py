@@ -22,7 +22,8 @@ Arguments (HARK LocalizeMUSIC name / pyroomacoustics name):
     algorithm: "sevd" | "gevd" | "gevd-hark" | "gsvd" | "srp-phat" (MUSIC_ALGORITHM); default
         sevd, or the robust gevd (subspace max(num_sources+2, M/2), refinement) when a noise source is given.
     subspace_dim (signal subspace when it should differ from num_sources), normalize_bins
-        (NormMUSIC), refine (sub-grid peak directions).
+        (NormMUSIC), refine (sub-grid peak directions), subspace_tracking (approximate
+        streaming mode on the CPU: leading vectors tracked between windows; no source count).
     num_sources (NUM_SOURCE / num_src), max_peaks (MAXNUM_OUT_PEAKS), window (WINDOW, frames),
     period (PERIOD), window_type "past"|"middle"|"future" (WINDOW_TYPE), freq_range
         (LOWER/UPPER_BOUND_FREQUENCY, Hz; pyroomacoustics' freq_range), nfft (LENGTH),

@@ -19,6 +19,7 @@ use crate::peaks::find_peaks;
 use crate::plan::Plan;
 use crate::real::{Real, C};
 use crate::srp::{self, SrpScratch};
+use crate::subspace::tracking::{self, BinTrack, Tracker};
 use crate::subspace::{count, decompose, Decomposition, Workspace};
 use crate::Result;
 use rayon::prelude::*;
@@ -40,6 +41,8 @@ pub struct CpuBackend<T: Real> {
     contrib: Vec<T>,
     /// Running sums per stream, with the call count of their last use.
     running: HashMap<StreamId, (RunningCorrelation, u64)>,
+    /// Subspace-tracking state per kept stream, `[bin]` (the approximate mode only).
+    tracks: HashMap<StreamId, Vec<BinTrack>>,
     calls: u64,
 }
 
@@ -53,6 +56,7 @@ impl<T: Real> CpuBackend<T> {
             decs: Vec::new(),
             contrib: Vec::new(),
             running: HashMap::new(),
+            tracks: HashMap::new(),
             calls: 0,
         }
     }
@@ -86,7 +90,79 @@ impl<T: Real> CpuBackend<T> {
                 };
                 self.running.remove(&oldest);
             }
+            let running = &self.running;
+            self.tracks.retain(|id, _| running.contains_key(id));
         }
+    }
+
+    /// The approximate mode's decompositions ([`tracking`]): each job's windows in order
+    /// per bin, (job, bin) pairs in parallel, every stream's state carried between calls.
+    fn track_jobs(&mut self, jobs: &[Job<'_, T>], nw: usize) -> Result<()> {
+        let plan = &*self.plan;
+        let (m, nb) = (plan.num_mics, plan.num_bins());
+        let mm = m * m;
+        let alg = plan.config.algorithm;
+        let c = &plan.config;
+        let refresh = c.window.div_ceil(c.period).max(1);
+        let mut states: Vec<Vec<BinTrack>> = jobs
+            .iter()
+            .map(|j| {
+                let kept = j
+                    .stream
+                    .is_kept()
+                    .then(|| self.tracks.remove(&j.stream))
+                    .flatten();
+                kept.unwrap_or_else(|| vec![BinTrack::default(); nb])
+            })
+            .collect();
+        // (job, bin) → that bin's decompositions of the job's windows, in window order.
+        let mut job_of = Vec::with_capacity(nw);
+        let mut first_window = Vec::with_capacity(jobs.len());
+        for (j, job) in jobs.iter().enumerate() {
+            first_window.push(job_of.len());
+            job_of.extend(std::iter::repeat_n(j, job.windows.len()));
+        }
+        let mut tasks: Vec<Vec<&mut Decomposition<T>>> = (0..jobs.len() * nb).map(|_| Vec::new()).collect();
+        for (i, dec) in self.decs.iter_mut().enumerate() {
+            tasks[job_of[i / nb] * nb + i % nb].push(dec);
+        }
+        let bins: Vec<&mut BinTrack> = states.iter_mut().flat_map(|s| s.iter_mut()).collect();
+        let r = &self.r;
+        tasks.into_par_iter().zip(bins).enumerate().try_for_each_init(
+            || (Workspace::new(m), Tracker::new(m)),
+            |(ws, tr), (t, (decs, state))| -> Result<()> {
+                let (j, b) = (t / nb, t % nb);
+                let job = &jobs[j];
+                for (wi, dec) in decs.into_iter().enumerate() {
+                    let w = &job.windows[wi];
+                    let g = first_window[j] + wi;
+                    // Frames that entered and left since the previous window (PERIOD of
+                    // each, at most CHANGED_FRAMES, where the job holds them).
+                    let n = c.period.min(w.len).min(tracking::CHANGED_FRAMES);
+                    let end = w.start + w.len;
+                    let left = w.start.saturating_sub(n).max(job.first)..w.start;
+                    let changed: Vec<&[C<T>]> = (end - n..end)
+                        .chain(left)
+                        .map(|f| job.spectra.frame_bin(job.local(f), b))
+                        .collect();
+                    let win = tracking::Window {
+                        algorithm: alg,
+                        r: &r[(b * nw + g) * mm..(b * nw + g + 1) * mm],
+                        w: plan.whitening_matrix64(b),
+                        changed: &changed,
+                        refresh,
+                    };
+                    tracking::decompose_tracked(&win, state, ws, tr, dec)?;
+                }
+                Ok(())
+            },
+        )?;
+        for (job, st) in jobs.iter().zip(states) {
+            if job.stream.is_kept() && self.running.contains_key(&job.stream) {
+                self.tracks.insert(job.stream, st);
+            }
+        }
+        Ok(())
     }
 }
 
@@ -113,6 +189,8 @@ impl<T: Real> Backend<T> for CpuBackend<T> {
     fn set_plan(&mut self, plan: Arc<Plan<T>>) -> Result<()> {
         super::check_replacement_plan("cpu backend", &self.plan, &plan)?;
         self.plan = plan;
+        // New whitening: the tracked blocks restart from exact decompositions.
+        self.tracks.clear();
         Ok(())
     }
 
@@ -126,6 +204,7 @@ impl<T: Real> Backend<T> for CpuBackend<T> {
 
     fn forget(&mut self, stream: StreamId) {
         self.running.remove(&stream);
+        self.tracks.remove(&stream);
     }
 }
 
@@ -164,9 +243,6 @@ impl<T: Real> CpuBackend<T> {
         // 2. Decompositions, [window][bin] (none for SRP-PHAT): the leading vectors the
         // spectrum needs, in f64.
         let t = Instant::now();
-        let r = &self.r;
-        // R of window w, bin b.
-        let r_of = |w: usize, b: usize| &r[(b * nw + w) * mm..(b * nw + w + 1) * mm];
         if srp {
             self.decs.clear();
         } else {
@@ -175,6 +251,14 @@ impl<T: Real> CpuBackend<T> {
                 self.decs.clear();
             }
             self.decs.resize_with(nw * nb, || Decomposition::new(m, k));
+        }
+        if !srp && plan.config.subspace_tracking {
+            self.track_jobs(jobs, nw)?;
+        }
+        let r = &self.r;
+        // R of window w, bin b.
+        let r_of = |w: usize, b: usize| &r[(b * nw + w) * mm..(b * nw + w + 1) * mm];
+        if !srp && !plan.config.subspace_tracking {
             self.decs.par_iter_mut().enumerate().try_for_each_init(
                 || Workspace::new(m),
                 |ws, (i, dec)| {
@@ -257,7 +341,8 @@ impl<T: Real> CpuBackend<T> {
         // 4. Peaks, and the number of active sources (MDL per bin, median over bins).
         let t = Instant::now();
         out.source_count.clear();
-        if !srp {
+        // (The approximate mode keeps only the tracked values: no count.)
+        if !srp && !plan.config.subspace_tracking {
             // Overlapping frames are not independent snapshots: N = W·hop/N_fft of them.
             let c = &plan.config;
             let overlap = c.hop.min(c.nfft) as f64 / c.nfft as f64;

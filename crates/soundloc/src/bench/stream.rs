@@ -53,6 +53,8 @@ pub struct StreamBenchConfig {
     pub precision: Precision,
     /// Concurrent streams in one group (1: a single `Localizer`).
     pub streams: usize,
+    /// The approximate mode ([`crate::subspace::tracking`]).
+    pub subspace_tracking: bool,
 }
 
 /// Figures.
@@ -91,6 +93,7 @@ fn setup(cfg: &StreamBenchConfig, rng: &mut rand::rngs::StdRng) -> Result<Setup>
         algorithm: cfg.algorithm,
         window_type: WindowType::Past,
         period: cfg.period,
+        subspace_tracking: cfg.subspace_tracking,
         ..LocalizeConfig::default()
     };
     let (tf, k) = match cfg.array {

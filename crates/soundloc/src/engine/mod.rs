@@ -48,8 +48,17 @@ pub use types::{Localization, Output, SpectrumTable, StreamOptions, TrackingSpec
 pub const CHUNK_FRAMES: usize = 4096;
 
 /// Build the backend for a device choice. `Auto` uses CUDA when a usable GPU and the
-/// libraries are present, else the CPU.
+/// libraries are present, else the CPU; the approximate mode (subspace tracking) runs on
+/// the CPU only, so `Auto` picks the CPU and a CUDA choice is an error there.
 pub fn make_backend<T: Real>(plan: Arc<Plan<T>>, device: DeviceChoice) -> Result<Box<dyn Backend<T>>> {
+    if plan.config.subspace_tracking {
+        return match device {
+            DeviceChoice::Cpu | DeviceChoice::Auto => Ok(Box::new(CpuBackend::new(plan))),
+            _ => Err(crate::Error::Config(format!(
+                "subspace tracking (the approximate mode) runs on the CPU only; got --device {device} (use --device cpu)"
+            ))),
+        };
+    }
     match device {
         DeviceChoice::Cpu => Ok(Box::new(CpuBackend::new(plan))),
         DeviceChoice::Cuda => crate::backend::cuda::new_backend(plan, 0),

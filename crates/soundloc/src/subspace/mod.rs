@@ -27,6 +27,7 @@ pub mod gevd_hark;
 pub mod gsvd;
 pub mod sevd;
 pub mod simd;
+pub mod tracking;
 mod tridiag;
 mod whiten;
 
@@ -48,7 +49,8 @@ pub struct Decomposition<T: Real> {
     pub vectors: Vec<C<T>>,
     /// The same vectors in f64 (for the spectrum's exact recomputation near peaks).
     pub vectors64: Vec<c64>,
-    /// All M eigen- or singular values, descending.
+    /// The eigen- or singular values, descending: all M from an exact decomposition, the
+    /// tracked block's from [`tracking`] (the approximate mode).
     pub values: Vec<T>,
 }
 
