@@ -78,6 +78,16 @@ def test_srp_phat_normmusic_and_refinement():
         localizer(subspace_dim=8).localize(x, FS)
 
 
+def test_subspace_tracking_stays_next_to_the_exact_path():
+    x = scene()
+    exact = localizer(period=1, window_type="past").localize(x, FS)
+    approx = localizer(period=1, window_type="past", subspace_tracking=True).localize(x, FS)
+    assert np.mean(exact.grid_index[:, 0] == approx.grid_index[:, 0]) >= 0.98
+    assert np.sqrt(np.mean((exact.spectrum_db - approx.spectrum_db) ** 2)) < 0.01
+    with pytest.raises(ValueError, match="MUSIC algorithm"):
+        localizer(algorithm="srp-phat", subspace_tracking=True).localize(x, FS)
+
+
 def test_dtypes_layouts_and_random_blocks_give_the_same_results():
     x = scene(seconds=1.5, seed=2)
     loc = localizer(window_type="past", period=7)
