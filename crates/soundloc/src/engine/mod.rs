@@ -36,52 +36,18 @@ use crate::{Error, Result};
 use std::collections::VecDeque;
 use std::sync::Arc;
 
+mod device;
 mod group;
 mod results;
 mod types;
 
+pub use device::make_backend;
 pub use group::StreamGroup;
 pub use results::{refine_source, source};
 pub use types::{Localization, Output, SpectrumTable, StreamOptions, TrackingSpec};
 
 /// Frames of input processed per step inside one [`Engine::push`].
 pub const CHUNK_FRAMES: usize = 4096;
-
-/// Build the backend for a device choice. `Auto` uses CUDA when a usable GPU and the
-/// libraries are present, else the CPU; the approximate mode (subspace tracking) runs on
-/// the CPU only, so `Auto` picks the CPU and a CUDA choice is an error there.
-pub fn make_backend<T: Real>(plan: Arc<Plan<T>>, device: DeviceChoice) -> Result<Box<dyn Backend<T>>> {
-    if plan.config.subspace_tracking {
-        return match device {
-            DeviceChoice::Cpu | DeviceChoice::Auto => Ok(Box::new(CpuBackend::new(plan))),
-            _ => Err(crate::Error::Config(format!(
-                "subspace tracking (the approximate mode) runs on the CPU only; got --device {device} (use --device cpu)"
-            ))),
-        };
-    }
-    match device {
-        DeviceChoice::Cpu => Ok(Box::new(CpuBackend::new(plan))),
-        DeviceChoice::Cuda => crate::backend::cuda::new_backend(plan, 0),
-        DeviceChoice::CudaAll | DeviceChoice::CudaSet(_) => {
-            let ordinals = match device.ordinals() {
-                Some(o) => o,
-                None => (0..crate::backend::cuda::device_count()?).collect(),
-            };
-            let parts = ordinals
-                .into_iter()
-                .map(|i| crate::backend::cuda::new_backend(plan.clone(), i))
-                .collect::<Result<Vec<_>>>()?;
-            Ok(Box::new(crate::backend::multi::MultiBackend::new(parts)?))
-        }
-        DeviceChoice::Auto => match crate::backend::cuda::new_backend(plan.clone(), 0) {
-            Ok(b) => Ok(b),
-            Err(e) => {
-                tracing::info!("CUDA not used ({e}); running on the CPU");
-                Ok(Box::new(CpuBackend::new(plan)))
-            }
-        },
-    }
-}
 
 /// The stream engine for one array (see the [module docs](self)).
 pub struct Engine<T: Real> {

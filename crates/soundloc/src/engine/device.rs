@@ -1,0 +1,44 @@
+//! Which backend runs a plan: the CPU, one GPU, several, or whichever is there.
+
+use crate::backend::cpu::CpuBackend;
+use crate::backend::{Backend, DeviceChoice};
+use crate::plan::Plan;
+use crate::real::Real;
+use crate::Result;
+use std::sync::Arc;
+
+/// Build the backend for a device choice. `Auto` uses CUDA when a usable GPU and the
+/// libraries are present, else the CPU; the approximate mode (subspace tracking) runs on
+/// the CPU only, so `Auto` picks the CPU and a CUDA choice is an error there.
+pub fn make_backend<T: Real>(plan: Arc<Plan<T>>, device: DeviceChoice) -> Result<Box<dyn Backend<T>>> {
+    if plan.config.subspace_tracking {
+        return match device {
+            DeviceChoice::Cpu | DeviceChoice::Auto => Ok(Box::new(CpuBackend::new(plan))),
+            _ => Err(crate::Error::Config(format!(
+                "subspace tracking (the approximate mode) runs on the CPU only; got --device {device} (use --device cpu)"
+            ))),
+        };
+    }
+    match device {
+        DeviceChoice::Cpu => Ok(Box::new(CpuBackend::new(plan))),
+        DeviceChoice::Cuda => crate::backend::cuda::new_backend(plan, 0),
+        DeviceChoice::CudaAll | DeviceChoice::CudaSet(_) => {
+            let ordinals = match device.ordinals() {
+                Some(o) => o,
+                None => (0..crate::backend::cuda::device_count()?).collect(),
+            };
+            let parts = ordinals
+                .into_iter()
+                .map(|i| crate::backend::cuda::new_backend(plan.clone(), i))
+                .collect::<Result<Vec<_>>>()?;
+            Ok(Box::new(crate::backend::multi::MultiBackend::new(parts)?))
+        }
+        DeviceChoice::Auto => match crate::backend::cuda::new_backend(plan.clone(), 0) {
+            Ok(b) => Ok(b),
+            Err(e) => {
+                tracing::info!("CUDA not used ({e}); running on the CPU");
+                Ok(Box::new(CpuBackend::new(plan)))
+            }
+        },
+    }
+}
