@@ -137,10 +137,8 @@ pub struct AnalysisArgs {
     /// spectrum around it, not at the grid point.
     #[arg(long)]
     pub refine: bool,
-    /// Approximate mode for streams (CPU): track each bin's leading vectors from window to
-    /// window by warm-started subspace iteration, checked by their residual, instead of an
-    /// exact decomposition per window. Pays off at small --period with few signal vectors
-    /// (HARK's algorithms at --num-sources 2); no source count. Off by default.
+    /// Approximate streaming mode (CPU): leading vectors tracked between windows, residual-
+    /// checked; for large arrays at small --period and --num-sources; no source count.
     #[arg(long)]
     pub subspace_tracking: bool,
 }

@@ -41,7 +41,8 @@ pub struct CpuBackend<T: Real> {
     contrib: Vec<T>,
     /// Running sums per stream, with the call count of their last use.
     running: HashMap<StreamId, (RunningCorrelation, u64)>,
-    /// Subspace-tracking state per kept stream, `[bin]` (the approximate mode only).
+    /// Subspace-tracking state per kept stream, `[bin]` (the approximate mode only); dropped
+    /// with the stream's running sums (which then restart exact).
     tracks: HashMap<StreamId, Vec<BinTrack>>,
     calls: u64,
 }
@@ -138,9 +139,15 @@ impl<T: Real> CpuBackend<T> {
                     let g = first_window[j] + wi;
                     // Frames that entered and left since the previous window (PERIOD of
                     // each, at most CHANGED_FRAMES, where the job holds them).
+                    // The engine hands the frames that left along only when consecutive
+                    // windows overlap by more than half (2·PERIOD < W): decided from the
+                    // config alone, so the search space never depends on how the input
+                    // was cut (the clip at `first` only matters at a stream's start, which
+                    // is decomposed exactly).
                     let n = c.period.min(w.len).min(tracking::CHANGED_FRAMES);
+                    let n_left = if 2 * c.period < c.window { n } else { 0 };
                     let end = w.start + w.len;
-                    let left = w.start.saturating_sub(n).max(job.first)..w.start;
+                    let left = w.start.saturating_sub(n_left).max(job.first)..w.start;
                     let changed: Vec<&[C<T>]> = (end - n..end)
                         .chain(left)
                         .map(|f| job.spectra.frame_bin(job.local(f), b))

@@ -20,6 +20,7 @@
 //! K's condition number 10⁶–10⁸, docs/precision.md) and the partial eigensolver
 //! [`eigh`]; the vectors are handed on in both precisions.
 
+mod block;
 pub mod count;
 pub mod eigh;
 mod gevd;
