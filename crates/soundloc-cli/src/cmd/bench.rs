@@ -206,7 +206,7 @@ fn run_stream(a: &Args, algs: &[AlgorithmArg]) -> anyhow::Result<ExitCode> {
                         100.0 * g.same_top_peak
                     );
                     println!(
-                        "  talker-windows within 5 deg: exact {:.1}%, tracked {:.1}%; decomposition {:.3} -> {:.3} ms per window; engine {:.2} -> {:.2} s",
+                        "  talker-windows within 5 deg: exact {:.1}%, tracked {:.1}%; decomposition {:.3} -> {:.3} ms per window; whole runs (TF, K, plan, engine) {:.2} -> {:.2} s",
                         100.0 * g.hits_exact,
                         100.0 * g.hits_tracked,
                         g.decomposition_ms_exact,

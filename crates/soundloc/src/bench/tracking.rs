@@ -37,7 +37,7 @@ pub struct Agreement {
     pub hits_exact: f64,
     /// Same, approximate mode.
     pub hits_tracked: f64,
-    /// Engine seconds (decomposition, spectrum …) of the exact path, all scenes.
+    /// Seconds of the exact path's runs, all scenes (each: free-field TFs, K, plan, engine).
     pub seconds_exact: f64,
     /// Same, approximate mode.
     pub seconds_tracked: f64,
