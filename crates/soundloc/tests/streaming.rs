@@ -3,10 +3,9 @@
 //! whole-file reference computed without the engine (STFT of the whole file, the window
 //! schedule, the backend) agrees; online K updates keep talkers after the noise moves.
 
-use rand::{Rng, SeedableRng};
 use soundloc::array::TransferFunctions;
 use soundloc::backend::cpu::CpuBackend;
-use soundloc::backend::{Backend, BatchOutput, DeviceChoice, Job, StreamId};
+use soundloc::backend::{Backend, BatchOutput, Job, StreamId};
 use soundloc::correlation::schedule;
 use soundloc::demo::{ring8_drone, DemoScene};
 use soundloc::noise::NoiseMatrices;
@@ -14,62 +13,13 @@ use soundloc::plan::Plan;
 use soundloc::sim::{position_from_az_el, scale_to_snr, Scene, SceneSource, Signal};
 use soundloc::stft::Stft;
 use soundloc::{
-    Algorithm, Block, LocalizationResult, LocalizeConfig, Localizer, LocalizerSpec, NoiseSource, NoiseUpdate,
-    Output, Precision, TrackingSpec, WindowType,
+    Algorithm, Block, LocalizationResult, LocalizeConfig, Localizer, NoiseSource, NoiseUpdate, Output,
+    Precision, TrackingSpec, WindowType,
 };
 use std::sync::Arc;
 
-fn spec_for(scene: &DemoScene, config: &LocalizeConfig) -> LocalizerSpec {
-    let mut s = LocalizerSpec::free_field(
-        scene.geometry.mics.clone(),
-        soundloc::array::grid::GridSpec::Ring {
-            step_deg: 5.0,
-            elevation_deg: 0.0,
-        },
-    );
-    s.analysis = config.clone();
-    s.algorithm = Some(config.algorithm);
-    s.device = DeviceChoice::Cpu;
-    s.spectrum = true;
-    s
-}
-
-/// Push `channels` in blocks of random sizes (1 sample … `max_block`), interleaved or
-/// planar at random; flush.
-fn stream(loc: &mut Localizer, channels: &[Vec<f32>], max_block: usize, seed: u64) -> Output {
-    let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
-    let len = channels[0].len();
-    let mut out = Output::default();
-    let mut pos = 0;
-    while pos < len {
-        let n = if rng.gen_bool(0.3) {
-            rng.gen_range(1..20)
-        } else {
-            rng.gen_range(1..=max_block)
-        }
-        .min(len - pos);
-        if rng.gen_bool(0.5) {
-            let mut inter = Vec::with_capacity(n * channels.len());
-            for i in pos..pos + n {
-                inter.extend(channels.iter().map(|c| c[i]));
-            }
-            loc.push(
-                Block::Interleaved {
-                    data: &inter,
-                    channels: channels.len(),
-                },
-                &mut out,
-            )
-            .unwrap();
-        } else {
-            let part: Vec<Vec<f32>> = channels.iter().map(|c| c[pos..pos + n].to_vec()).collect();
-            loc.push(Block::Planar(&part), &mut out).unwrap();
-        }
-        pos += n;
-    }
-    loc.flush(&mut out).unwrap();
-    out
-}
+mod common;
+use common::{spec_for, stream};
 
 fn assert_same(a: &Output, b: &soundloc::Localization, what: &str) {
     assert!(!b.results.is_empty(), "{what}: no results");

@@ -2,26 +2,16 @@
 //! input is cut, its spectra and peaks stay next to the exact path's on a drone scene,
 //! and the combinations it cannot serve are clear errors.
 
-use rand::{Rng, SeedableRng};
 use soundloc::backend::DeviceChoice;
+mod common;
+use common::stream;
 use soundloc::config::Denominator;
 use soundloc::demo::{ring8_drone, DemoScene};
-use soundloc::{
-    Algorithm, Block, LocalizeConfig, Localizer, LocalizerSpec, NoiseSource, NoiseUpdate, Output, WindowType,
-};
+use soundloc::{Algorithm, LocalizeConfig, Localizer, LocalizerSpec, NoiseSource, NoiseUpdate, WindowType};
 
+/// The common ring spec with K from the first second.
 fn spec_for(scene: &DemoScene, config: &LocalizeConfig) -> LocalizerSpec {
-    let mut s = LocalizerSpec::free_field(
-        scene.geometry.mics.clone(),
-        soundloc::array::grid::GridSpec::Ring {
-            step_deg: 5.0,
-            elevation_deg: 0.0,
-        },
-    );
-    s.analysis = config.clone();
-    s.algorithm = Some(config.algorithm);
-    s.device = DeviceChoice::Cpu;
-    s.spectrum = true;
+    let mut s = common::spec_for(scene, config);
     s.noise = NoiseSource::Range {
         start_s: 0.0,
         end_s: 1.0,
@@ -34,32 +24,6 @@ fn tracked(config: &LocalizeConfig) -> LocalizeConfig {
         subspace_tracking: true,
         ..config.clone()
     }
-}
-
-/// Push in blocks of random sizes (1 … `max_block` samples, interleaved), then flush.
-fn stream(loc: &mut Localizer, channels: &[Vec<f32>], max_block: usize, seed: u64) -> Output {
-    let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
-    let len = channels[0].len();
-    let mut out = Output::default();
-    let mut pos = 0;
-    while pos < len {
-        let n = rng.gen_range(1..=max_block).min(len - pos);
-        let mut inter = Vec::with_capacity(n * channels.len());
-        for i in pos..pos + n {
-            inter.extend(channels.iter().map(|c| c[i]));
-        }
-        loc.push(
-            Block::Interleaved {
-                data: &inter,
-                channels: channels.len(),
-            },
-            &mut out,
-        )
-        .unwrap();
-        pos += n;
-    }
-    loc.flush(&mut out).unwrap();
-    out
 }
 
 #[test]

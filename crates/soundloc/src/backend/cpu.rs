@@ -138,12 +138,10 @@ impl<T: Real> CpuBackend<T> {
                     let w = &job.windows[wi];
                     let g = first_window[j] + wi;
                     // Frames that entered and left since the previous window (PERIOD of
-                    // each, at most CHANGED_FRAMES, where the job holds them).
-                    // The engine hands the frames that left along only when consecutive
-                    // windows overlap by more than half (2·PERIOD < W): decided from the
-                    // config alone, so the search space never depends on how the input
-                    // was cut (the clip at `first` only matters at a stream's start, which
-                    // is decomposed exactly).
+                    // each, at most CHANGED_FRAMES). The engine keeps the frames that left
+                    // only while 2·PERIOD < W: decided from the config alone, so the search
+                    // space never depends on how the input was cut (the clip at `first`
+                    // matters only at a stream's start, which is decomposed exactly).
                     let n = c.period.min(w.len).min(tracking::CHANGED_FRAMES);
                     let n_left = if 2 * c.period < c.window { n } else { 0 };
                     let end = w.start + w.len;
@@ -154,7 +152,7 @@ impl<T: Real> CpuBackend<T> {
                         .collect();
                     let win = tracking::Window {
                         algorithm: alg,
-                        r: &r[(b * nw + g) * mm..(b * nw + g + 1) * mm],
+                        r: r_at(r, mm, nw, g, b),
                         w: plan.whitening_matrix64(b),
                         changed: &changed,
                         refresh,
@@ -171,6 +169,11 @@ impl<T: Real> CpuBackend<T> {
         }
         Ok(())
     }
+}
+
+/// R of window `w`, bin `b` in the backend's `[bin][window][M×M]` layout of `nw` windows.
+fn r_at(r: &[C<f64>], mm: usize, nw: usize, w: usize, b: usize) -> &[C<f64>] {
+    &r[(b * nw + w) * mm..(b * nw + w + 1) * mm]
 }
 
 fn ms(t: Instant) -> f64 {
@@ -263,8 +266,7 @@ impl<T: Real> CpuBackend<T> {
             self.track_jobs(jobs, nw)?;
         }
         let r = &self.r;
-        // R of window w, bin b.
-        let r_of = |w: usize, b: usize| &r[(b * nw + w) * mm..(b * nw + w + 1) * mm];
+        let r_of = |w: usize, b: usize| r_at(r, mm, nw, w, b);
         if !srp && !plan.config.subspace_tracking {
             self.decs.par_iter_mut().enumerate().try_for_each_init(
                 || Workspace::new(m),
