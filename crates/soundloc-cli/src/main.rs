@@ -8,6 +8,7 @@ use clap::Parser;
 use std::process::ExitCode;
 
 fn main() -> ExitCode {
+    init_log();
     let cli = cmd::Cli::parse();
     match cmd::run(cli) {
         Ok(code) => code,
@@ -25,4 +26,28 @@ fn main() -> ExitCode {
             ExitCode::from(2)
         }
     }
+}
+
+/// Diagnostic log on stderr when `SOUNDLOC_LOG` is `error`, `warn`, `info`, `debug` or
+/// `trace`: each line stamped with the seconds since start, which is what shows where a
+/// run's time goes (transfer functions, device set-up, kernel compilation, the engine).
+fn init_log() {
+    let Ok(level) = std::env::var("SOUNDLOC_LOG") else {
+        return;
+    };
+    let level = match level.trim().to_ascii_lowercase().as_str() {
+        "" | "0" | "off" => return,
+        "error" => tracing::Level::ERROR,
+        "warn" => tracing::Level::WARN,
+        "info" => tracing::Level::INFO,
+        "trace" => tracing::Level::TRACE,
+        _ => tracing::Level::DEBUG,
+    };
+    tracing_subscriber::fmt()
+        .with_max_level(level)
+        .with_writer(std::io::stderr)
+        .with_timer(tracing_subscriber::fmt::time::Uptime::default())
+        .with_target(false)
+        .with_ansi(false)
+        .init();
 }

@@ -62,7 +62,11 @@ struct Prepared<T: Real> {
 impl<T: Real> Prepared<T> {
     fn new(config: &LocalizeConfig, tf: &TransferFunctions, device: DeviceChoice) -> Result<Self> {
         let plan = Arc::new(Plan::<T>::new(config, tf, None)?);
-        let backend = make_backend(plan.clone(), device)?;
+        let backend = make_backend(
+            plan.clone(),
+            device,
+            crate::engine::device::default_cache().as_deref(),
+        )?;
         Ok(Prepared {
             plan,
             backend,

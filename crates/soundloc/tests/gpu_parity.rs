@@ -65,7 +65,7 @@ fn mode(test: &str) -> Option<Mode> {
 
 fn gpu<T: Real>(mode: &Mode, plan: Arc<Plan<T>>) -> Box<dyn Backend<T>> {
     match mode {
-        Mode::Device => cuda::new_backend(plan, 0).expect("CUDA backend"),
+        Mode::Device => cuda::new_backend(plan, 0, None).expect("CUDA backend"),
         Mode::Emulator(dir) => cuda::new_emulated_backend(plan, dir).expect("emulated CUDA backend"),
     }
 }

@@ -251,12 +251,13 @@ pub struct RunArgs {
     /// Compute precision.
     #[arg(long, value_enum, default_value = "f32")]
     pub precision: PrecisionArg,
-    /// Read the TF zip itself, not the prepared-TF cache (which holds the used bins of
-    /// zips read before, keyed by content).
+    /// Use no cache: read the TF zip itself, not the prepared-TF cache (which holds the
+    /// used bins of zips read before, keyed by content), and compile the GPU kernels
+    /// afresh instead of loading the images kept from earlier runs.
     #[arg(long)]
     pub no_cache: bool,
-    /// The prepared-TF cache folder (default: $SOUNDLOC_CACHE_DIR, else
-    /// $XDG_CACHE_HOME/soundloc, else ~/.cache/soundloc).
+    /// The cache folder for prepared TFs and compiled GPU kernels (default:
+    /// $SOUNDLOC_CACHE_DIR, else $XDG_CACHE_HOME/soundloc, else ~/.cache/soundloc).
     #[arg(long, conflicts_with = "no_cache")]
     pub cache_dir: Option<PathBuf>,
     /// No progress bar or notes on stderr.
@@ -449,7 +450,9 @@ pub fn drive(
     rx: Receiver<Msg>,
 ) -> anyhow::Result<ExitCode> {
     let spec = a.spec(fmt.sample_rate_hz)?;
+    tracing::debug!("localizer: setting up");
     let mut loc = Localizer::new(&spec)?;
+    tracing::debug!("localizer ready");
     for n in loc.notes() {
         note(a.quiet, n);
     }
@@ -556,6 +559,11 @@ pub fn drive(
         bail!("{}: no audio frames (zero samples)", name.display());
     }
     let audio_s = audio_frames as f64 / fs;
+    tracing::debug!(
+        "input done: {audio_s:.2} s of audio, {:.3} s in the engine ({:?})",
+        progress.compute_s,
+        loc.stage_times()
+    );
     note(
         a.quiet,
         &format!(
@@ -587,6 +595,7 @@ pub fn drive(
     );
     let view = sinks.take_view();
     sinks.finish(a, &loc, &title)?;
+    tracing::debug!("outputs written");
     if let Some(mut v) = view {
         v.status(Sinks::status(&progress, true), true);
         note(

@@ -99,17 +99,50 @@ struct Header {
     data_crc32: u32,
 }
 
-fn fnv1a(h: &mut u64, bytes: &[u8]) {
+/// 64-bit FNV-1a over `bytes`, continuing from `h` (start: [`FNV_START`]).
+pub(crate) fn fnv1a(h: &mut u64, bytes: &[u8]) {
     for &b in bytes {
         *h ^= b as u64;
         *h = h.wrapping_mul(0x100_0000_01b3);
     }
 }
 
+/// The FNV-1a offset basis.
+pub(crate) const FNV_START: u64 = 0xcbf2_9ce4_8422_2325;
+
+/// Write `parts` to `file` in `dir` (created if need be) atomically: a temporary file
+/// unique to this process and thread in the same folder, renamed over `file`, so
+/// concurrent readers never see half an entry. No fsync: a torn entry after a crash
+/// fails its checksum and is rebuilt.
+pub(crate) fn write_atomic(dir: &Path, file: &Path, parts: &[&[u8]]) -> std::io::Result<()> {
+    std::fs::create_dir_all(dir)?;
+    let name = file
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let tmp = dir.join(format!(
+        ".{name}.{}.{:?}.tmp",
+        std::process::id(),
+        std::thread::current().id()
+    ));
+    let res = (|| {
+        let mut f = std::io::BufWriter::new(std::fs::File::create(&tmp)?);
+        for p in parts {
+            f.write_all(p)?;
+        }
+        f.into_inner().map_err(|e| e.into_error())?;
+        std::fs::rename(&tmp, file)
+    })();
+    if res.is_err() {
+        let _ = std::fs::remove_file(&tmp);
+    }
+    res
+}
+
 /// The content key of TF zip `path` read with `want` (N, fs, bins).
 pub fn key(path: &Path, want: &Option<(usize, u32, Range<usize>)>) -> Result<String> {
     let mut zr = ZipReader::open(path)?;
-    let mut h = 0xcbf2_9ce4_8422_2325u64;
+    let mut h = FNV_START;
     fnv1a(
         &mut h,
         format!("soundloc tf cache v{VERSION} {want:?}").as_bytes(),
@@ -187,7 +220,6 @@ fn read_entry(file: &Path, key: &str) -> std::result::Result<TransferFunctions, 
 }
 
 fn write_entry(dir: &Path, file: &Path, key: &str, tf: &TransferFunctions) -> std::io::Result<()> {
-    std::fs::create_dir_all(dir)?;
     let mut raw = Vec::with_capacity(tf.data.len() * 8);
     for c in &tf.data {
         raw.extend_from_slice(&c.re.to_le_bytes());
@@ -205,26 +237,11 @@ fn write_entry(dir: &Path, file: &Path, key: &str, tf: &TransferFunctions) -> st
         data_crc32: crc32fast::hash(&raw),
     };
     let head = serde_json::to_vec(&h)?;
-    // A temporary name unique to this process and thread; renamed over the entry.
-    let tmp = dir.join(format!(
-        ".tf-{key}.{}.{:?}.tmp",
-        std::process::id(),
-        std::thread::current().id()
-    ));
-    let res = (|| {
-        let mut f = std::io::BufWriter::new(std::fs::File::create(&tmp)?);
-        f.write_all(MAGIC)?;
-        f.write_all(&(head.len() as u64).to_le_bytes())?;
-        f.write_all(&head)?;
-        f.write_all(&raw)?;
-        // No fsync: a torn entry after a crash fails its checksum and is rebuilt.
-        f.into_inner().map_err(|e| e.into_error())?;
-        std::fs::rename(&tmp, file)
-    })();
-    if res.is_err() {
-        let _ = std::fs::remove_file(&tmp);
-    }
-    res
+    write_atomic(
+        dir,
+        file,
+        &[MAGIC, &(head.len() as u64).to_le_bytes(), &head, &raw],
+    )
 }
 
 /// Load the TFs of zip `path` through the cache: `read` does the real read on a miss.

@@ -207,7 +207,11 @@ fn median(mut v: Vec<f64>) -> f64 {
 /// Run the benchmark.
 pub fn run<T: Real>(cfg: &BenchConfig) -> Result<BenchReport> {
     let inp = inputs::<T>(cfg)?;
-    let mut backend = make_backend(inp.plan.clone(), cfg.device)?;
+    let mut backend = make_backend(
+        inp.plan.clone(),
+        cfg.device,
+        crate::engine::device::default_cache().as_deref(),
+    )?;
     let mut out = BatchOutput::default();
     let one = &inp.windows[..1];
     // Warm-up (module load, kernel compile, allocation).

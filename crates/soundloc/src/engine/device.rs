@@ -5,12 +5,18 @@ use crate::backend::{Backend, DeviceChoice};
 use crate::plan::Plan;
 use crate::real::Real;
 use crate::Result;
+use std::path::Path;
 use std::sync::Arc;
 
 /// Build the backend for a device choice. `Auto` uses CUDA when a usable GPU and the
 /// libraries are present, else the CPU; the approximate mode (subspace tracking) runs on
-/// the CPU only, so `Auto` picks the CPU and a CUDA choice is an error there.
-pub fn make_backend<T: Real>(plan: Arc<Plan<T>>, device: DeviceChoice) -> Result<Box<dyn Backend<T>>> {
+/// the CPU only, so `Auto` picks the CPU and a CUDA choice is an error there. `cache`: the
+/// folder where compiled GPU kernels are kept between runs (None: compile each time).
+pub fn make_backend<T: Real>(
+    plan: Arc<Plan<T>>,
+    device: DeviceChoice,
+    cache: Option<&Path>,
+) -> Result<Box<dyn Backend<T>>> {
     if plan.config.subspace_tracking {
         return match device {
             DeviceChoice::Cpu | DeviceChoice::Auto => Ok(Box::new(CpuBackend::new(plan))),
@@ -21,7 +27,7 @@ pub fn make_backend<T: Real>(plan: Arc<Plan<T>>, device: DeviceChoice) -> Result
     }
     match device {
         DeviceChoice::Cpu => Ok(Box::new(CpuBackend::new(plan))),
-        DeviceChoice::Cuda => crate::backend::cuda::new_backend(plan, 0),
+        DeviceChoice::Cuda => crate::backend::cuda::new_backend(plan, 0, cache),
         DeviceChoice::CudaAll | DeviceChoice::CudaSet(_) => {
             let ordinals = match device.ordinals() {
                 Some(o) => o,
@@ -29,11 +35,11 @@ pub fn make_backend<T: Real>(plan: Arc<Plan<T>>, device: DeviceChoice) -> Result
             };
             let parts = ordinals
                 .into_iter()
-                .map(|i| crate::backend::cuda::new_backend(plan.clone(), i))
+                .map(|i| crate::backend::cuda::new_backend(plan.clone(), i, cache))
                 .collect::<Result<Vec<_>>>()?;
             Ok(Box::new(crate::backend::multi::MultiBackend::new(parts)?))
         }
-        DeviceChoice::Auto => match crate::backend::cuda::new_backend(plan.clone(), 0) {
+        DeviceChoice::Auto => match crate::backend::cuda::new_backend(plan.clone(), 0, cache) {
             Ok(b) => Ok(b),
             Err(e) => {
                 tracing::info!("CUDA not used ({e}); running on the CPU");
@@ -41,4 +47,23 @@ pub fn make_backend<T: Real>(plan: Arc<Plan<T>>, device: DeviceChoice) -> Result
             }
         },
     }
+}
+
+/// Start the slow one-time GPU set-up in the background when `device` may use CUDA (see
+/// [`crate::backend::cuda::prewarm`]); `cpu_only`: the run is bound to the CPU anyway.
+pub fn prewarm(device: DeviceChoice, cpu_only: bool) {
+    if cpu_only {
+        return;
+    }
+    match device {
+        DeviceChoice::Cpu => {}
+        DeviceChoice::Cuda | DeviceChoice::Auto => crate::backend::cuda::prewarm(Some(vec![0])),
+        DeviceChoice::CudaAll | DeviceChoice::CudaSet(_) => crate::backend::cuda::prewarm(device.ordinals()),
+    }
+}
+
+/// The default folder for compiled kernels (the soundloc cache folder), for callers that
+/// have no cache setting of their own.
+pub fn default_cache() -> Option<std::path::PathBuf> {
+    crate::array::tf_cache::TfCache::Default.dir()
 }

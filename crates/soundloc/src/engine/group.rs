@@ -34,7 +34,7 @@ pub struct StreamGroup<T: Real> {
 impl<T: Real> StreamGroup<T> {
     /// An empty group on `device` for `plan` (which holds the K every stream uses).
     pub fn new(plan: Arc<Plan<T>>, device: DeviceChoice) -> Result<Self> {
-        let backend = make_backend(plan.clone(), device)?;
+        let backend = make_backend(plan.clone(), device, super::device::default_cache().as_deref())?;
         Ok(Self::with_backend(plan, backend))
     }
 

@@ -36,7 +36,7 @@ use crate::{Error, Result};
 use std::collections::VecDeque;
 use std::sync::Arc;
 
-mod device;
+pub(crate) mod device;
 mod group;
 mod results;
 mod types;
@@ -145,7 +145,7 @@ impl<T: Real> Engine<T> {
         want_spectrum: bool,
     ) -> Result<Self> {
         let plan = Arc::new(Plan::<T>::new(config, tf, noise)?);
-        let backend = make_backend(plan.clone(), device)?;
+        let backend = make_backend(plan.clone(), device, device::default_cache().as_deref())?;
         let options = StreamOptions {
             initial_noise: InitialNoise::Given(noise.cloned()),
             noise_update: NoiseUpdate::Fixed,

@@ -313,7 +313,15 @@ impl Localizer {
             algorithm,
             ..spec.analysis.clone()
         };
+        // The GPU's driver and context come up while the transfer functions load.
+        crate::engine::device::prewarm(spec.device, config.subspace_tracking);
         let (tf, note) = spec.load_array_noted(&config)?;
+        tracing::debug!(
+            "transfer functions ready: {} mics, {} directions{}",
+            tf.num_mics,
+            tf.grid.len(),
+            note.as_deref().map(|n| format!(" ({n})")).unwrap_or_default()
+        );
         let mut loc = Self::with_transfer_functions(spec, tf, None)?;
         loc.notes.splice(0..0, note);
         Ok(loc)
@@ -330,8 +338,8 @@ impl Localizer {
         let p = prepare(spec, tf, noise)?;
         let grid = p.tf.grid.clone();
         let inner = match spec.precision {
-            Precision::F32 => Inner::F32(engine::<f32>(&p.config, &p.tf, spec.device, p.options)?),
-            Precision::F64 => Inner::F64(engine::<f64>(&p.config, &p.tf, spec.device, p.options)?),
+            Precision::F32 => Inner::F32(engine::<f32>(&p.config, &p.tf, spec, p.options)?),
+            Precision::F64 => Inner::F64(engine::<f64>(&p.config, &p.tf, spec, p.options)?),
         };
         Ok(Localizer {
             inner,
@@ -493,15 +501,23 @@ pub(crate) fn prepare(
 fn engine<T: Real>(
     config: &LocalizeConfig,
     tf: &TransferFunctions,
-    device: DeviceChoice,
+    spec: &LocalizerSpec,
     options: StreamOptions,
 ) -> Result<Engine<T>> {
+    let device = spec.device;
     let k = match &options.initial_noise {
         InitialNoise::Given(k) => k.as_ref(),
         InitialNoise::Range(..) => None,
     };
     let plan = Arc::new(Plan::<T>::new(config, tf, k)?);
-    let backend = make_backend(plan.clone(), device)?;
+    tracing::debug!(
+        "plan ready: {} bins, {} directions",
+        plan.num_bins(),
+        plan.num_dirs
+    );
+    // Compiled GPU kernels are kept where the prepared TFs are (none with the cache off).
+    let backend = make_backend(plan.clone(), device, spec.tf_cache.dir().as_deref())?;
+    tracing::debug!("backend ready: {}", backend.device_name());
     let mut e = Engine::new(plan, backend, options)?;
     e.set_cpu_fallback(device == DeviceChoice::Auto);
     Ok(e)

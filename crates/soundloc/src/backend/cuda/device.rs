@@ -10,6 +10,7 @@ use super::kernels::{self, Variant};
 use crate::{Error, Result};
 use cudarc::driver::{result as drv, sys};
 use std::ffi::{c_void, CString};
+use std::path::Path;
 
 /// A device pointer.
 pub(crate) type DevPtr = u64;
@@ -137,6 +138,25 @@ pub(crate) fn device_count() -> Result<usize> {
     Ok(count as usize)
 }
 
+/// Initialise the driver and retain device `ordinal`'s primary context for the rest of the
+/// process (once per device): the slow part of a first [`CudaGpu::new`] (≈ 0.2 s), which
+/// [`super::prewarm`] runs while the transfer functions load. Backends retain and release
+/// the context as before; this reference only keeps it from being torn down and rebuilt
+/// between them.
+pub(crate) fn keep_context(ordinal: usize) -> Result<()> {
+    static KEPT: std::sync::Mutex<Vec<usize>> = std::sync::Mutex::new(Vec::new());
+    let mut kept = KEPT.lock().map_err(|e| Error::Device(e.to_string()))?;
+    if kept.contains(&ordinal) {
+        return Ok(());
+    }
+    device_info(ordinal)?;
+    let dev = drv::device::get(ordinal as i32).map_err(|e| dev_err("cuDeviceGet", e))?;
+    // SAFETY: `dev` is valid; the reference is deliberately never released.
+    unsafe { drv::primary_ctx::retain(dev) }.map_err(|e| dev_err("cuDevicePrimaryCtxRetain", e))?;
+    kept.push(ordinal);
+    Ok(())
+}
+
 /// Name and compute capability of device `ordinal` (initialises the driver).
 pub(crate) fn device_info(ordinal: usize) -> Result<(String, u32, usize)> {
     if !driver_present() {
@@ -173,7 +193,7 @@ pub(crate) fn device_info(ordinal: usize) -> Result<(String, u32, usize)> {
 
 impl CudaGpu {
     /// Open device `ordinal` and load the module for `variant`.
-    pub(crate) fn new(ordinal: usize, variant: Variant) -> Result<Self> {
+    pub(crate) fn new(ordinal: usize, variant: Variant, cache: Option<&Path>) -> Result<Self> {
         let (name, cc, sms) = device_info(ordinal)?;
         if cc < 60 {
             return Err(Error::Device(format!(
@@ -182,11 +202,18 @@ impl CudaGpu {
                 cc % 10
             )));
         }
-        let img = kernels::image_for(variant, cc).map_err(Error::Device)?;
+        tracing::debug!("cuda:{ordinal}: {name} (sm_{cc}, {sms} SMs)");
+        let img = kernels::image_for(variant, cc, cache).map_err(Error::Device)?;
+        tracing::debug!(
+            "cuda:{ordinal}: kernels ready ({}, {} bytes)",
+            img.arch,
+            img.bytes.len()
+        );
         let dev = drv::device::get(ordinal as i32).map_err(|e| dev_err("cuDeviceGet", e))?;
         // SAFETY: `dev` is valid; the context is retained until Drop.
         let ctx =
             unsafe { drv::primary_ctx::retain(dev) }.map_err(|e| dev_err("cuDevicePrimaryCtxRetain", e))?;
+        tracing::debug!("cuda:{ordinal}: context ready");
         // SAFETY: ctx is a live primary context.
         unsafe { drv::ctx::set_current(ctx) }.map_err(|e| dev_err("cuCtxSetCurrent", e))?;
         let smem_optin = unsafe {
@@ -216,6 +243,7 @@ impl CudaGpu {
         // SAFETY: a CUBIN, or NUL-terminated PTX.
         g.module = unsafe { drv::module::load_data(img.bytes.as_ptr() as *const c_void) }
             .map_err(|e| dev_err(&format!("cuModuleLoadData ({})", img.arch), e))?;
+        tracing::debug!("cuda:{ordinal}: module loaded");
         Ok(g)
     }
 

@@ -10,8 +10,10 @@
 //! when the NVRTC at hand does not know it, PTX for the newest virtual architecture it
 //! does know is used instead and the driver JIT-compiles it.
 
+use super::image_cache;
 use std::collections::HashMap;
 use std::ffi::{c_char, c_int, CString};
+use std::path::Path;
 use std::sync::Mutex;
 
 /// The kernel files, in the order they are concatenated.
@@ -276,9 +278,10 @@ pub(crate) fn eigh_threads() -> usize {
     }
 }
 
-/// Compile (or fetch from the process-wide cache) the module for a device of compute
-/// capability `cc` = major·10 + minor.
-pub(crate) fn image_for(v: Variant, cc: u32) -> Result<Image, String> {
+/// Compile (or fetch from the process-wide cache, else from the on-disk cache in `disk`:
+/// [`super::image_cache`]) the module for a device of compute capability `cc` =
+/// major·10 + minor.
+pub(crate) fn image_for(v: Variant, cc: u32, disk: Option<&Path>) -> Result<Image, String> {
     if let Some(img) = cache().lock().map_err(|e| e.to_string())?.get(&(v, cc)) {
         return Ok(img.clone());
     }
@@ -290,6 +293,27 @@ pub(crate) fn image_for(v: Variant, cc: u32) -> Result<Image, String> {
         );
     }
     let src = full_source(v);
+    let entry = match disk {
+        Some(dir) => Some((
+            dir,
+            image_cache::entry(dir, &src, &options(&format!("sm_{cc}")), nvrtc_version()?, cc),
+        )),
+        None => None,
+    };
+    if let Some((_, file)) = &entry {
+        match image_cache::read(file) {
+            Ok(img) => {
+                tracing::debug!("kernels ({}, {}) from {}", v.tag(), img.arch, file.display());
+                cache()
+                    .lock()
+                    .map_err(|e| e.to_string())?
+                    .insert((v, cc), img.clone());
+                return Ok(img);
+            }
+            Err(why) => tracing::debug!("kernel cache {}: {why}", file.display()),
+        }
+    }
+    let t0 = std::time::Instant::now();
     let archs = supported_archs();
     let img = if archs.is_empty() || archs.contains(&(cc as i32)) {
         let arch = format!("sm_{cc}");
@@ -301,6 +325,17 @@ pub(crate) fn image_for(v: Variant, cc: u32) -> Result<Image, String> {
     } else {
         ptx_fallback(&src, cc, &archs)?
     };
+    tracing::debug!(
+        "NVRTC compiled the kernels ({}, {}) in {:.0} ms",
+        v.tag(),
+        img.arch,
+        t0.elapsed().as_secs_f64() * 1e3
+    );
+    if let Some((dir, file)) = &entry {
+        if let Err(e) = image_cache::write(dir, file, &img) {
+            tracing::debug!("kernel cache {}: not stored: {e}", dir.display());
+        }
+    }
     cache()
         .lock()
         .map_err(|e| e.to_string())?

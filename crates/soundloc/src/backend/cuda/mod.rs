@@ -66,6 +66,7 @@ mod buffers;
 mod device;
 mod emu;
 mod frames;
+mod image_cache;
 mod kernels;
 mod launch;
 mod layout;
@@ -117,17 +118,49 @@ pub fn device_count() -> Result<usize> {
     device::device_count()
 }
 
-/// Build a CUDA backend on device `ordinal`, or say why none can be had.
-pub fn new_backend<T: Real>(plan: Arc<Plan<T>>, ordinal: usize) -> Result<Box<dyn Backend<T>>> {
+/// Build a CUDA backend on device `ordinal`, or say why none can be had. `cache`: the
+/// folder that keeps compiled kernels between runs (None: compile every time).
+pub fn new_backend<T: Real>(
+    plan: Arc<Plan<T>>,
+    ordinal: usize,
+    cache: Option<&Path>,
+) -> Result<Box<dyn Backend<T>>> {
     guarded(|| {
         variant_for(&plan)?;
         let v = Variant {
             only: T::NAME,
             ..Variant::exact_for_mics(plan.num_mics).expect("checked by variant_for")
         };
-        let gpu = CudaGpu::new(ordinal, v)?;
+        let gpu = CudaGpu::new(ordinal, v, cache)?;
         Ok(Box::new(CudaBackend::new(plan, Box::new(gpu))?) as Box<dyn Backend<T>>)
     })
+}
+
+/// Start the GPUs' one-time set-up (driver initialisation, each device's primary context:
+/// ≈ 0.2 s) on a background thread, so that it overlaps loading the transfer functions
+/// and planning; a backend built later finds it done (or waits for it inside the driver).
+/// `ordinals`: the devices, None for all. Does nothing without a driver; failures are left
+/// for the backend to report.
+pub fn prewarm(ordinals: Option<Vec<usize>>) {
+    if !device::driver_present() {
+        return;
+    }
+    let spawned = std::thread::Builder::new()
+        .name("soundloc-cuda-prewarm".into())
+        .spawn(move || {
+            let _ = guarded(|| {
+                let list = match ordinals {
+                    Some(o) => o,
+                    None => (0..device::device_count()?).collect(),
+                };
+                for i in list {
+                    device::keep_context(i)?;
+                }
+                tracing::debug!("cuda: driver and contexts ready (prewarm)");
+                Ok(())
+            });
+        });
+    drop(spawned);
 }
 
 /// The same backend over the CPU emulator of the kernels found in `emu_dir`
@@ -307,8 +340,10 @@ impl<T: Real> CudaBackend<T> {
         };
         b.load_functions()?;
         b.upload_plan(None)?;
+        tracing::debug!("cuda: plan uploaded");
         b.chunk_ev = [b.gpu.event()?, b.gpu.event()?, b.gpu.event()?];
         b.size_batches()?;
+        tracing::debug!("cuda: batches sized ({} windows per call)", b.max_batch);
         Ok(b)
     }
 
