@@ -62,7 +62,8 @@ for s in $steps; do
     e2e)
       # End to end (issue 10): a 60-mic, 2522-direction TF zip and 60 s of 60-channel
       # 16-bit audio made here, GSVD PERIOD 1 on the GPU: cold (no cache) and warm.
-      W=/tmp/sl_e2e; mkdir -p $W; export SOUNDLOC_CACHE_DIR=$W/cache
+      # E2E_DIR inside the repo (e.g. target/sl_e2e) survives between calls on a warm machine.
+      W=${E2E_DIR:-/tmp/sl_e2e}; mkdir -p $W; W=$(cd $W && pwd); export SOUNDLOC_CACHE_DIR=$W/cache
       [ -f $W/tf.zip ] || "$C/soundloc" tf make --builtin sphere60 --grid sphere:2522 -o $W/tf.zip
       [ -f $W/rec.wav ] || python3 -c "
 import os, struct

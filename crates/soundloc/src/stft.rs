@@ -258,13 +258,11 @@ impl<T: Real> StftStream<T> {
         self.next_frame
     }
 
-    /// Append samples: `take(c)` gives channel c's new samples (all the same length).
-    pub fn append(&mut self, n: usize, mut take: impl FnMut(usize, &mut Vec<f32>)) {
-        for (c, b) in self.buf.iter_mut().enumerate() {
-            let before = b.len();
-            take(c, b);
-            debug_assert_eq!(b.len(), before + n);
-        }
+    /// Append n samples to every channel: `fill` extends each channel's buffer by n.
+    pub fn append(&mut self, n: usize, fill: impl FnOnce(&mut [Vec<f32>])) {
+        let before = self.buf.first().map_or(0, Vec::len);
+        fill(&mut self.buf);
+        debug_assert!(self.buf.iter().all(|b| b.len() == before + n));
         self.received += n;
     }
 
@@ -431,7 +429,11 @@ mod tests {
         let mut pos = 0;
         while pos < len {
             let n = rng.gen_range(1..700).min(len - pos);
-            stream.append(n, |c, b| b.extend_from_slice(&x[c][pos..pos + n]));
+            stream.append(n, |bufs| {
+                for (c, b) in bufs.iter_mut().enumerate() {
+                    b.extend_from_slice(&x[c][pos..pos + n]);
+                }
+            });
             pos += n;
             stream.frames_into(&mut ring, usize::MAX);
             // Keep only the newest frames: the ring drops from the front.

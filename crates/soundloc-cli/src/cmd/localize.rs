@@ -596,6 +596,8 @@ pub fn drive(
     let view = sinks.take_view();
     sinks.finish(a, &loc, &title)?;
     tracing::debug!("outputs written");
+    drop(loc);
+    tracing::debug!("localizer released");
     if let Some(mut v) = view {
         v.status(Sinks::status(&progress, true), true);
         note(

@@ -312,11 +312,8 @@ impl<T: Real> Engine<T> {
         while pos < len {
             let n = step.min(len - pos);
             let first = self.stft.samples_received();
-            self.stft.append(n, |c, v| {
-                let before = v.len();
-                block.extend_channel(idx[c], pos..pos + n, v);
-                debug_assert_eq!(v.len(), before + n);
-            });
+            self.stft
+                .append(n, |bufs| block.extend_channels(&idx, pos..pos + n, bufs));
             let (buf_start, buf) = self.stft.buffered();
             self.constant.resize(buf.len(), (None, false));
             for (c, ch) in buf.iter().enumerate() {
@@ -326,10 +323,11 @@ impl<T: Real> Engine<T> {
                     let v0 = *k.0.get_or_insert(tail.first().copied().unwrap_or(0.0));
                     k.1 = tail.iter().any(|&v| v != v0);
                 }
-                if let Some(i) = tail
-                    .iter()
-                    .position(|v| !v.is_finite() || v.abs() > T::MAX_SAMPLE)
-                {
+                // A branch-free pass first (it vectorises), the position
+                // only when something is wrong.
+                let bad = |v: &f32| v.is_nan() | (v.abs() > T::MAX_SAMPLE);
+                let any_bad = tail.iter().fold(false, |b, v| b | bad(v));
+                if let Some(i) = any_bad.then(|| tail.iter().position(bad)).flatten() {
                     let what = if tail[i].is_nan() {
                         "NaN".to_string()
                     } else if tail[i].is_infinite() {

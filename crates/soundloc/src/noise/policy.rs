@@ -147,8 +147,11 @@ impl RangeEstimate {
             return;
         }
         let (a, b) = (from - buf_start, to - buf_start);
-        self.stft
-            .append(to - from, |c, v| v.extend_from_slice(&buf[c][a..b]));
+        self.stft.append(to - from, |bufs| {
+            for (v, ch) in bufs.iter_mut().zip(buf) {
+                v.extend_from_slice(&ch[a..b]);
+            }
+        });
         self.stft.frames_into(&mut self.ring, usize::MAX);
         let n = self.ring.spectra().num_frames;
         self.sum.add(self.ring.spectra(), 0..n);
