@@ -41,18 +41,24 @@ pub const DIR_BLOCK: usize = 256;
 
 /// Per-thread scratch for [`accumulate_bin`].
 pub struct SpectrumScratch<T: Real> {
+    /// aᴴE for one block of directions, every window's columns side by side.
     proj: faer::Mat<C<T>>,
+    /// The windows' vectors side by side (M × columns), column-major.
+    cols: Vec<C<T>>,
 }
 
 impl<T: Real> SpectrumScratch<T> {
     /// Scratch for a plan.
     pub fn new(plan: &Plan<T>) -> Self {
-        let cols = match plan.config.denominator {
-            Denominator::Squared => plan.config.signal_dim(),
-            Denominator::Unsquared => plan.num_mics - plan.config.signal_dim(),
+        // Sized for one window; grown for a batch on first use.
+        let ns = plan.config.signal_dim();
+        let nc = match plan.config.denominator {
+            Denominator::Squared => ns,
+            Denominator::Unsquared => plan.num_mics - ns,
         };
         SpectrumScratch {
-            proj: faer::Mat::zeros(plan.num_dirs.min(DIR_BLOCK), cols),
+            proj: faer::Mat::zeros(plan.num_dirs.min(DIR_BLOCK), nc),
+            cols: Vec::new(),
         }
     }
 }
@@ -76,78 +82,92 @@ pub fn bin_gain<T: Real>(plan: &Plan<T>, dec: &Decomposition<T>) -> T {
 }
 
 /// Adds w_k·g_k·P_k(d) for the directions `dirs` (at most [`DIR_BLOCK`] of them) of used
-/// bin `b` to `acc` (one value per direction of `dirs`).
+/// bin `b` to `accs[i]` (one value per direction of `dirs`), for the windows whose
+/// decompositions of bin `b` are `decs[i]`. All windows' vectors go through one product
+/// with the block's steering vectors (one pass over the block however many windows); each
+/// projection aᴴe is a dot product over the microphones in a fixed order, so a window's
+/// result does not depend on the others in its batch.
 pub fn accumulate_bin<T: Real>(
     plan: &Plan<T>,
     b: usize,
     dirs: std::ops::Range<usize>,
-    dec: &Decomposition<T>,
+    decs: &[&Decomposition<T>],
     scratch: &mut SpectrumScratch<T>,
-    acc: &mut [T],
+    accs: &mut [&mut [T]],
 ) {
     let m = plan.num_mics;
     let nd = plan.num_dirs;
     let d = dirs.len();
-    debug_assert!(d <= DIR_BLOCK && acc.len() == d);
+    debug_assert!(d <= DIR_BLOCK && accs.iter().all(|a| a.len() == d) && accs.len() == decs.len());
     let ns = plan.config.signal_dim();
     let (st_all, n2_all) = plan.denominator_steering();
     let (d0, d1) = (b * nd + dirs.start, b * nd + dirs.end);
     let st = &st_all[d0 * m..d1 * m];
     let n2_den = &n2_all[d0..d1];
     let n2_num = &plan.steering_norm2[d0..d1];
-    let gain = plan.weights[b] * bin_gain(plan, dec);
-    if gain == T::zero() {
-        return;
+    // The projections aᴴe_c of every column the spectrum uses: the Ns signal vectors
+    // (squared denominator) or the M − Ns noise vectors (unsquared), per window.
+    let (c0, nc) = match plan.config.denominator {
+        Denominator::Squared => (0, ns),
+        Denominator::Unsquared => (ns, m - ns),
+    };
+    scratch.cols.clear();
+    for dec in decs {
+        scratch
+            .cols
+            .extend_from_slice(&dec.vectors[m * c0..m * (c0 + nc)]);
+    }
+    let ncols = nc * decs.len();
+    if scratch.proj.nrows() < d || scratch.proj.ncols() < ncols {
+        scratch.proj = faer::Mat::zeros(DIR_BLOCK.min(nd).max(d), ncols);
     }
     // Steering block as a D × M row-major matrix; we need conj(a)ᵀ e = (aᴴ e).
     let a = MatRef::from_row_major_slice(st, d, m);
+    let e = MatRef::from_column_major_slice(&scratch.cols, m, ncols);
+    faer::linalg::matmul::matmul(
+        scratch.proj.as_mut().submatrix_mut(0, 0, d, ncols),
+        Accum::Replace,
+        a.conjugate(),
+        e,
+        C::new(T::one(), T::zero()),
+        Par::Seq,
+    );
     let floor = T::of_f64(T::EPS);
-    match plan.config.denominator {
-        Denominator::Squared => {
-            let es = MatRef::from_column_major_slice(&dec.vectors[..m * ns], m, ns);
-            faer::linalg::matmul::matmul(
-                scratch.proj.as_mut().subrows_mut(0, d),
-                Accum::Replace,
-                a.conjugate(),
-                es,
-                C::new(T::one(), T::zero()),
-                Par::Seq,
-            );
-            let tau = T::of_f64(REFINE_RATIO);
-            for dir in 0..d {
-                let mut sig = T::zero();
-                for s in 0..ns {
-                    sig += scratch.proj[(dir, s)].norm_sqr();
-                }
-                let den = n2_den[dir] - sig;
-                let den = if den < tau * n2_den[dir] {
-                    T::of_f64(complement64(&st[dir * m..(dir + 1) * m], dec, ns))
-                } else {
-                    den.max(floor * n2_den[dir])
-                };
-                if den > T::zero() {
-                    acc[dir] += gain * n2_num[dir] / den;
+    for (i, (dec, acc)) in decs.iter().zip(accs.iter_mut()).enumerate() {
+        let gain = plan.weights[b] * bin_gain(plan, dec);
+        if gain == T::zero() {
+            continue;
+        }
+        let proj = scratch.proj.as_ref().subcols(i * nc, nc);
+        match plan.config.denominator {
+            Denominator::Squared => {
+                let tau = T::of_f64(REFINE_RATIO);
+                for dir in 0..d {
+                    let mut sig = T::zero();
+                    for s in 0..ns {
+                        sig += proj[(dir, s)].norm_sqr();
+                    }
+                    let den = n2_den[dir] - sig;
+                    let den = if den < tau * n2_den[dir] {
+                        T::of_f64(complement64(&st[dir * m..(dir + 1) * m], dec, ns))
+                    } else {
+                        den.max(floor * n2_den[dir])
+                    };
+                    if den > T::zero() {
+                        acc[dir] += gain * n2_num[dir] / den;
+                    }
                 }
             }
-        }
-        Denominator::Unsquared => {
-            let en = MatRef::from_column_major_slice(&dec.vectors[m * ns..], m, m - ns);
-            faer::linalg::matmul::matmul(
-                scratch.proj.as_mut().subrows_mut(0, d),
-                Accum::Replace,
-                a.conjugate(),
-                en,
-                C::new(T::one(), T::zero()),
-                Par::Seq,
-            );
-            for dir in 0..d {
-                let mut den = T::zero();
-                for s in 0..m - ns {
-                    den += scratch.proj[(dir, s)].norm();
-                }
-                let den = den.max(floor * n2_den[dir].sqrt());
-                if den > T::zero() {
-                    acc[dir] += gain * n2_num[dir] / den;
+            Denominator::Unsquared => {
+                for dir in 0..d {
+                    let mut den = T::zero();
+                    for s in 0..nc {
+                        den += proj[(dir, s)].norm();
+                    }
+                    let den = den.max(floor * n2_den[dir].sqrt());
+                    if den > T::zero() {
+                        acc[dir] += gain * n2_num[dir] / den;
+                    }
                 }
             }
         }
@@ -256,6 +276,46 @@ mod tests {
             }
         }
         worst
+    }
+
+    /// A window's spectrum is the same bits whether it runs alone or in a batch (all
+    /// windows of a bin share one product with the steering block), for both denominators.
+    #[test]
+    fn a_window_alone_equals_it_in_a_batch() {
+        for denominator in [Denominator::Squared, Denominator::Unsquared] {
+            let cfg = BenchConfig {
+                algorithm: Algorithm::Gevd,
+                num_mics: 24,
+                num_dirs: 600,
+                batch: 7,
+                ..Default::default()
+            };
+            let inp = inputs::<f32>(&cfg).unwrap();
+            let mut plan = (*inp.plan).clone();
+            plan.config.denominator = denominator;
+            let mut be = CpuBackend::new(std::sync::Arc::new(plan));
+            let mut all = BatchOutput::default();
+            be.process(&[Job::once(&inp.spectra, &inp.windows)], true, &mut all)
+                .unwrap();
+            let d = inp.plan.num_dirs;
+            for (i, w) in inp.windows.iter().enumerate() {
+                let mut one = BatchOutput::default();
+                be.process(
+                    &[Job::once(&inp.spectra, std::slice::from_ref(w))],
+                    true,
+                    &mut one,
+                )
+                .unwrap();
+                let batch = &all.spectrum_db[i * d..(i + 1) * d];
+                assert!(
+                    one.spectrum_db
+                        .iter()
+                        .zip(batch)
+                        .all(|(a, b)| a.to_bits() == b.to_bits()),
+                    "{denominator:?}: window {i} differs alone and in the batch"
+                );
+            }
+        }
     }
 
     #[test]

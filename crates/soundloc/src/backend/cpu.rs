@@ -311,11 +311,11 @@ impl<T: Real> CpuBackend<T> {
             self.contrib.par_chunks_mut(nw * d).enumerate().for_each_init(
                 || SpectrumScratch::new(plan),
                 |sc, (b, cb)| {
+                    let bin_decs: Vec<&Decomposition<T>> = (0..nw).map(|w| &decs[w * nb + b]).collect();
                     for dirs in blocks() {
-                        for (w, acc) in cb.chunks_mut(d).enumerate() {
-                            let acc = &mut acc[dirs.clone()];
-                            accumulate_bin(plan, b, dirs.clone(), &decs[w * nb + b], sc, acc);
-                        }
+                        let mut accs: Vec<&mut [T]> =
+                            cb.chunks_mut(d).map(|acc| &mut acc[dirs.clone()]).collect();
+                        accumulate_bin(plan, b, dirs.clone(), &bin_decs, sc, &mut accs);
                     }
                 },
             );
