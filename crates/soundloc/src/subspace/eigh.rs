@@ -5,10 +5,13 @@
 //! 1. **Householder tridiagonalisation** (LAPACK `zhetd2`, lower): A = Q T Qᴴ with T real
 //!    symmetric tridiagonal and Q = H₀ H₁ ⋯ H_{n−2}, H_j = I − τ_j v_j v_jᴴ. Per step j,
 //!    with v spanning rows j+1 … n−1: p = τ A₂₂ v, w = p − ½ τ (pᴴv) v,
-//!    A₂₂ ← A₂₂ − v wᴴ − w vᴴ. The matrix is kept in full storage with split real and
-//!    imaginary parts, rows contiguous, so both loops run over contiguous memory and
-//!    vectorise (AVX2 where the CPU has it; the same operations in the same order either
-//!    way, so results do not depend on the instruction set). ≈ n³ complex multiply-adds.
+//!    A₂₂ ← A₂₂ − v wᴴ − w vᴴ. Only the lower triangle is kept and updated (split real and
+//!    imaginary parts, rows contiguous): the product A₂₂ v reads each row once, as a dot
+//!    product for its own entry and an axpy for the mirrored upper part, so both loops run
+//!    over contiguous memory and vectorise (AVX2 where the CPU has it; the same operations
+//!    in the same order either way, so results do not depend on the instruction set).
+//!    ≈ n³/2 complex multiply-adds (the rank-2 update on half the matrix), and half the
+//!    memory traffic of full storage.
 //! 2. **Eigenvalues of T** by the rational (square-root free) implicit QL method
 //!    (EISPACK `tqlrat`), no vectors: O(n²).
 //! 3. **The k largest eigenvectors of T** by inverse iteration, re-orthogonalised within
@@ -23,7 +26,7 @@
 //! k = 2 vectors a few µs, against faer's `self_adjoint_evd` with vectors at 278 µs (c32)
 //! and 415 µs (c64).
 
-use super::simd::{self, axpy, axpy_real, conj_axpy, dot_real, dotc, rank2_row};
+use super::simd::{self, axpy, axpy_real, conj_axpy, dot4, dot_real, dotc, rank2_row};
 use super::tridiag::{ql_values, TriLu};
 use crate::real::C;
 use crate::{Error, Result};
@@ -81,8 +84,8 @@ impl Eigh {
         self.n
     }
 
-    /// The matrix to decompose, row-major real and imaginary parts (n × n each). Fill both
-    /// triangles: A must be Hermitian (the strictly upper triangle is what is read).
+    /// The matrix to decompose, row-major real and imaginary parts (n × n each). A must be
+    /// Hermitian; only its lower triangle (and the real part of the diagonal) is read.
     pub fn matrix_mut(&mut self) -> (&mut [f64], &mut [f64]) {
         (&mut self.re, &mut self.im)
     }
@@ -247,11 +250,10 @@ fn tridiagonalize_impl(s: &mut Eigh) {
         }
         let len = n - j - 1;
         let row = j * n + j + 1;
-        // x = A[j+1.., j] = conj(A[j, j+1..]).
-        let alpha = C::new(s.re[row], -s.im[row]);
-        let xnorm2: f64 = (1..len)
-            .map(|i| s.re[row + i].powi(2) + s.im[row + i].powi(2))
-            .sum();
+        // x = A[j+1.., j]: column j below the diagonal (only the lower triangle is kept).
+        let at = |i: usize| (j + 1 + i) * n + j;
+        let alpha = C::new(s.re[at(0)], s.im[at(0)]);
+        let xnorm2: f64 = (1..len).map(|i| s.re[at(i)].powi(2) + s.im[at(i)].powi(2)).sum();
         if xnorm2 == 0.0 && alpha.im == 0.0 {
             // Already reduced: H = I.
             s.off[j] = alpha.re;
@@ -271,30 +273,42 @@ fn tridiagonalize_impl(s: &mut Eigh) {
         vr[0] = 1.0;
         vi[0] = 0.0;
         for i in 1..len {
-            let x = C::new(s.re[row + i], -s.im[row + i]) * scale;
+            let x = C::new(s.re[at(i)], s.im[at(i)]) * scale;
             vr[i] = x.re;
             vi[i] = x.im;
         }
         s.off[j] = beta;
         s.tau[j] = tau;
-        // p = τ A₂₂ v = τ Σ_i conj(row i of A₂₂) v_i (A₂₂ is Hermitian): row-wise axpys.
+        // q = A₂₂ v from the lower triangle, row by row: row i gives q_i its part left
+        // of the diagonal (a dot product) and q_k, k < i, the mirrored part conj(A_ik) v_i
+        // (an axpy); every element is read once.
         let (pr, pi) = (&mut s.pr[..len], &mut s.pi[..len]);
         pr.iter_mut().chain(pi.iter_mut()).for_each(|x| *x = 0.0);
         for i in 0..len {
             let r0 = (j + 1 + i) * n + j + 1;
-            let f = tau * C::new(vr[i], vi[i]);
-            conj_axpy(f, &s.re[r0..r0 + len], &s.im[r0..r0 + len], pr, pi);
+            let (ar, ai) = (&s.re[r0..r0 + i], &s.im[r0..r0 + i]);
+            let vi_ = C::new(vr[i], vi[i]);
+            let left = dot4::<false>(ar, ai, &vr[..i], &vi[..i]);
+            conj_axpy(vi_, ar, ai, &mut pr[..i], &mut pi[..i]);
+            let d = s.re[r0 + i];
+            pr[i] += left.re + d * vi_.re;
+            pi[i] += left.im + d * vi_.im;
         }
-        // w = p − ½ τ (pᴴ v) v.
+        // p = τ q; w = p − ½ τ (pᴴ v) v.
+        for i in 0..len {
+            let p = tau * C::new(pr[i], pi[i]);
+            pr[i] = p.re;
+            pi[i] = p.im;
+        }
         let a = tau * dotc(pr, pi, vr, vi) * -0.5;
         axpy(a, vr, vi, pr, pi);
-        // A₂₂ ← A₂₂ − v wᴴ − w vᴴ.
+        // A₂₂ ← A₂₂ − v wᴴ − w vᴴ on the lower triangle (the diagonal included).
         for i in 0..len {
             let r0 = (j + 1 + i) * n + j + 1;
             let (v, w) = (C::new(vr[i], vi[i]), C::new(pr[i], pi[i]));
             rank2_row(
-                &mut s.re[r0..r0 + len],
-                &mut s.im[r0..r0 + len],
+                &mut s.re[r0..r0 + i + 1],
+                &mut s.im[r0..r0 + i + 1],
                 v,
                 w,
                 vr,
@@ -303,7 +317,8 @@ fn tridiagonalize_impl(s: &mut Eigh) {
                 pi,
             );
         }
-        // Keep v_j in row j for the back-transformation.
+        // Keep v_j in row j (right of the diagonal, unused by the lower triangle) for the
+        // back-transformation.
         s.re[row..row + len].copy_from_slice(vr);
         s.im[row..row + len].copy_from_slice(vi);
     }
