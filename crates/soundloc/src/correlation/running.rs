@@ -129,16 +129,21 @@ pub fn run_bin<T: Real, U: Real>(
             }));
         }
     };
-    // S += sign · Yᵀ conj(Y) = sign · Σ_f y_f y_fᴴ (S_ij = Σ y_i conj(y_j)).
+    // S += sign · Yᵀ conj(Y) = sign · Σ_f y_f y_fᴴ (S_ij = Σ y_i conj(y_j)), its upper
+    // triangle only (column-major: rows i ≤ j of column j), the half R is read from.
     let add = |sum: &mut [C<f64>], y: &[C<f64>], accum: faer::Accum, sign: f64| {
+        use faer::linalg::matmul::triangular::{matmul, BlockStructure as B};
         let rows = y.len() / m.max(1);
         let ym = faer::MatRef::from_row_major_slice(y, rows, m);
         let s = faer::MatMut::from_column_major_slice_mut(sum, m, m);
-        faer::linalg::matmul::matmul(
+        matmul(
             s,
+            B::TriangularUpper,
             accum,
             ym.transpose(),
+            B::Rectangular,
             ym.conjugate(),
+            B::Rectangular,
             C::new(sign, 0.0),
             faer::Par::Seq,
         );
@@ -160,7 +165,9 @@ pub fn run_bin<T: Real, U: Real>(
     let inv_w = 1.0 / w.len.max(1) as f64;
     let mut s = 1.0;
     if !phat {
-        let mx = sum.iter().fold(0.0f64, |a, v| a.max(v.re.abs()));
+        let mx = (0..m)
+            .flat_map(|j| &sum[j * m..j * m + j + 1])
+            .fold(0.0f64, |a, v| a.max(v.re.abs()));
         s = mx * inv_w + 1.0;
     }
     let k = inv_w / s;
