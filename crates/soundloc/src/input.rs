@@ -9,6 +9,11 @@
 use crate::{Error, Result};
 use std::ops::Range;
 
+/// The most audio, in seconds, that a reader falling behind live input hands to one push:
+/// blocks queued behind the one at hand go into the same push, so their windows run as one
+/// batch (`soundloc localize -`, `listen`, and `bench --stream --paced` do this).
+pub const CATCH_UP_S: f64 = 1.0;
+
 /// Frames per tile when an interleaved block is split into channels.
 const TILE: usize = 256;
 

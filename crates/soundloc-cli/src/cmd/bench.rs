@@ -62,6 +62,11 @@ pub struct Args {
     /// prints how far its results are from the exact path's on simulated scenes.
     #[arg(long, requires = "stream")]
     pub subspace_tracking: bool,
+    /// With --stream: the audio arrives at real-time pace (10 ms blocks) and every push
+    /// takes all blocks queued so far, as live input does when the localizer falls behind
+    /// (one stream): does it keep up, with what latency and batches.
+    #[arg(long, requires = "stream")]
+    pub paced: bool,
     /// With --stream: which arrays (repeatable; default: both).
     #[arg(long = "array", value_enum)]
     pub arrays: Vec<ArrayArg>,
@@ -143,6 +148,7 @@ fn run_stream(a: &Args, algs: &[AlgorithmArg]) -> anyhow::Result<ExitCode> {
                 },
                 streams: streams.max(1),
                 subspace_tracking: a.subspace_tracking,
+                paced: a.paced,
             };
             let r = run(&cfg)?;
             if a.json {
@@ -168,6 +174,12 @@ fn run_stream(a: &Args, algs: &[AlgorithmArg]) -> anyhow::Result<ExitCode> {
                     r.latency_ms_p99,
                     r.latency_ms_max
                 );
+                if let (Some(b), Some(q)) = (r.blocks_per_push, r.max_backlog_ms) {
+                    println!(
+                        "  paced at real time: {b:.2} blocks (10 ms each) per push on average, largest backlog {q:.0} ms of audio{}",
+                        if r.rtf < 1.0 { "" } else { " (it did not keep up)" }
+                    );
+                }
                 let s = &r.stages_per_result;
                 println!(
                     "  per result (ms): correlation {:.3}, decomposition {:.3}, spectrum {:.3}, peaks {:.3}; rest {:.3}",

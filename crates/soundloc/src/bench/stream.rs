@@ -13,12 +13,19 @@
 //! `run` launches all their due windows together; the real-time factor is the compute time
 //! of the ticks / the audio time of one stream (below 1: the device keeps every stream in
 //! real time), the latency that of a tick (its last push to the end of its `run`).
+//!
+//! With `paced`, the audio arrives as it would from a sound card: block k is available
+//! from (k + 1)·block/fs seconds after the start, and each push takes every block that has
+//! arrived and not been pushed yet (at most [`CATCH_UP_S`] of audio), so a localizer that
+//! falls behind runs the queued windows as one batch (what `soundloc localize -` and
+//! `listen` do). Reported besides: the mean blocks per push and the largest backlog; the
+//! latency runs from the arrival of a result's block to the end of its push.
 
 use super::{gauss, random_noise, random_transfer_functions};
 use crate::array::{freefield::free_field, Geometry, Grid};
 use crate::backend::DeviceChoice;
 use crate::config::{Algorithm, LocalizeConfig, Precision, WindowType};
-use crate::input::Block;
+use crate::input::{Block, CATCH_UP_S};
 use crate::localizer::{Localizer, LocalizerSpec, NoiseSource};
 use crate::{Output, Result};
 use rand::SeedableRng;
@@ -55,6 +62,8 @@ pub struct StreamBenchConfig {
     pub streams: usize,
     /// The approximate mode ([`crate::subspace::tracking`]).
     pub subspace_tracking: bool,
+    /// Audio arrives at real-time pace; queued blocks are pushed together (one stream).
+    pub paced: bool,
 }
 
 /// Figures.
@@ -80,6 +89,11 @@ pub struct StreamReport {
     pub latency_ms_max: f64,
     /// Stage split per result, ms (the STFT, scheduling, noise and tracking are the rest).
     pub stages_per_result: crate::backend::StageTimes,
+    /// Paced runs: blocks per push, mean.
+    pub blocks_per_push: Option<f64>,
+    /// Paced runs: the largest backlog (arrived, not yet pushed) seen before a push, ms of
+    /// audio.
+    pub max_backlog_ms: Option<f64>,
 }
 
 type Setup = (
@@ -119,6 +133,11 @@ fn setup(cfg: &StreamBenchConfig, rng: &mut rand::rngs::StdRng) -> Result<Setup>
 
 /// Run it.
 pub fn run(cfg: &StreamBenchConfig) -> Result<StreamReport> {
+    if cfg.paced && cfg.streams > 1 {
+        return Err(crate::Error::Config(
+            "a paced stream benchmark runs one stream (--streams 1)".into(),
+        ));
+    }
     if cfg.streams > 1 {
         return match cfg.precision {
             Precision::F32 => run_group::<f32>(cfg),
@@ -160,6 +179,29 @@ pub fn run(cfg: &StreamBenchConfig) -> Result<StreamReport> {
     out.results.clear();
     let before = loc.stage_times();
     let pushes = (cfg.seconds * fs / block as f64).ceil() as usize;
+    if cfg.paced {
+        let audio: Vec<f32> = (0..pushes * block * m)
+            .map(|_| (1000.0 * gauss(&mut rng)) as f32)
+            .collect();
+        let p = paced(&mut loc, &audio, m, block, fs)?;
+        let mut lat = p.latency_ms;
+        lat.sort_by(f64::total_cmp);
+        let q = |x: f64| quantile(&lat, x);
+        return Ok(StreamReport {
+            config: cfg.clone(),
+            device: loc.device_name(),
+            num_mics: m,
+            num_dirs: d,
+            results: lat.len(),
+            rtf: p.compute_s / (pushes * block) as f64 * fs,
+            latency_ms_median: q(0.5),
+            latency_ms_p99: q(0.99),
+            latency_ms_max: lat.last().copied().unwrap_or(f64::NAN),
+            stages_per_result: per_result(loc.stage_times(), before, lat.len()),
+            blocks_per_push: Some(pushes as f64 / p.pushes.max(1) as f64),
+            max_backlog_ms: Some(p.max_backlog as f64 * block as f64 / fs * 1e3),
+        });
+    }
     let mut compute = 0.0;
     let mut lat = Vec::new();
     let mut results = 0;
@@ -195,7 +237,65 @@ pub fn run(cfg: &StreamBenchConfig) -> Result<StreamReport> {
         latency_ms_p99: q(0.99),
         latency_ms_max: lat.last().copied().unwrap_or(f64::NAN),
         stages_per_result: stages,
+        blocks_per_push: None,
+        max_backlog_ms: None,
     })
+}
+
+struct Paced {
+    compute_s: f64,
+    latency_ms: Vec<f64>,
+    pushes: usize,
+    max_backlog: usize,
+}
+
+/// Push `audio` (interleaved, `m` channels) as it arrives at real-time pace in blocks of
+/// `block` samples, each push taking every block queued (at most [`CATCH_UP_S`]).
+fn paced(loc: &mut Localizer, audio: &[f32], m: usize, block: usize, fs: f64) -> Result<Paced> {
+    let n = audio.len() / (block * m);
+    let dt = block as f64 / fs;
+    let cap = ((CATCH_UP_S * fs) as usize / block).max(1);
+    let mut out = Output::default();
+    let mut p = Paced {
+        compute_s: 0.0,
+        latency_ms: Vec::new(),
+        pushes: 0,
+        max_backlog: 0,
+    };
+    let start = Instant::now();
+    let mut next = 0;
+    while next < n {
+        let arrived = ((start.elapsed().as_secs_f64() / dt) as usize).min(n);
+        if arrived <= next {
+            let due = (next + 1) as f64 * dt - start.elapsed().as_secs_f64();
+            if due > 0.0 {
+                std::thread::sleep(std::time::Duration::from_secs_f64(due));
+            }
+            continue;
+        }
+        p.max_backlog = p.max_backlog.max(arrived - next);
+        let take = (arrived - next).min(cap);
+        let t = Instant::now();
+        loc.push(
+            Block::Interleaved {
+                data: &audio[next * block * m..(next + take) * block * m],
+                channels: m,
+            },
+            &mut out,
+        )?;
+        p.compute_s += t.elapsed().as_secs_f64();
+        let done = start.elapsed().as_secs_f64();
+        // Result q of this push completes with block next + q (one window per block at
+        // PERIOD = block; otherwise an approximation), never later than the last one.
+        for q in 0..out.results.len() {
+            let b = (next + q).min(next + take - 1);
+            p.latency_ms.push((done - (b + 1) as f64 * dt) * 1e3);
+        }
+        out.results.clear();
+        p.pushes += 1;
+        next += take;
+    }
+    Ok(p)
 }
 
 /// `streams` streams in one group, pushed tick by tick.
@@ -263,6 +363,8 @@ fn run_group<T: crate::real::Real>(cfg: &StreamBenchConfig) -> Result<StreamRepo
         latency_ms_p99: q(0.99),
         latency_ms_max: lat.last().copied().unwrap_or(f64::NAN),
         stages_per_result: per_result(group.stage_times(), before, results),
+        blocks_per_push: None,
+        max_backlog_ms: None,
     })
 }
 
@@ -287,4 +389,38 @@ fn quantile(sorted: &[f64], p: f64) -> f64 {
         .get(((sorted.len() as f64 - 1.0) * p).round() as usize)
         .copied()
         .unwrap_or(f64::NAN)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Paced at real time, every 10 ms block still gives its PERIOD-1 result (none lost or
+    /// doubled however blocks are grouped into catch-up pushes), each no earlier than its
+    /// block arrived; unpaced, the same count.
+    #[test]
+    fn a_paced_stream_gives_one_result_per_block() {
+        let mut cfg = StreamBenchConfig {
+            array: StreamArray::Ring8,
+            algorithm: Algorithm::Gevd,
+            period: 1,
+            seconds: 0.5,
+            block: 160,
+            device: DeviceChoice::Cpu,
+            precision: Precision::F32,
+            streams: 1,
+            subspace_tracking: false,
+            paced: true,
+        };
+        let p = run(&cfg).unwrap();
+        assert_eq!(p.results, 50, "one result per 10 ms block");
+        assert!(p.latency_ms_median >= 0.0 && p.latency_ms_max < 1e4, "{p:?}");
+        let b = p.blocks_per_push.unwrap();
+        assert!((1.0..=50.0).contains(&b), "{b}");
+        cfg.paced = false;
+        assert_eq!(run(&cfg).unwrap().results, 50);
+        cfg.paced = true;
+        cfg.streams = 2;
+        assert!(run(&cfg).is_err(), "paced runs one stream");
+    }
 }
