@@ -22,7 +22,8 @@
 //!
 //! A full decomposition with vectors adds ≈ 3–4 n³ (the QL rotations applied to all n
 //! vectors, then Q applied to all of them). Measured on the 2-core development machine
-//! (2026-11-26, n = 60, one thread): tridiagonalisation 85–117 µs, eigenvalues 31–33 µs,
+//! (2026-11-26, n = 60, one thread): tridiagonalisation 85–117 µs in full storage (the
+//! lower-triangle form since does about half the arithmetic), eigenvalues 31–33 µs,
 //! k = 2 vectors a few µs, against faer's `self_adjoint_evd` with vectors at 278 µs (c32)
 //! and 415 µs (c64).
 
