@@ -11,7 +11,8 @@ use std::ops::Range;
 
 /// The most audio, in seconds, that a reader falling behind live input hands to one push:
 /// blocks queued behind the one at hand go into the same push, so their windows run as one
-/// batch (`soundloc localize -`, `listen`, and `bench --stream --paced` do this).
+/// batch (the CLI's live inputs — pipes, sockets, `listen` — and `bench --stream --paced`;
+/// files are read in fixed blocks, so their batches never depend on timing).
 pub const CATCH_UP_S: f64 = 1.0;
 
 /// Frames per tile when an interleaved block is split into channels.

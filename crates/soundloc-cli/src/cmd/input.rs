@@ -161,6 +161,24 @@ pub enum Msg {
     Note(String),
 }
 
+/// A localizer behind live input catches up: blocks already queued behind the one at hand
+/// (`data`) are appended to it while it holds fewer than `max` samples (up to one block
+/// more), so their windows run as one batch — fewer passes over the steering vectors. The
+/// first message that is not a plain block (a gap, a note, the end, a failure) is put in
+/// `held`, to be handled next, in order.
+pub fn catch_up(rx: &Receiver<Msg>, data: &mut Vec<f32>, max: usize, held: &mut Option<Msg>) {
+    while data.len() < max {
+        match rx.try_recv() {
+            Ok(Msg::Block { data: more, gap: 0 }) => data.extend_from_slice(&more),
+            Ok(other) => {
+                *held = Some(other);
+                return;
+            }
+            Err(_) => return,
+        }
+    }
+}
+
 /// Frames per block read from a file.
 const FILE_BLOCK: usize = 1 << 15;
 

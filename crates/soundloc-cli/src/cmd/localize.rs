@@ -2,9 +2,11 @@
 
 use super::input::{spawn_reader, InputArgs, Msg};
 use super::sinks::{LiveArgs, Progress, Sinks};
-use super::{AlgorithmArg, DeviceArg, PrecisionArg};
+pub use super::FormatArg;
+use super::{
+    AlgorithmArg, DenominatorArg, DeviceArg, PrecisionArg, SpectrumWeightArg, WindowFnArg, WindowTypeArg,
+};
 use anyhow::{anyhow, bail, Context};
-use clap::ValueEnum;
 use soundloc::array::freefield::DEFAULT_SPEED_OF_SOUND_M_S;
 use soundloc::array::grid::GridSpec;
 use soundloc::array::tf_cache::TfCache;
@@ -20,52 +22,6 @@ use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::sync::mpsc::Receiver;
 use std::time::Instant;
-
-#[derive(ValueEnum, Clone, Copy, Debug)]
-pub enum FormatArg {
-    /// One JSON object per result per line.
-    Jsonl,
-    /// One CSV row per source.
-    Csv,
-}
-
-#[derive(ValueEnum, Clone, Copy, Debug)]
-pub enum WindowTypeArg {
-    /// The W frames ending at the result frame (causal).
-    Past,
-    /// Frames centred on the result frame.
-    Middle,
-    /// The W frames starting at the result frame (HARK default).
-    Future,
-}
-
-#[derive(ValueEnum, Clone, Copy, Debug)]
-pub enum WindowFnArg {
-    /// HARK's CONJ window.
-    Conj,
-    /// Hamming.
-    Hamming,
-    /// Hann.
-    Hanning,
-    /// Rectangular.
-    Rectangle,
-}
-
-#[derive(ValueEnum, Clone, Copy, Debug)]
-pub enum SpectrumWeightArg {
-    /// w_k = 1.
-    Uniform,
-    /// A-weighting curve.
-    AWeighting,
-}
-
-#[derive(ValueEnum, Clone, Copy, Debug)]
-pub enum DenominatorArg {
-    /// Σ|aᴴe|² (HARK's code).
-    Squared,
-    /// Σ|aᴴe| (the paper's equation 5 as printed).
-    Unsquared,
-}
 
 /// Analysis options shared by `localize` (HARK LocalizeMUSIC parameter names in brackets).
 #[derive(clap::Args, Debug, Clone)]
@@ -488,9 +444,6 @@ pub fn drive(
     let mut progress = Progress::default();
     let mut next_report = 10.0;
     let ctx = |e: soundloc::Error| anyhow!("{}: {e}", name.display());
-    // Catching up: blocks already queued behind the one at hand go into the same push (up
-    // to CATCH_UP_S of audio), so a localizer that fell behind live input runs their
-    // windows as one batch — fewer passes over the steering vectors, more throughput.
     let catch_up = (soundloc::input::CATCH_UP_S * fs) as usize * nch;
     let mut held: Option<Msg> = None;
     loop {
@@ -510,15 +463,8 @@ pub fn drive(
                 continue;
             }
         };
-        while !end && data.len() < catch_up {
-            match rx.try_recv() {
-                Ok(Msg::Block { data: more, gap: 0 }) => data.extend_from_slice(&more),
-                Ok(other) => {
-                    held = Some(other);
-                    break;
-                }
-                Err(_) => break,
-            }
+        if live && !end {
+            super::input::catch_up(&rx, &mut data, catch_up, &mut held);
         }
         if gap > 0 {
             loc.skip(gap, &mut out).map_err(ctx)?;

@@ -113,3 +113,51 @@ pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
         Command::Noisecm(a) => noisecm::run(a),
     }
 }
+
+// Value enums of `localize`'s analysis and output options.
+
+#[derive(ValueEnum, Clone, Copy, Debug)]
+pub enum FormatArg {
+    /// One JSON object per result per line.
+    Jsonl,
+    /// One CSV row per source.
+    Csv,
+}
+
+#[derive(ValueEnum, Clone, Copy, Debug)]
+pub enum WindowTypeArg {
+    /// The W frames ending at the result frame (causal).
+    Past,
+    /// Frames centred on the result frame.
+    Middle,
+    /// The W frames starting at the result frame (HARK default).
+    Future,
+}
+
+#[derive(ValueEnum, Clone, Copy, Debug)]
+pub enum WindowFnArg {
+    /// HARK's CONJ window.
+    Conj,
+    /// Hamming.
+    Hamming,
+    /// Hann.
+    Hanning,
+    /// Rectangular.
+    Rectangle,
+}
+
+#[derive(ValueEnum, Clone, Copy, Debug)]
+pub enum SpectrumWeightArg {
+    /// w_k = 1.
+    Uniform,
+    /// A-weighting curve.
+    AWeighting,
+}
+
+#[derive(ValueEnum, Clone, Copy, Debug)]
+pub enum DenominatorArg {
+    /// Σ|aᴴe|² (HARK's code).
+    Squared,
+    /// Σ|aᴴe| (the paper's equation 5 as printed).
+    Unsquared,
+}

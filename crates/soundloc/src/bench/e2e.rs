@@ -58,11 +58,12 @@ pub fn run(spec: &LocalizerSpec, input: &Path, cache: TfCache) -> Result<E2eRepo
     spec.analysis.sample_rate_hz = fmt.sample_rate_hz;
     let t = Instant::now();
     // As Localizer::new: the GPU comes up while the TFs load.
-    crate::engine::device::prewarm(spec.device, config.subspace_tracking);
+    let warm = crate::engine::device::prewarm(spec.device, config.subspace_tracking);
     let (tf, cache_note) = spec.load_array_noted(&config)?;
     let tf_load_ms = t.elapsed().as_secs_f64() * 1e3;
     let t = Instant::now();
     let mut loc = Localizer::with_transfer_functions(&spec, tf, None)?;
+    drop(warm);
     let plan_ms = t.elapsed().as_secs_f64() * 1e3;
     loc.check_input(fmt.sample_rate_hz, fmt.channels)
         .map_err(|e| Error::format(input, e.to_string()))?;

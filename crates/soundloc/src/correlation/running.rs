@@ -43,7 +43,8 @@ pub enum Step {
 #[derive(Debug, Clone)]
 pub struct RunningCorrelation {
     m: usize,
-    /// S, `[bin][M×M]` column-major (S_ij at `j * M + i`).
+    /// S, `[bin][M×M]` column-major (S_ij at `j * M + i`); only the upper triangle
+    /// (i ≤ j) is kept up to date, the half R is read from.
     sums: Vec<C<f64>>,
     /// The window the sums hold: (start, len).
     at: Option<(usize, usize)>,

@@ -51,12 +51,13 @@ pub fn make_backend<T: Real>(
 
 /// Start the slow one-time GPU set-up in the background when `device` may use CUDA (see
 /// [`crate::backend::cuda::prewarm`]); `cpu_only`: the run is bound to the CPU anyway.
-pub fn prewarm(device: DeviceChoice, cpu_only: bool) {
+/// Keep the guard until the backend is built.
+pub fn prewarm(device: DeviceChoice, cpu_only: bool) -> Option<crate::backend::cuda::Prewarm> {
     if cpu_only {
-        return;
+        return None;
     }
     match device {
-        DeviceChoice::Cpu => {}
+        DeviceChoice::Cpu => None,
         DeviceChoice::Cuda | DeviceChoice::Auto => crate::backend::cuda::prewarm(Some(vec![0])),
         DeviceChoice::CudaAll | DeviceChoice::CudaSet(_) => crate::backend::cuda::prewarm(device.ordinals()),
     }

@@ -314,7 +314,9 @@ impl Localizer {
             ..spec.analysis.clone()
         };
         // The GPU's driver and context come up while the transfer functions load.
-        crate::engine::device::prewarm(spec.device, config.subspace_tracking);
+        // The guard (dropped on return, error or not) waits for it and gives its context
+        // references back; a CUDA backend holds its own by then.
+        let _warm = crate::engine::device::prewarm(spec.device, config.subspace_tracking);
         let (tf, note) = spec.load_array_noted(&config)?;
         tracing::debug!(
             "transfer functions ready: {} mics, {} directions{}",

@@ -138,23 +138,24 @@ pub(crate) fn device_count() -> Result<usize> {
     Ok(count as usize)
 }
 
-/// Initialise the driver and retain device `ordinal`'s primary context for the rest of the
-/// process (once per device): the slow part of a first [`CudaGpu::new`] (≈ 0.2 s), which
-/// [`super::prewarm`] runs while the transfer functions load. Backends retain and release
-/// the context as before; this reference only keeps it from being torn down and rebuilt
-/// between them.
-pub(crate) fn keep_context(ordinal: usize) -> Result<()> {
-    static KEPT: std::sync::Mutex<Vec<usize>> = std::sync::Mutex::new(Vec::new());
-    let mut kept = KEPT.lock().map_err(|e| Error::Device(e.to_string()))?;
-    if kept.contains(&ordinal) {
-        return Ok(());
-    }
+/// Initialise the driver and retain device `ordinal`'s primary context: the slow part of a
+/// first [`CudaGpu::new`] (≈ 0.2 s), which [`super::prewarm`] runs while the transfer
+/// functions load. The reference is given back with [`release_context`] once the backend
+/// (which retains its own) exists, so the context lives exactly as long as before.
+pub(crate) fn retain_context(ordinal: usize) -> Result<()> {
     device_info(ordinal)?;
     let dev = drv::device::get(ordinal as i32).map_err(|e| dev_err("cuDeviceGet", e))?;
-    // SAFETY: `dev` is valid; the reference is deliberately never released.
+    // SAFETY: `dev` is valid; released by `release_context`.
     unsafe { drv::primary_ctx::retain(dev) }.map_err(|e| dev_err("cuDevicePrimaryCtxRetain", e))?;
-    kept.push(ordinal);
     Ok(())
+}
+
+/// Give back a reference taken by [`retain_context`].
+pub(crate) fn release_context(ordinal: usize) {
+    if let Ok(dev) = drv::device::get(ordinal as i32) {
+        // SAFETY: pairs with the retain in `retain_context`.
+        let _ = unsafe { drv::primary_ctx::release(dev) };
+    }
 }
 
 /// Name and compute capability of device `ordinal` (initialises the driver).

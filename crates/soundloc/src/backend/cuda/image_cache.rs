@@ -51,6 +51,9 @@ pub(crate) fn read(file: &Path) -> Result<Image, String> {
     if crc32fast::hash(rest) != crc {
         return Err("kernel image entry fails its checksum".into());
     }
+    if !arch.starts_with("sm_") && rest.last() != Some(&0) {
+        return Err("PTX entry is not NUL-terminated".into());
+    }
     Ok(Image {
         bytes: rest.to_vec(),
         arch,

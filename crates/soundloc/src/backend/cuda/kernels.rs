@@ -293,12 +293,13 @@ pub(crate) fn image_for(v: Variant, cc: u32, disk: Option<&Path>) -> Result<Imag
         );
     }
     let src = full_source(v);
-    let entry = match disk {
-        Some(dir) => Some((
+    // Without NVRTC's version there is no safe key: compile, skip the disk cache.
+    let entry = match (disk, nvrtc_version()) {
+        (Some(dir), Ok(ver)) => Some((
             dir,
-            image_cache::entry(dir, &src, &options(&format!("sm_{cc}")), nvrtc_version()?, cc),
+            image_cache::entry(dir, &src, &options(&format!("sm_{cc}")), ver, cc),
         )),
-        None => None,
+        _ => None,
     };
     if let Some((_, file)) = &entry {
         match image_cache::read(file) {
