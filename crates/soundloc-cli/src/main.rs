@@ -29,7 +29,7 @@ fn main() -> ExitCode {
 }
 
 /// Diagnostic log on stderr when `SOUNDLOC_LOG` is `error`, `warn`, `info`, `debug` or
-/// `trace`: each line stamped with the seconds since start, which is what shows where a
+/// `trace` (any other value: `debug`): each line stamped with the seconds since start, which shows where a
 /// run's time goes (transfer functions, device set-up, kernel compilation, the engine).
 fn init_log() {
     let Ok(level) = std::env::var("SOUNDLOC_LOG") else {

@@ -50,15 +50,16 @@ pub struct SpectrumScratch<T: Real> {
 impl<T: Real> SpectrumScratch<T> {
     /// Scratch for a plan.
     pub fn new(plan: &Plan<T>) -> Self {
-        // Sized for one window; grown for a batch on first use.
+        // One group of windows' columns (see `accumulate_bin`).
         let ns = plan.config.signal_dim();
         let nc = match plan.config.denominator {
             Denominator::Squared => ns,
             Denominator::Unsquared => plan.num_mics - ns,
         };
+        let ncols = group_size(nc) * nc;
         SpectrumScratch {
-            proj: faer::Mat::zeros(nc, plan.num_dirs.min(DIR_BLOCK)),
-            cols: Vec::new(),
+            proj: faer::Mat::zeros(ncols, plan.num_dirs.min(DIR_BLOCK)),
+            cols: Vec::with_capacity(plan.num_mics * ncols),
         }
     }
 }

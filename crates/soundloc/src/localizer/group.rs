@@ -22,7 +22,7 @@ use super::{prepare, LocalizerSpec};
 use crate::array::{Grid, TransferFunctions};
 use crate::backend::StageTimes;
 use crate::config::{LocalizeConfig, Precision};
-use crate::engine::{Output, StreamGroup, StreamOptions};
+use crate::engine::{make_backend, Output, StreamGroup, StreamOptions};
 use crate::input::Block;
 use crate::noise::policy::{InitialNoise, NoiseUpdate};
 use crate::noise::NoiseMatrices;
@@ -52,6 +52,8 @@ impl LocalizerGroup {
             algorithm,
             ..spec.analysis.clone()
         };
+        // As Localizer::new: the GPU comes up while the transfer functions load.
+        let _warm = crate::engine::device::prewarm(spec.device, config.subspace_tracking);
         let (tf, note) = spec.load_array_noted(&config)?;
         let mut g = Self::with_transfer_functions(spec, tf, None, streams)?;
         g.notes.splice(0..0, note);
@@ -75,14 +77,18 @@ impl LocalizerGroup {
                     .into(),
             )),
         };
+        // Compiled GPU kernels are kept where the prepared TFs are (none with the cache off).
+        let cache = spec.tf_cache.dir();
         let inner = match spec.precision {
             Precision::F32 => {
                 let plan = Arc::new(Plan::<f32>::new(&p.config, &p.tf, k.as_ref())?);
-                Inner::F32(StreamGroup::new(plan, spec.device)?)
+                let backend = make_backend(plan.clone(), spec.device, cache.as_deref())?;
+                Inner::F32(StreamGroup::with_backend(plan, backend))
             }
             Precision::F64 => {
                 let plan = Arc::new(Plan::<f64>::new(&p.config, &p.tf, k.as_ref())?);
-                Inner::F64(StreamGroup::new(plan, spec.device)?)
+                let backend = make_backend(plan.clone(), spec.device, cache.as_deref())?;
+                Inner::F64(StreamGroup::with_backend(plan, backend))
             }
         };
         let mut g = LocalizerGroup {
