@@ -45,6 +45,8 @@ pub struct SpectrumScratch<T: Real> {
     proj: faer::Mat<C<T>>,
     /// The windows' vectors side by side (M × columns), column-major.
     cols: Vec<C<T>>,
+    /// Σ_s |aᴴe_s|² per direction of the block (squared denominator).
+    sig: Vec<T>,
 }
 
 impl<T: Real> SpectrumScratch<T> {
@@ -60,6 +62,7 @@ impl<T: Real> SpectrumScratch<T> {
         SpectrumScratch {
             proj: faer::Mat::zeros(ncols, plan.num_dirs.min(DIR_BLOCK)),
             cols: Vec::with_capacity(plan.num_mics * ncols),
+            sig: vec![T::zero(); plan.num_dirs.min(DIR_BLOCK)],
         }
     }
 }
@@ -153,6 +156,7 @@ pub fn accumulate_bin<T: Real>(
                 dec,
                 scratch.proj.as_ref().submatrix(i * nc, 0, nc, d).transpose(),
                 floor,
+                &mut scratch.sig,
                 acc,
             );
         }
@@ -169,7 +173,11 @@ fn group_size(cols_per_window: usize) -> usize {
 const MIN_PRODUCT_COLS: usize = 8;
 
 /// One window's w_k·g_k·P_k(d) for a block of directions from its projections `proj`
-/// (directions × the columns the denominator uses).
+/// (directions × the columns the denominator uses). The squared denominator runs as
+/// passes over the block that vectorise (the signal sums column by column, then the
+/// complement, floor and quotient for every direction), and a last pass recomputes the
+/// few directions whose complement fell below [`REFINE_RATIO`]·‖a‖²: the same operations
+/// in the same order per direction as a direction-by-direction loop, so the same bits.
 #[allow(clippy::too_many_arguments)]
 fn accumulate_window<T: Real>(
     plan: &Plan<T>,
@@ -180,6 +188,7 @@ fn accumulate_window<T: Real>(
     dec: &Decomposition<T>,
     proj: MatRef<'_, C<T>>,
     floor: T,
+    sig: &mut Vec<T>,
     acc: &mut [T],
 ) {
     let (m, d) = (plan.num_mics, acc.len());
@@ -192,19 +201,31 @@ fn accumulate_window<T: Real>(
     match plan.config.denominator {
         Denominator::Squared => {
             let tau = T::of_f64(REFINE_RATIO);
-            for dir in 0..d {
-                let mut sig = T::zero();
-                for s in 0..ns {
-                    sig += proj[(dir, s)].norm_sqr();
+            sig.clear();
+            sig.resize(d, T::zero());
+            for s in 0..ns {
+                for (x, z) in sig.iter_mut().zip(proj.col(s).iter()) {
+                    *x += z.norm_sqr();
                 }
-                let den = n2_den[dir] - sig;
-                let den = if den < tau * n2_den[dir] {
-                    T::of_f64(complement64(&st[dir * m..(dir + 1) * m], dec, ns))
-                } else {
-                    den.max(floor * n2_den[dir])
-                };
-                if den > T::zero() {
-                    acc[dir] += gain * n2_num[dir] / den;
+            }
+            let mut any_small = false;
+            for (((a, &x), &n2), &num) in acc.iter_mut().zip(sig.iter()).zip(n2_den).zip(n2_num) {
+                let den = n2 - x;
+                let small = den < tau * n2;
+                any_small |= small;
+                let den = den.max(floor * n2);
+                let add = gain * num / den;
+                *a += if !small && den > T::zero() { add } else { T::zero() };
+            }
+            if any_small {
+                for (dir, (a, &x)) in acc.iter_mut().zip(sig.iter()).enumerate() {
+                    let n2 = n2_den[dir];
+                    if n2 - x < tau * n2 {
+                        let den = T::of_f64(complement64(&st[dir * m..(dir + 1) * m], dec, ns));
+                        if den > T::zero() {
+                            *a += gain * n2_num[dir] / den;
+                        }
+                    }
                 }
             }
         }
