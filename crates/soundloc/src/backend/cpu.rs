@@ -20,7 +20,7 @@ use crate::plan::Plan;
 use crate::real::{Real, C};
 use crate::srp::{self, SrpScratch};
 use crate::subspace::tracking::{self, BinTrack, Tracker};
-use crate::subspace::{count, decompose, Decomposition, Workspace};
+use crate::subspace::{count, decompose, decompose_pair, Decomposition, Workspace};
 use crate::Result;
 use rayon::prelude::*;
 use std::collections::HashMap;
@@ -268,16 +268,21 @@ impl<T: Real> CpuBackend<T> {
         let r = &self.r;
         let r_of = |w: usize, b: usize| r_at(r, mm, nw, w, b);
         if !srp && !plan.config.subspace_tracking {
-            self.decs.par_iter_mut().enumerate().try_for_each_init(
+            // In pairs: two problems' eigenvalue iterations run side by side (same results).
+            let w_of = |i: usize| plan.whitening_matrix64(i % nb);
+            self.decs.par_chunks_mut(2).enumerate().try_for_each_init(
                 || Workspace::new(m),
-                |ws, (i, dec)| {
-                    decompose(
-                        alg,
-                        r_of(i / nb, i % nb),
-                        plan.whitening_matrix64(i % nb),
-                        ws,
-                        dec,
-                    )
+                |ws, (c, pair)| {
+                    let (i0, i1) = (2 * c, 2 * c + 1);
+                    let r0 = r_of(i0 / nb, i0 % nb);
+                    match pair.split_first_mut() {
+                        Some((d0, [d1])) => {
+                            let r = [r0, r_of(i1 / nb, i1 % nb)];
+                            decompose_pair(alg, r, [w_of(i0), w_of(i1)], ws, [d0, d1])
+                        }
+                        Some((d0, _)) => decompose(alg, r0, w_of(i0), ws, d0),
+                        None => Ok(()),
+                    }
                 },
             )?;
         }

@@ -8,19 +8,12 @@
 //! raw ‖a‖² as numerator. This variant keeps the talkers when the noise is coherent and
 //! close to the array; it is soundloc's default when a noise matrix is given.
 
-use super::whiten::Right;
-use super::{finish, Decomposition, Workspace};
-use crate::real::Real;
-use crate::Result;
+use super::eigh::Eigh;
+use super::whiten::{Products, Right};
 use faer::c64;
 
-/// Eigendecomposition of W R Wᴴ, W = L⁻¹ (both row-major M × M, f64).
-pub fn decompose<T: Real>(
-    r: &[c64],
-    w: &[c64],
-    ws: &mut Workspace,
-    out: &mut Decomposition<T>,
-) -> Result<()> {
-    ws.form(r, w, true, Right::WAdjoint);
-    finish(ws, |l| l, out)
+/// Form W R Wᴴ, W = L⁻¹ (both row-major M × M, f64), in the eigensolver.
+pub(super) fn load(r: &[c64], w: &[c64], products: &mut Products, eigh: &mut Eigh) {
+    let (ar, ai) = eigh.matrix_mut();
+    products.form(r, w, true, Right::WAdjoint, ar, ai);
 }

@@ -8,19 +8,12 @@
 //! little; with coherent noise close to the array it moves or erases the talkers' peaks
 //! (measured in `tests/scenes.rs` and the README).
 
-use super::whiten::Right;
-use super::{finish, Decomposition, Workspace};
-use crate::real::Real;
-use crate::Result;
+use super::eigh::Eigh;
+use super::whiten::{Products, Right};
 use faer::c64;
 
-/// Eigendecomposition of W R W, W = K^{-1/2} (Hermitian; both row-major M × M, f64).
-pub fn decompose<T: Real>(
-    r: &[c64],
-    w: &[c64],
-    ws: &mut Workspace,
-    out: &mut Decomposition<T>,
-) -> Result<()> {
-    ws.form(r, w, false, Right::WAdjoint);
-    finish(ws, |l| l, out)
+/// Form W R W, W = K^{-1/2} (Hermitian; both row-major M × M, f64), in the eigensolver.
+pub(super) fn load(r: &[c64], w: &[c64], products: &mut Products, eigh: &mut Eigh) {
+    let (ar, ai) = eigh.matrix_mut();
+    products.form(r, w, false, Right::WAdjoint, ar, ai);
 }

@@ -11,30 +11,28 @@
 //! close to the array the talkers' peaks can move or vanish (see `gevd` for the unbiased
 //! form).
 
-use super::whiten::Right;
-use super::{finish, Decomposition, Workspace};
+use super::eigh::Eigh;
+use super::whiten::{Products, Right};
+use super::Decomposition;
 use crate::real::Real;
 use crate::Result;
 use faer::c64;
 
-/// Left singular vectors and singular values of W R, W = K⁻¹ (row-major M × M, f64).
-pub fn decompose<T: Real>(
-    r: &[c64],
-    w: &[c64],
-    ws: &mut Workspace,
-    out: &mut Decomposition<T>,
-) -> Result<()> {
-    if out.dim == ws.dim() {
-        // Every vector (the unsquared denominator): the noise-subspace vectors one by one,
-        // whose small singular values squaring would blur — a direct SVD.
-        return full_svd(r, w, out);
-    }
-    ws.form(r, w, false, Right::TAdjoint);
-    finish(ws, |l| l.max(0.0).sqrt(), out)
+/// Form B Bᴴ, B = W R, W = K⁻¹ (row-major M × M, f64), in the eigensolver; its
+/// eigenvalues λ are σ² ([`singular_value`]). For every vector (the unsquared
+/// denominator) [`full_svd`] is used instead.
+pub(super) fn load(r: &[c64], w: &[c64], products: &mut Products, eigh: &mut Eigh) {
+    let (ar, ai) = eigh.matrix_mut();
+    products.form(r, w, false, Right::TAdjoint, ar, ai);
+}
+
+/// σ = √λ from an eigenvalue of B Bᴴ (rounding below zero clamped).
+pub(super) fn singular_value(lambda: f64) -> f64 {
+    lambda.max(0.0).sqrt()
 }
 
 /// B = W R and its full SVD in f64 (faer), left vectors and values into `out`.
-fn full_svd<T: Real>(r: &[c64], w: &[c64], out: &mut Decomposition<T>) -> Result<()> {
+pub(super) fn full_svd<T: Real>(r: &[c64], w: &[c64], out: &mut Decomposition<T>) -> Result<()> {
     use faer::dyn_stack::{MemBuffer, MemStack};
     use faer::linalg::svd::{self, ComputeSvdVectors};
     use faer::{Accum, Mat, Par};

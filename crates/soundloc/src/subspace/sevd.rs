@@ -1,16 +1,13 @@
 //! SEVD-MUSIC: the standard eigendecomposition R = E Λ Eᴴ (no noise model).
 
-use super::{finish, Decomposition, Workspace};
-use crate::real::Real;
-use crate::Result;
+use super::eigh::Eigh;
 use faer::c64;
 
-/// Eigendecomposition of R (row-major M × M, f64, Hermitian).
-pub fn decompose<T: Real>(r: &[c64], ws: &mut Workspace, out: &mut Decomposition<T>) -> Result<()> {
-    let (re, im) = ws.eigh.matrix_mut();
+/// Load R (row-major M × M, f64, Hermitian) into the eigensolver: it is decomposed as it is.
+pub(super) fn load(r: &[c64], eigh: &mut Eigh) {
+    let (re, im) = eigh.matrix_mut();
     for ((z, a), b) in r.iter().zip(re.iter_mut()).zip(im.iter_mut()) {
         *a = z.re;
         *b = z.im;
     }
-    finish(ws, |l| l, out)
 }

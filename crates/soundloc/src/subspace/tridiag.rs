@@ -9,90 +9,213 @@ use crate::{Error, Result};
 /// `e2` holds e[i]² for i < n − 1 on entry (its last element is set to 0; it is
 /// overwritten).
 pub(super) fn ql_values(d: &mut [f64], e2: &mut [f64]) -> Result<()> {
-    let n = d.len();
-    if n < 2 {
-        return Ok(());
+    ql_values_many([(d, e2)])
+}
+
+/// [`ql_values`] for N problems at once, with the same results. Each QL sweep is a chain
+/// of dependent divisions that leaves most of the core idle; the sweeps of the N problems
+/// run side by side in one loop (for their common length), so the core overlaps the
+/// chains.
+pub(super) fn ql_values_many<const N: usize>(problems: [(&mut [f64], &mut [f64]); N]) -> Result<()> {
+    let mut q = problems.map(|(d, e2)| Ql::new(d, e2));
+    let mut run = [false; N];
+    for (r, q) in run.iter_mut().zip(q.iter_mut()) {
+        *r = q.next_sweep()?;
     }
-    e2[n - 1] = 0.0;
-    let (mut f, mut t) = (0.0f64, 0.0f64);
-    let (mut b, mut c) = (0.0f64, 0.0f64);
-    for l in 0..n {
-        let mut j = 0;
-        let h = d[l].abs() + e2[l].sqrt();
-        if t < h {
-            t = h;
-            b = f64::EPSILON * t;
-            c = b * b;
-        }
-        let mut m = l;
-        while m < n - 1 && e2[m] > c {
-            m += 1;
-        }
-        if m != l {
-            loop {
-                if j == 60 {
-                    return Err(Error::numerical(
-                        "decompose",
-                        "tridiagonal QL did not converge in 60 iterations",
-                    ));
-                }
-                j += 1;
-                // Form the shift.
-                let s = e2[l].sqrt();
-                let g = d[l];
-                let p = (d[l + 1] - g) / (2.0 * s);
-                let r = (p * p + 1.0).sqrt();
-                d[l] = s / (p + if p >= 0.0 { r } else { -r });
-                let h = g - d[l];
-                for di in &mut d[l + 1..] {
-                    *di -= h;
-                }
-                f += h;
-                // Rational QL transformation.
-                let mut g = d[m];
-                if g == 0.0 {
-                    g = b;
-                }
-                let mut h = g;
-                let mut s = 0.0;
-                for i in (l..m).rev() {
-                    let p = g * h;
-                    let r = p + e2[i];
-                    e2[i + 1] = s * r;
-                    s = e2[i] / r;
-                    d[i + 1] = h + s * (h + d[i]);
-                    g = d[i] - e2[i] / g;
-                    if g == 0.0 {
-                        g = b;
-                    }
-                    h = g * p / r;
-                }
-                e2[l] = s * g;
-                d[l] = h;
-                // Guard against underflow in the convergence test.
-                if h == 0.0 || e2[l].abs() <= (c / h).abs() {
-                    break;
-                }
-                e2[l] *= h;
-                if e2[l] == 0.0 {
-                    break;
-                }
-                // Look again for a small squared subdiagonal element.
-                m = l;
-                while m < n - 1 && e2[m] > c {
-                    m += 1;
-                }
-                if m == l {
-                    break;
-                }
+    while run.iter().any(|&r| r) {
+        // Sweep p runs i = m − 1 down to l (none where it has finished).
+        let mut i: [usize; N] = std::array::from_fn(|p| if run[p] { q[p].m } else { q[p].l });
+        let (mut g, mut h, mut s) = (
+            q.each_ref().map(|q| q.g),
+            q.each_ref().map(|q| q.h),
+            q.each_ref().map(|q| q.s),
+        );
+        let both = (0..N).map(|p| i[p] - q[p].l).min().unwrap_or(0);
+        for _ in 0..both {
+            for p in 0..N {
+                i[p] -= 1;
+                let qp = &mut q[p];
+                ql_step(qp.d, qp.e2, i[p], qp.b, &mut g[p], &mut h[p], &mut s[p]);
             }
         }
-        d[l] += f;
+        for p in 0..N {
+            let qp = &mut q[p];
+            while i[p] > qp.l {
+                i[p] -= 1;
+                ql_step(qp.d, qp.e2, i[p], qp.b, &mut g[p], &mut h[p], &mut s[p]);
+            }
+            if run[p] {
+                (qp.g, qp.h, qp.s) = (g[p], h[p], s[p]);
+                qp.end_sweep();
+                run[p] = qp.next_sweep()?;
+            }
+        }
     }
-    if d.iter().any(|x| !x.is_finite()) {
-        return Err(Error::numerical("decompose", "non-finite eigenvalue"));
+    for qp in q {
+        qp.finish()?;
     }
     Ok(())
+}
+
+/// One step i of a rational QL sweep (EISPACK `tqlrat`'s inner loop).
+#[inline(always)]
+fn ql_step(d: &mut [f64], e2: &mut [f64], i: usize, b: f64, g: &mut f64, h: &mut f64, s: &mut f64) {
+    let p = *g * *h;
+    let r = p + e2[i];
+    e2[i + 1] = *s * r;
+    *s = e2[i] / r;
+    d[i + 1] = *h + *s * (*h + d[i]);
+    *g = d[i] - e2[i] / *g;
+    if *g == 0.0 {
+        *g = b;
+    }
+    *h = *g * p / r;
+}
+
+/// `tqlrat` as a resumable state: [`Ql::next_sweep`] sets up the next sweep over
+/// l … m − 1 (the caller runs [`ql_step`] for i = m − 1 down to l), [`Ql::end_sweep`]
+/// checks it for convergence.
+struct Ql<'a> {
+    d: &'a mut [f64],
+    e2: &'a mut [f64],
+    /// The eigenvalue being found and the end of its unreduced block.
+    l: usize,
+    m: usize,
+    /// Sweeps spent on l.
+    j: u32,
+    /// Whether l's sweeps have begun.
+    started: bool,
+    f: f64,
+    t: f64,
+    b: f64,
+    c: f64,
+    /// The sweep's running values.
+    g: f64,
+    h: f64,
+    s: f64,
+}
+
+impl<'a> Ql<'a> {
+    fn new(d: &'a mut [f64], e2: &'a mut [f64]) -> Self {
+        let n = d.len();
+        if n > 0 {
+            e2[n - 1] = 0.0;
+        }
+        Ql {
+            d,
+            e2,
+            l: 0,
+            m: 0,
+            j: 0,
+            started: false,
+            f: 0.0,
+            t: 0.0,
+            b: 0.0,
+            c: 0.0,
+            g: 0.0,
+            h: 0.0,
+            s: 0.0,
+        }
+    }
+
+    /// The first m ≥ l whose squared subdiagonal is negligible.
+    fn block_end(&self) -> usize {
+        let n = self.d.len();
+        let mut m = self.l;
+        while m < n - 1 && self.e2[m] > self.c {
+            m += 1;
+        }
+        m
+    }
+
+    /// Set up the next sweep (shift applied; `g`, `h`, `s` initialised): false when every
+    /// eigenvalue is found.
+    fn next_sweep(&mut self) -> Result<bool> {
+        let n = self.d.len();
+        if n < 2 {
+            return Ok(false);
+        }
+        loop {
+            if !self.started {
+                if self.l == n {
+                    return Ok(false);
+                }
+                let l = self.l;
+                self.j = 0;
+                let h = self.d[l].abs() + self.e2[l].sqrt();
+                if self.t < h {
+                    self.t = h;
+                    self.b = f64::EPSILON * self.t;
+                    self.c = self.b * self.b;
+                }
+                self.m = self.block_end();
+                if self.m == l {
+                    self.d[l] += self.f;
+                    self.l += 1;
+                    continue;
+                }
+                self.started = true;
+            }
+            if self.j == 60 {
+                return Err(Error::numerical(
+                    "decompose",
+                    "tridiagonal QL did not converge in 60 iterations",
+                ));
+            }
+            self.j += 1;
+            let (l, m) = (self.l, self.m);
+            let d = &mut *self.d;
+            // Form the shift.
+            let s = self.e2[l].sqrt();
+            let g = d[l];
+            let p = (d[l + 1] - g) / (2.0 * s);
+            let r = (p * p + 1.0).sqrt();
+            d[l] = s / (p + if p >= 0.0 { r } else { -r });
+            let h = g - d[l];
+            for di in &mut d[l + 1..] {
+                *di -= h;
+            }
+            self.f += h;
+            // The rational QL transformation's start.
+            let mut g = d[m];
+            if g == 0.0 {
+                g = self.b;
+            }
+            (self.g, self.h, self.s) = (g, g, 0.0);
+            return Ok(true);
+        }
+    }
+
+    /// After a sweep: whether l converged (then the next [`Ql::next_sweep`] moves on).
+    fn end_sweep(&mut self) {
+        let l = self.l;
+        self.e2[l] = self.s * self.g;
+        self.d[l] = self.h;
+        let h = self.h;
+        // Guard against underflow in the convergence test.
+        let done = if h == 0.0 || self.e2[l].abs() <= (self.c / h).abs() {
+            true
+        } else {
+            self.e2[l] *= h;
+            // Look again for a small squared subdiagonal element.
+            self.e2[l] == 0.0 || {
+                self.m = self.block_end();
+                self.m == l
+            }
+        };
+        if done {
+            self.d[l] += self.f;
+            self.l += 1;
+            self.started = false;
+        }
+    }
+
+    fn finish(self) -> Result<()> {
+        if self.d.iter().any(|x| !x.is_finite()) {
+            return Err(Error::numerical("decompose", "non-finite eigenvalue"));
+        }
+        Ok(())
+    }
 }
 
 /// LU factorisation with partial pivoting of a shifted tridiagonal T − λI (LAPACK
