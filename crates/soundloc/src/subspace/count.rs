@@ -18,29 +18,30 @@
 //! count), which ignores bins where a talker is momentarily silent or a harmonic stands
 //! alone.
 
-/// k̂ for one bin: `values` descending (any scale), `snapshots` = N ≥ 1.
-pub fn mdl(values: &[f64], snapshots: usize) -> usize {
+use crate::real::Real;
+
+/// k̂ for one bin: `values` descending (any scale, either precision), `snapshots` = N ≥ 1.
+pub fn mdl<T: Real>(values: &[T], snapshots: usize) -> usize {
     let m = values.len();
     if m < 2 || snapshots == 0 {
         return 0;
     }
-    let top = values.iter().copied().fold(0.0f64, f64::max);
+    let top = values.iter().map(|&x| Real::to_f64(x)).fold(0.0f64, f64::max);
     if !(top > 0.0 && top.is_finite()) {
         return 0;
     }
     // Values at or below rounding are clamped: they are noise, not information.
     let floor = top * 1e-12;
-    let v: Vec<f64> = values
-        .iter()
-        .map(|&x| if x.is_finite() { x.max(floor) } else { floor })
-        .collect();
     let n = snapshots as f64;
-    // Tail sums Σ_{i ≥ k} ln λ_i and Σ_{i ≥ k} λ_i, from the smallest value up: O(M).
+    // Tail sums Σ_{i ≥ k} ln λ_i and Σ_{i ≥ k} λ_i, from the smallest value up: O(M), and
+    // no allocation (called per bin and window).
     let (mut sum_ln, mut sum) = (0.0f64, 0.0f64);
     let mut best = (f64::INFINITY, 0usize);
     for k in (0..m).rev() {
-        sum_ln += v[k].ln();
-        sum += v[k];
+        let x = Real::to_f64(values[k]);
+        let v = if x.is_finite() { x.max(floor) } else { floor };
+        sum_ln += v.ln();
+        sum += v;
         let q = (m - k) as f64;
         let (log_g, a) = (sum_ln / q, sum / q);
         let score = -n * q * (log_g - a.ln()) + 0.5 * (k as f64) * (2.0 * m as f64 - k as f64) * n.ln();
@@ -74,8 +75,11 @@ mod tests {
             v.extend_from_slice(&noise[..8 - k]);
             assert_eq!(mdl(&v, 50), k, "{v:?}");
         }
-        assert_eq!(mdl(&[0.0; 8], 50), 0);
-        assert_eq!(mdl(&[5.0], 50), 0);
+        assert_eq!(mdl(&[0.0f64; 8], 50), 0);
+        assert_eq!(mdl(&[5.0f64], 50), 0);
+        // f32 values give the same count.
+        let v32: Vec<f32> = [40.0, 12.0, 1.35, 1.25, 1.15, 1.05, 0.95, 0.85].to_vec();
+        assert_eq!(mdl(&v32, 50), 2);
         assert_eq!(median(vec![3, 1, 2, 2]), 2);
         assert_eq!(median(vec![]), 0);
     }
