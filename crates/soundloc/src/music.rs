@@ -174,10 +174,11 @@ const MIN_PRODUCT_COLS: usize = 8;
 
 /// One window's w_k·g_k·P_k(d) for a block of directions from its projections `proj`
 /// (directions × the columns the denominator uses). The squared denominator runs as
-/// passes over the block that vectorise (the signal sums column by column, then the
-/// complement, floor and quotient for every direction), and a last pass recomputes the
-/// few directions whose complement fell below [`REFINE_RATIO`]·‖a‖²: the same operations
-/// in the same order per direction as a direction-by-direction loop, so the same bits.
+/// passes over the block: the signal sums column by column (strided reads), then the
+/// complement, floor and quotient for every direction — branch-free over contiguous
+/// arrays, so it vectorises — and a last pass recomputes the few directions whose
+/// complement fell below [`REFINE_RATIO`]·‖a‖². The same operations in the same order per
+/// direction as a direction-by-direction loop, so the same bits.
 #[allow(clippy::too_many_arguments)]
 fn accumulate_window<T: Real>(
     plan: &Plan<T>,

@@ -365,7 +365,13 @@ impl<T: Real> CpuBackend<T> {
             let snapshots = |w: usize| ((lens[w] as f64 * overlap).round() as usize).max(1);
             let per_bin: Vec<usize> = (0..nw * nb)
                 .into_par_iter()
-                .map(|i| count::mdl(&decs[i].values, snapshots(i / nb)))
+                .map(|i| {
+                    if plan.weights[i % nb] == T::zero() {
+                        0 // not used: the median skips bins without weight
+                    } else {
+                        count::mdl(&decs[i].values, snapshots(i / nb))
+                    }
+                })
                 .collect();
             for w in 0..nw {
                 let used = (0..nb)

@@ -13,9 +13,9 @@
 //!    ≈ n³/2 complex multiply-adds (the rank-2 update on half the matrix), and half the
 //!    memory traffic of full storage.
 //! 2. **Eigenvalues of T** by the rational (square-root free) implicit QL method
-//!    (EISPACK `tqlrat`), no vectors: O(n²), but a chain of dependent divisions (≈ 35 µs at
-//!    n = 60, a quarter of the whole); [`Eigh::solve_pair`] runs two problems' chains side
-//!    by side (≈ 23 µs each, same results).
+//!    (EISPACK `tqlrat`), no vectors: O(n²), but a chain of dependent divisions (≈ 35 µs of
+//!    a ≈ 110 µs solve at n = 60); [`Eigh::solve_pair`] runs two problems' chains side by
+//!    side (≈ 23 µs each, same results).
 //! 3. **The k largest eigenvectors of T** by inverse iteration, re-orthogonalised within
 //!    clusters of close eigenvalues (LAPACK `dstein`'s rules: clusters closer than
 //!    10⁻³‖T‖₁, equal eigenvalues perturbed apart by 10ε|λ|): O(n·k) plus the
