@@ -17,6 +17,8 @@ use std::sync::mpsc::{sync_channel, Receiver, SyncSender, TrySendError};
 
 #[derive(ValueEnum, Clone, Copy, Debug)]
 pub enum RawArg {
+    /// 8-bit unsigned (read as value - 128).
+    U8,
     /// 16-bit signed little-endian.
     S16le,
     /// 24-bit signed little-endian (packed, 3 bytes).
@@ -25,15 +27,19 @@ pub enum RawArg {
     S32le,
     /// 32-bit float little-endian.
     F32le,
+    /// 64-bit float little-endian.
+    F64le,
 }
 
 impl From<RawArg> for RawEncoding {
     fn from(r: RawArg) -> Self {
         match r {
+            RawArg::U8 => RawEncoding::U8,
             RawArg::S16le => RawEncoding::S16le,
             RawArg::S24le => RawEncoding::S24le,
             RawArg::S32le => RawEncoding::S32le,
             RawArg::F32le => RawEncoding::F32le,
+            RawArg::F64le => RawEncoding::F64le,
         }
     }
 }

@@ -2,8 +2,11 @@
 //! or pipes, and raw PCM (a sound card's or a network peer's bytes). A source never needs
 //! to seek, so standard input and sockets work as well as files.
 //!
-//! **WAV**: RIFF chunks are walked in order; `fmt ` must precede `data`. PCM 16/24/32-bit
-//! integer and 32-bit IEEE float (also as WAVE_FORMAT_EXTENSIBLE). A `data` size of 0 or
+//! **WAV**: RIFF chunks are walked in order; `fmt ` must precede `data`. PCM 8-bit
+//! (unsigned; delivered as value − 128), 16/24/32-bit integer, and 32/64-bit IEEE float
+//! (64-bit is what numpy's `scipy.io.wavfile.write` writes for float64 arrays), also as
+//! WAVE_FORMAT_EXTENSIBLE. Samples keep their raw values (a 24-bit sample is not rescaled
+//! to 16 bits). A `data` size of 0 or
 //! ≥ 0x7FFF_F000 is a streaming placeholder (what `arecord` and other pipes write before
 //! they know the length): the data then runs to the end of the input. Otherwise the data
 //! ends at its declared size, and a file that ends earlier is an error ("truncated"). An
@@ -11,8 +14,8 @@
 //!
 //! **FLAC**: 16- and 24-bit, decoded frame by frame.
 //!
-//! **Raw**: interleaved little-endian `s16le`, `s32le` or `f32le` frames; a trailing
-//! partial frame at the end of the input is dropped.
+//! **Raw**: interleaved `u8`, little-endian `s16le`, `s24le`, `s32le`, `f32le` or
+//! `f64le` frames; a trailing partial frame at the end of the input is dropped.
 //!
 //! Every block is checked for non-finite samples; the error names the source, the sample
 //! (0-based, counted from the start) and the channel.
@@ -123,6 +126,8 @@ fn check_finite(name: &Path, buf: &[f32], channels: usize, first_frame: u64) -> 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum RawEncoding {
+    /// 8-bit unsigned (WAV's 8-bit PCM), delivered as value − 128.
+    U8,
     /// 16-bit signed little-endian.
     S16le,
     /// 24-bit signed little-endian (3 bytes).
@@ -131,24 +136,30 @@ pub enum RawEncoding {
     S32le,
     /// 32-bit IEEE float little-endian.
     F32le,
+    /// 64-bit IEEE float little-endian (converted to 32-bit float).
+    F64le,
 }
 
 impl RawEncoding {
     /// Bytes per sample.
     pub fn bytes(self) -> usize {
         match self {
+            RawEncoding::U8 => 1,
             RawEncoding::S16le => 2,
             RawEncoding::S24le => 3,
             RawEncoding::S32le | RawEncoding::F32le => 4,
+            RawEncoding::F64le => 8,
         }
     }
 
     fn decode(self, b: &[u8]) -> f32 {
         match self {
+            RawEncoding::U8 => b[0] as f32 - 128.0,
             RawEncoding::S16le => i16::from_le_bytes([b[0], b[1]]) as f32,
             RawEncoding::S24le => (i32::from_le_bytes([0, b[0], b[1], b[2]]) >> 8) as f32,
             RawEncoding::S32le => i32::from_le_bytes([b[0], b[1], b[2], b[3]]) as f32,
             RawEncoding::F32le => f32::from_le_bytes([b[0], b[1], b[2], b[3]]),
+            RawEncoding::F64le => f64::from_le_bytes([b[0], b[1], b[2], b[3], b[4], b[5], b[6], b[7]]) as f32,
         }
     }
 }
@@ -357,21 +368,23 @@ impl<R: Read + Send> WavSource<R> {
                         Error::format(
                             name,
                             format!(
-                                "unsupported bit depth: {what} (supported: 16-, 24-, 32-bit integer and 32-bit float WAV; 16- and 24-bit FLAC)"
+                                "unsupported bit depth: {what} (supported: 8-, 16-, 24-, 32-bit integer and 32-, 64-bit float WAV; 16- and 24-bit FLAC)"
                             ),
                         )
                     };
                     let enc = match (tag, bits) {
+                        (1, 8) => RawEncoding::U8,
                         (1, 16) => RawEncoding::S16le,
                         (1, 24) => RawEncoding::S24le,
                         (1, 32) => RawEncoding::S32le,
                         (3, 32) => RawEncoding::F32le,
+                        (3, 64) => RawEncoding::F64le,
                         (1, b) => return Err(unsupported(format!("{b}-bit integer PCM"))),
                         (3, b) => return Err(unsupported(format!("{b}-bit float"))),
                         _ => {
                             return Err(Error::format(
                                 name,
-                                "unsupported WAV encoding (supported: 16-, 24-, 32-bit integer PCM and 32-bit float)",
+                                "unsupported WAV encoding (supported: 8-, 16-, 24-, 32-bit integer PCM and 32-, 64-bit float)",
                             ))
                         }
                     };
@@ -456,7 +469,7 @@ impl<R: Read + Send> FlacSource<R> {
             return Err(Error::format(
                 name,
                 format!(
-                    "unsupported bit depth: {}-bit FLAC (supported: 16-, 24-, 32-bit integer and 32-bit float WAV; 16- and 24-bit FLAC)",
+                    "unsupported bit depth: {}-bit FLAC (supported: 8-, 16-, 24-, 32-bit integer and 32-, 64-bit float WAV; 16- and 24-bit FLAC)",
                     info.bits_per_sample
                 ),
             ));

@@ -1,7 +1,7 @@
 //! Audio reader tests.
 use super::flac_write::encode_flac_verbatim as encode_flac;
 use super::*;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 pub(crate) fn temp_dir(tag: &str) -> PathBuf {
     use std::sync::atomic::{AtomicU64, Ordering};
@@ -103,6 +103,72 @@ fn reads_float32_as_is_any_channel_count() {
     std::fs::remove_dir_all(&d).unwrap();
 }
 
+/// A plain WAV file: format tag, bits per sample, channels, the data bytes.
+fn wav_bytes(tag: u16, bits: u16, channels: u16, data: &[u8]) -> Vec<u8> {
+    let fb = channels as u32 * bits as u32 / 8;
+    let mut v = b"RIFF".to_vec();
+    v.extend((36 + data.len() as u32).to_le_bytes());
+    v.extend(b"WAVEfmt ");
+    v.extend(16u32.to_le_bytes());
+    v.extend(tag.to_le_bytes());
+    v.extend(channels.to_le_bytes());
+    v.extend(16000u32.to_le_bytes());
+    v.extend((16000 * fb).to_le_bytes());
+    v.extend((fb as u16).to_le_bytes());
+    v.extend(bits.to_le_bytes());
+    v.extend(b"data");
+    v.extend((data.len() as u32).to_le_bytes());
+    v.extend(data);
+    v
+}
+
+#[test]
+fn reads_uint8_and_float64() {
+    let d = temp_dir("u8f64");
+    // 8-bit PCM is unsigned: 0 → −128, 128 → 0, 255 → 127 (hound stores i8 + 128).
+    let p = d.join("a.wav");
+    write_int_wav(&p, 8, &[vec![-128, 0], vec![127, -1]]);
+    let a = read_audio(&p).unwrap();
+    assert_eq!(a.channels, vec![vec![-128.0, 127.0], vec![0.0, -1.0]]);
+    // 64-bit float (what scipy.io.wavfile.write writes for float64 arrays), 3 channels.
+    let x = [0.5f64, -0.25, 1e-3, 2.0, -1.0, 0.125];
+    let data: Vec<u8> = x.iter().flat_map(|v| v.to_le_bytes()).collect();
+    let p = d.join("b.wav");
+    std::fs::write(&p, wav_bytes(3, 64, 3, &data)).unwrap();
+    let a = read_audio(&p).unwrap();
+    assert_eq!(
+        a.channels,
+        vec![vec![0.5, 2.0], vec![-0.25, -1.0], vec![1e-3f64 as f32, 0.125]]
+    );
+    // A float64 value beyond f32's range is an error naming the sample, not an infinity.
+    let data: Vec<u8> = [1.0f64, 1e300].iter().flat_map(|v| v.to_le_bytes()).collect();
+    let p = d.join("big.wav");
+    std::fs::write(&p, wav_bytes(3, 64, 1, &data)).unwrap();
+    let e = read_audio(&p).unwrap_err().to_string();
+    assert!(
+        e.contains("big.wav") && e.contains("sample 1 of channel 0 is infinite"),
+        "{e}"
+    );
+    // The same encodings as headerless PCM (`--raw u8`, `--raw f64le`).
+    let name = Path::new("-");
+    let mut src = RawSource::new(
+        std::io::Cursor::new(vec![0u8, 128, 255, 7]),
+        RawEncoding::U8,
+        2,
+        8000,
+        name,
+    )
+    .unwrap();
+    let mut buf = Vec::new();
+    assert_eq!(src.read_interleaved(10, &mut buf).unwrap(), 2);
+    assert_eq!(buf, vec![-128.0, 0.0, 127.0, -121.0]);
+    let bytes: Vec<u8> = x.iter().flat_map(|v| v.to_le_bytes()).collect();
+    let mut src = RawSource::new(std::io::Cursor::new(bytes), RawEncoding::F64le, 3, 8000, name).unwrap();
+    assert_eq!(src.read_interleaved(10, &mut buf).unwrap(), 2);
+    assert_eq!(buf, x.iter().map(|&v| v as f32).collect::<Vec<_>>());
+    std::fs::remove_dir_all(&d).unwrap();
+}
+
 #[test]
 fn reads_flac_16_and_24() {
     let d = temp_dir("flac");
@@ -179,12 +245,12 @@ fn errors_name_the_file() {
     write_float_wav(&p, &frames);
     let e = read_audio(&p).unwrap_err().to_string();
     assert!(e.contains("sample 7 of channel 0 is infinite"), "{e}");
-    // Unsupported bit depth.
-    let p = d.join("u8.wav");
-    write_int_wav(&p, 8, &[vec![1, 2]]);
+    // Unsupported bit depth (64-bit integer PCM).
+    let p = d.join("i64.wav");
+    std::fs::write(&p, wav_bytes(1, 64, 1, &[0u8; 16])).unwrap();
     let e = read_audio(&p).unwrap_err().to_string();
     assert!(
-        e.contains("u8.wav") && e.contains("unsupported bit depth: 8-bit"),
+        e.contains("i64.wav") && e.contains("unsupported bit depth: 64-bit integer PCM"),
         "{e}"
     );
     // Truncated data.
