@@ -393,3 +393,118 @@ fn ctrl_c_ends_a_live_session_cleanly() {
     assert_eq!(left.len(), 1, "no temporary file left: {left:?}");
     drop(stdin);
 }
+
+/// Azimuths of each result line's sources.
+fn azimuths(jsonl: &str) -> Vec<Vec<f64>> {
+    jsonl
+        .lines()
+        .map(|l| {
+            let v: serde_json::Value = serde_json::from_str(l).unwrap();
+            v["sources"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .map(|s| s["azimuth_deg"].as_f64().unwrap())
+                .collect()
+        })
+        .collect()
+}
+
+#[test]
+fn resample_converts_a_48_khz_input_and_noise_recording() {
+    let (audio, geo, wav16) = scene();
+    let tf = tmp("ring8-16k.zip");
+    let o = bin()
+        .args(["tf", "make", "--grid", "ring:5", "--geometry"])
+        .arg(&geo)
+        .arg("-o")
+        .arg(&tf)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let a48 = soundloc::audio::resample::resample_audio(&audio, 48000).unwrap();
+    let wav48 = tmp("ring8-48k.wav");
+    a48.write_wav(&wav48, soundloc::audio::SampleFormat::Float32)
+        .unwrap();
+    let opts = ["--window-type", "past", "--period", "10", "--device", "cpu", "-q"];
+    let run = |wav: &Path, extra: &[&str]| {
+        bin()
+            .arg("localize")
+            .arg(wav)
+            .arg("--tf")
+            .arg(&tf)
+            .args(opts)
+            .args(extra)
+            .output()
+            .unwrap()
+    };
+    // Without --resample: a clear error naming the file and both rates.
+    let o = run(&wav48, &[]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success() && o.stdout.is_empty(), "{err}");
+    assert!(
+        err.contains("ring8-48k.wav")
+            && err.contains("48000 Hz")
+            && err.contains("16000 Hz")
+            && err.contains("--resample"),
+        "{err}"
+    );
+    // With it: as many results as the 16 kHz original, the talkers where they are.
+    let o16 = run(&wav16, &[]);
+    assert!(o16.status.success(), "{}", String::from_utf8_lossy(&o16.stderr));
+    let o48 = run(&wav48, &["--resample"]);
+    assert!(o48.status.success(), "{}", String::from_utf8_lossy(&o48.stderr));
+    let (want, got) = (
+        azimuths(&String::from_utf8(o16.stdout).unwrap()),
+        azimuths(&String::from_utf8(o48.stdout).unwrap()),
+    );
+    assert_eq!(got.len(), want.len());
+    let near = |a: f64, b: f64| ((a - b + 540.0) % 360.0 - 180.0).abs() <= 5.0;
+    let both = |r: &Vec<f64>| [30.0, -120.0].iter().all(|&t| r.iter().any(|&a| near(a, t)));
+    let n_want = want.iter().filter(|r| both(r)).count();
+    let n_got = got.iter().filter(|r| both(r)).count();
+    assert!(n_want * 10 >= want.len() * 7, "the 16 kHz run itself: {want:?}");
+    assert!(
+        n_got + 1 >= n_want,
+        "48 kHz resampled: {n_got} vs {n_want} of {} windows: {got:?}",
+        got.len()
+    );
+    // Piped in odd-sized pieces: the same lines as from the file (block-size independent).
+    let mut child = bin()
+        .args(["localize", "-", "--tf"])
+        .arg(&tf)
+        .args(opts)
+        .arg("--resample")
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut stdin = child.stdin.take().unwrap();
+    let bytes = std::fs::read(&wav48).unwrap();
+    let writer = std::thread::spawn(move || {
+        for c in bytes.chunks(4099) {
+            stdin.write_all(c).unwrap();
+        }
+    });
+    let o = child.wait_with_output().unwrap();
+    writer.join().unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert_eq!(azimuths(&String::from_utf8(o.stdout).unwrap()), got);
+    // A 48 kHz noise recording for K is converted too (and refused without --resample).
+    let o = run(&wav16, &["--noise", wav48.to_str().unwrap()]);
+    assert!(!o.status.success(), "a 48 kHz noise recording without --resample");
+    assert!(String::from_utf8_lossy(&o.stderr).contains("48000 Hz"));
+    let o = run(
+        &wav48,
+        &[
+            "--resample",
+            "--noise",
+            wav48.to_str().unwrap(),
+            "--algorithm",
+            "gevd",
+        ],
+    );
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert_eq!(azimuths(&String::from_utf8(o.stdout).unwrap()).len(), want.len());
+}

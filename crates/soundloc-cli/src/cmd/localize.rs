@@ -11,6 +11,7 @@ use soundloc::array::freefield::DEFAULT_SPEED_OF_SOUND_M_S;
 use soundloc::array::grid::GridSpec;
 use soundloc::array::tf_cache::TfCache;
 use soundloc::array::Geometry;
+use soundloc::audio::resample::Resampler;
 use soundloc::audio::AudioFormat;
 use soundloc::config::{Denominator, SpectrumWeight};
 use soundloc::tracking::TrackerConfig;
@@ -128,6 +129,11 @@ pub struct RunArgs {
     /// Speed of sound for --geometry (m/s).
     #[arg(long, default_value_t = DEFAULT_SPEED_OF_SOUND_M_S, conflicts_with = "tf")]
     pub speed_of_sound: f64,
+    /// Convert audio (the input and --noise) at another sampling rate than the transfer
+    /// functions' to theirs (band-limited, no delay added), e.g. a 48 kHz sound card with a
+    /// 16 kHz TF file; without it a different rate is an error.
+    #[arg(long)]
+    pub resample: bool,
     /// TF_CHANNEL_SELECTION: TF channels to use, comma-separated (0-based). Applied to the
     /// audio too when it has the TF's full channel count.
     #[arg(long, value_delimiter = ',')]
@@ -380,6 +386,7 @@ impl RunArgs {
                 (Some(d), _) => TfCache::Dir(d.clone()),
                 (None, false) => TfCache::Default,
             },
+            resample: self.resample,
         })
     }
 }
@@ -412,8 +419,29 @@ pub fn drive(
     for n in loc.notes() {
         note(a.quiet, n);
     }
-    loc.check_input(fmt.sample_rate_hz, fmt.channels)
+    let mut resampler = loc
+        .input_converter(fmt.sample_rate_hz, fmt.channels)
         .map_err(|e| anyhow!("{}: {e}", name.display()))?;
+    let fmt = match &resampler {
+        Some(r) => {
+            note(
+                a.quiet,
+                &format!(
+                    "{}: resampling {} Hz to the transfer functions' {} Hz",
+                    name.display(),
+                    r.rate_in(),
+                    r.rate_out()
+                ),
+            );
+            AudioFormat {
+                sample_rate_hz: r.rate_out(),
+                total_frames: fmt.total_frames.map(|n| r.output_frames(n)),
+                ..fmt
+            }
+        }
+        None => fmt,
+    };
+    let mut converted = Vec::new();
     let fs = fmt.sample_rate_hz as f64;
     if live {
         let c = loc.config();
@@ -465,6 +493,32 @@ pub fn drive(
         };
         if live && !end {
             super::input::catch_up(&rx, &mut data, catch_up, &mut held);
+        }
+        let mut gap = gap;
+        if let Some(r) = &mut resampler {
+            // Each stretch of contiguous input is converted on its own: before a gap or
+            // the end, the converter's last samples go in; after a gap a fresh one starts.
+            if gap > 0 || end {
+                converted.clear();
+                r.finish(&mut converted).map_err(ctx)?;
+                if !converted.is_empty() {
+                    let block = Block::Interleaved {
+                        data: &converted,
+                        channels: nch,
+                    };
+                    loc.push(block, &mut out).map_err(ctx)?;
+                    audio_frames += (converted.len() / nch) as u64;
+                }
+                if gap > 0 {
+                    *r = Resampler::new(r.rate_in(), r.rate_out(), nch).map_err(ctx)?;
+                    gap = r.gap(gap);
+                }
+            }
+            if !end {
+                converted.clear();
+                r.process(&data, &mut converted).map_err(ctx)?;
+                std::mem::swap(&mut data, &mut converted);
+            }
         }
         if gap > 0 {
             loc.skip(gap, &mut out).map_err(ctx)?;

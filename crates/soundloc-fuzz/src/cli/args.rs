@@ -5,7 +5,7 @@ use rand::rngs::StdRng;
 use rand::Rng;
 
 /// Options each subcommand knows, for inserting out of place; the value is an example.
-const OPTIONS: [(&str, &str); 48] = [
+const OPTIONS: [(&str, &str); 49] = [
     ("--tf", "tf.zip"),
     ("--geometry", "array.toml"),
     ("--grid", "ring:30"),
@@ -42,6 +42,7 @@ const OPTIONS: [(&str, &str); 48] = [
     ("--summary", "s.json"),
     ("--log-text", "l.txt"),
     ("--raw", "s24le"),
+    ("--raw", "f64le"),
     ("--raw-channels", "8"),
     ("--rate", "16000"),
     ("--precision", "f64"),
@@ -56,8 +57,9 @@ const OPTIONS: [(&str, &str); 48] = [
     ("--cache-dir", "c"),
 ];
 
-const FLAGS: [&str; 12] = [
+const FLAGS: [&str; 13] = [
     "--track",
+    "--resample",
     "--refine",
     "--normalize-bins",
     "--no-cache",

@@ -13,6 +13,7 @@
 //! unsupported bit depth.
 
 pub mod flac_write;
+pub mod resample;
 pub mod source;
 
 pub use source::{

@@ -325,3 +325,93 @@ fn write_wav_round_trips() {
     assert_eq!(names.len(), 2);
     std::fs::remove_dir_all(&d).unwrap();
 }
+
+/// A sum of tones sampled at `rate` for `n` frames, `ch` channels (each channel delayed).
+fn tones(rate: u32, n: usize, ch: usize) -> Vec<f32> {
+    let mut v = Vec::with_capacity(n * ch);
+    for i in 0..n {
+        for c in 0..ch {
+            let t = i as f64 / rate as f64 - c as f64 * 1e-4;
+            let x = 1000.0 * (2.0 * std::f64::consts::PI * 440.0 * t).sin()
+                + 500.0 * (2.0 * std::f64::consts::PI * 2500.0 * t + 0.3).sin();
+            v.push(x as f32);
+        }
+    }
+    v
+}
+
+#[test]
+fn resampling_keeps_band_limited_signals_and_their_timing() {
+    use super::resample::Resampler;
+    for (rin, rout) in [(48000u32, 16000u32), (44100, 16000), (16000, 48000)] {
+        let (n, ch) = (rin as usize / 2 + 37, 3);
+        let input = tones(rin, n, ch);
+        let mut rs = Resampler::new(rin, rout, ch).unwrap();
+        let mut out = Vec::new();
+        rs.process(&input, &mut out).unwrap();
+        rs.finish(&mut out).unwrap();
+        // Exactly ⌈n · out / in⌉ frames.
+        let want_frames = (n as u64 * rout as u64).div_ceil(rin as u64) as usize;
+        assert_eq!(out.len(), want_frames * ch, "{rin} -> {rout}");
+        // Sample k is the signal at time k / rout (no delay), away from the two ends.
+        let reference = tones(rout, want_frames, ch);
+        let edge = rout as usize / 50;
+        let mut worst = 0.0f32;
+        for k in edge * ch..(want_frames - edge) * ch {
+            worst = worst.max((out[k] - reference[k]).abs());
+        }
+        assert!(worst < 2.0, "{rin} -> {rout}: worst error {worst} of 1500 peak");
+    }
+}
+
+#[test]
+fn resampling_does_not_depend_on_the_block_sizes() {
+    use super::resample::Resampler;
+    use rand::{Rng, SeedableRng};
+    let ch = 4;
+    let input = tones(48000, 30011, ch);
+    let run = |cuts: &[usize]| {
+        let mut rs = Resampler::new(48000, 16000, ch).unwrap();
+        let mut out = Vec::new();
+        let mut at = 0;
+        for &c in cuts {
+            let end = (at + c).min(30011);
+            rs.process(&input[at * ch..end * ch], &mut out).unwrap();
+            at = end;
+        }
+        rs.process(&input[at * ch..], &mut out).unwrap();
+        rs.finish(&mut out).unwrap();
+        out
+    };
+    let whole = run(&[]);
+    let mut rng = rand::rngs::StdRng::seed_from_u64(7);
+    for _ in 0..5 {
+        let cuts: Vec<usize> = (0..40).map(|_| rng.gen_range(0..2000)).collect();
+        assert_eq!(run(&cuts), whole);
+    }
+    // One frame at a time.
+    assert_eq!(run(&vec![1; 30011]), whole);
+    // A gap of input frames maps to the output frames at the same times.
+    let mut rs = Resampler::new(48000, 16000, ch).unwrap();
+    assert_eq!([rs.gap(1), rs.gap(1), rs.gap(1), rs.gap(3000)], [1, 0, 0, 1000]);
+    // Bad blocks are errors, not panics.
+    assert!(rs.process(&[0.0; 5], &mut Vec::new()).is_err());
+    assert!(Resampler::new(0, 16000, 2).is_err());
+}
+
+#[test]
+fn a_whole_recording_resampled() {
+    let a = Audio {
+        sample_rate_hz: 48000,
+        channels: vec![vec![0.5; 4800], vec![-0.25; 4800]],
+    };
+    let b = super::resample::resample_audio(&a, 16000).unwrap();
+    assert_eq!(
+        (b.sample_rate_hz, b.num_channels(), b.num_samples()),
+        (16000, 2, 1600)
+    );
+    // A constant stays constant away from the edges.
+    assert!(b.channels[0][100..1500].iter().all(|&x| (x - 0.5).abs() < 1e-3));
+    assert!(b.channels[1][100..1500].iter().all(|&x| (x + 0.25).abs() < 1e-3));
+    assert_eq!(super::resample::resample_audio(&b, 16000).unwrap(), b);
+}

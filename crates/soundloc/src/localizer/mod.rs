@@ -146,6 +146,11 @@ pub struct LocalizerSpec {
     /// Where prepared transfer functions (the used bins of a TF zip) are cached.
     #[serde(default)]
     pub tf_cache: TfCache,
+    /// Audio at another sampling rate than the analysis's (a 48 kHz sound card, a 16 kHz
+    /// TF file) is converted ([`crate::audio::resample`]) instead of refused: the noise
+    /// recording here, the input through [`Localizer::input_converter`].
+    #[serde(default)]
+    pub resample: bool,
 }
 
 impl LocalizerSpec {
@@ -179,6 +184,7 @@ impl LocalizerSpec {
             device: DeviceChoice::Auto,
             spectrum: false,
             tf_cache: TfCache::Default,
+            resample: false,
         }
     }
 
@@ -303,6 +309,7 @@ pub struct Localizer {
     config: LocalizeConfig,
     grid: Grid,
     notes: Vec<String>,
+    resample: bool,
 }
 
 impl Localizer {
@@ -348,6 +355,7 @@ impl Localizer {
             config: p.config,
             grid,
             notes: p.notes,
+            resample: spec.resample,
         })
     }
 
@@ -384,6 +392,24 @@ impl Localizer {
     /// See [`Engine::check_input`].
     pub fn check_input(&self, sample_rate_hz: u32, channels: usize) -> Result<()> {
         dispatch!(self, e => e.check_input(sample_rate_hz, channels))
+    }
+
+    /// How audio of `sample_rate_hz` and `channels` reaches this localizer: `None` when it
+    /// can be pushed as it is, a converter to the analysis rate when the rates differ and
+    /// the spec allows resampling, otherwise the error of [`Localizer::check_input`]
+    /// (which names both rates and the `resample` option).
+    pub fn input_converter(
+        &self,
+        sample_rate_hz: u32,
+        channels: usize,
+    ) -> Result<Option<crate::audio::resample::Resampler>> {
+        let fs = self.config.sample_rate_hz;
+        if sample_rate_hz == fs || !self.resample {
+            self.check_input(sample_rate_hz, channels)?;
+            return Ok(None);
+        }
+        self.check_input(fs, channels)?;
+        crate::audio::resample::Resampler::new(sample_rate_hz, fs, channels).map(Some)
     }
 
     /// See [`Engine::push`].
@@ -468,9 +494,12 @@ pub(crate) fn prepare(
         (Some(k), _) => InitialNoise::Given(Some(k)),
         (None, NoiseSource::None) => InitialNoise::Given(None),
         (None, NoiseSource::Range { start_s, end_s }) => InitialNoise::Range(*start_s, *end_s),
-        (None, NoiseSource::Recording { path }) => {
-            InitialNoise::Given(Some(noise_from_recording(path, &config, &channels)?))
-        }
+        (None, NoiseSource::Recording { path }) => InitialNoise::Given(Some(noise_from_recording(
+            path,
+            &config,
+            &channels,
+            spec.resample,
+        )?)),
         (None, NoiseSource::CorrelationFile { path }) => {
             use crate::formats::noise_cm::{Expected, NoiseCm};
             let expected = Expected {
@@ -530,9 +559,13 @@ fn noise_from_recording(
     path: &Path,
     config: &LocalizeConfig,
     channels: &ChannelMap,
+    resample: bool,
 ) -> Result<NoiseMatrices> {
     let ctx = |e: Error| Error::Mismatch(format!("{}: {e}", path.display()));
-    let audio = crate::audio::read_audio(path)?;
+    let mut audio = crate::audio::read_audio(path)?;
+    if resample && audio.sample_rate_hz != config.sample_rate_hz {
+        audio = crate::audio::resample::resample_audio(&audio, config.sample_rate_hz).map_err(ctx)?;
+    }
     let idx = channels.resolve(audio.num_channels()).map_err(ctx)?;
     let picked: Vec<Vec<f32>> = idx.iter().map(|&c| audio.channels[c].clone()).collect();
     crate::noise::estimate(config, audio.sample_rate_hz, &picked, None).map_err(ctx)
