@@ -97,7 +97,7 @@ impl Resampler {
         if self.finished {
             return Err(Error::Config("resampler: input after the end".into()));
         }
-        if data.len() % self.channels != 0 {
+        if !data.len().is_multiple_of(self.channels) {
             return Err(Error::Mismatch(format!(
                 "resampler: {} samples are not a whole number of {}-channel frames",
                 data.len(),

@@ -169,7 +169,7 @@ pub fn parse_text(text: &str, path: &Path, frame_period_s: f64) -> Result<Vec<Lo
             )
         })?;
         let rest = &toks[1..];
-        if rest.len() % 4 != 0 {
+        if !rest.len().is_multiple_of(4) {
             return Err(Error::format(
                 path,
                 format!(
