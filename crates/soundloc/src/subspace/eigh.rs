@@ -52,7 +52,9 @@ pub struct Eigh {
     /// The k vectors during the back-transformation, split parts.
     yr: Vec<f64>,
     yi: Vec<f64>,
-    lu: TriLu,
+    /// Shift and cluster start per wanted vector.
+    shifts: Vec<(f64, usize)>,
+    lu: [TriLu; LOCKSTEP],
     vr: Vec<f64>,
     vi: Vec<f64>,
     pr: Vec<f64>,
@@ -74,7 +76,8 @@ impl Eigh {
             z: Vec::new(),
             yr: Vec::new(),
             yi: Vec::new(),
-            lu: TriLu::new(n),
+            shifts: Vec::new(),
+            lu: std::array::from_fn(|_| TriLu::new(n)),
             vr: vec![0.0; n],
             vi: vec![0.0; n],
             pr: vec![0.0; n],
@@ -180,6 +183,8 @@ impl Eigh {
         }
         let ortol = 1e-3 * norm1;
         let tiny = f64::EPSILON * norm1;
+        // Shifts and clusters first (dstein's rules), in order.
+        self.shifts.clear();
         let mut cluster_start = 0;
         let mut prev = f64::INFINITY;
         for c in 0..k {
@@ -194,36 +199,92 @@ impl Eigh {
                 }
             }
             prev = lam;
-            self.lu.factor(d, e, lam, tiny);
+            self.shifts.push((lam, cluster_start));
+        }
+        // Then the vectors, in groups of up to LOCKSTEP whose later members each start a
+        // cluster of their own: those depend on no other vector, so their solves (chains
+        // of dependent divisions) run side by side; each vector's operations are the same
+        // as alone, so are its bits.
+        let mut c = 0;
+        while c < k {
+            let mut g = 1;
+            while g < LOCKSTEP && c + g < k && self.shifts[c + g].1 == c + g {
+                g += 1;
+            }
             let (done, rest) = self.z.split_at_mut(c * n);
-            let x = &mut rest[..n];
-            // A fixed, non-degenerate start (dstein starts from random numbers).
-            let mut s = 0x9e37_79b9_7f4a_7c15u64 ^ (c as u64).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-            for xi in x.iter_mut() {
-                s ^= s << 13;
-                s ^= s >> 7;
-                s ^= s << 17;
-                *xi = (s >> 11) as f64 / (1u64 << 53) as f64 - 0.5;
+            let mut xs = rest.chunks_mut(n).take(g);
+            let x: [&mut [f64]; LOCKSTEP] = std::array::from_fn(|_| xs.next().unwrap_or_default());
+            for (v, lu) in self.lu.iter_mut().enumerate().take(g) {
+                lu.factor(d, e, self.shifts[c + v].0, tiny);
             }
-            for _ in 0..3 {
-                let mx = x.iter().fold(0.0f64, |a, v| a.max(v.abs()));
-                if mx > 0.0 {
-                    x.iter_mut().for_each(|v| *v /= mx);
-                }
-                self.lu.solve(x);
-                for q in cluster_start..c {
+            let [x0, x1, x2, x3] = x;
+            let shifts = &self.shifts;
+            let cluster0 = shifts[c].1;
+            iterate_group(&self.lu, [x0, x1, x2, x3], g, c, |x0| {
+                // Only the group's first vector may share a cluster with earlier ones.
+                for q in cluster0..c {
                     let zq = &done[q * n..(q + 1) * n];
-                    let dot = dot_real(zq, x);
-                    axpy_real(-dot, zq, x);
+                    let dot = dot_real(zq, x0);
+                    axpy_real(-dot, zq, x0);
                 }
+            });
+            c += g;
+        }
+    }
+}
+
+/// Vectors solved side by side in inverse iteration (see `tridiagonal_vectors`).
+const LOCKSTEP: usize = 4;
+
+/// Inverse iteration for the first `g` of `x` (vectors c, c+1, …; `lu[v]` factors T − λI
+/// for vector c+v): a fixed start, three rounds of max-normalisation, solve and (for the
+/// first vector only, `orth0`) re-orthogonalisation, then unit norm.
+fn iterate_group(
+    lu: &[TriLu; LOCKSTEP],
+    x: [&mut [f64]; LOCKSTEP],
+    g: usize,
+    c: usize,
+    mut orth0: impl FnMut(&mut [f64]),
+) {
+    let [x0, x1, x2, x3] = x;
+    let mut xs = [x0, x1, x2, x3];
+    for (v, x) in xs.iter_mut().enumerate().take(g) {
+        // A fixed, non-degenerate start (dstein starts from random numbers).
+        let mut s = 0x9e37_79b9_7f4a_7c15u64 ^ ((c + v) as u64).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+        for xi in x.iter_mut() {
+            s ^= s << 13;
+            s ^= s >> 7;
+            s ^= s << 17;
+            *xi = (s >> 11) as f64 / (1u64 << 53) as f64 - 0.5;
+        }
+    }
+    for _ in 0..3 {
+        for x in xs.iter_mut().take(g) {
+            let mx = x.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+            if mx > 0.0 {
+                x.iter_mut().for_each(|v| *v /= mx);
             }
-            let nrm = dot_real(x, x).sqrt();
-            if nrm > 0.0 && nrm.is_finite() {
-                x.iter_mut().for_each(|v| *v /= nrm);
-            } else {
-                x.iter_mut().for_each(|v| *v = 0.0);
-                x[c.min(n - 1)] = 1.0;
-            }
+        }
+        let [x0, x1, x2, x3] = &mut xs;
+        match g {
+            1 => lu[0].solve(x0),
+            2 => TriLu::solve_many([&lu[0], &lu[1]], [&mut **x0, &mut **x1]),
+            3 => TriLu::solve_many([&lu[0], &lu[1], &lu[2]], [&mut **x0, &mut **x1, &mut **x2]),
+            _ => TriLu::solve_many(
+                [&lu[0], &lu[1], &lu[2], &lu[3]],
+                [&mut **x0, &mut **x1, &mut **x2, &mut **x3],
+            ),
+        }
+        orth0(&mut **x0);
+    }
+    for (v, x) in xs.iter_mut().enumerate().take(g) {
+        let nrm = dot_real(x, x).sqrt();
+        if nrm > 0.0 && nrm.is_finite() {
+            x.iter_mut().for_each(|v| *v /= nrm);
+        } else {
+            x.iter_mut().for_each(|v| *v = 0.0);
+            let n = x.len();
+            x[(c + v).min(n - 1)] = 1.0;
         }
     }
 }

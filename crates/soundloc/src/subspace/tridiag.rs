@@ -275,6 +275,59 @@ impl TriLu {
         }
     }
 
+    /// [`TriLu::solve`] for N systems of one size at once, row by row side by side (their
+    /// chains of divisions overlap); each system's operations and results are those of
+    /// [`TriLu::solve`].
+    pub(super) fn solve_many<const N: usize>(lus: [&TriLu; N], mut xs: [&mut [f64]; N]) {
+        let n = xs[0].len();
+        if xs.iter().any(|x| x.len() != n) {
+            for (lu, x) in lus.iter().zip(xs.iter_mut()) {
+                lu.solve(x);
+            }
+            return;
+        }
+        for i in 0..n.saturating_sub(1) {
+            for (lu, x) in lus.iter().zip(xs.iter_mut()) {
+                if lu.swap[i] {
+                    let t = x[i];
+                    x[i] = x[i + 1];
+                    x[i + 1] = t - lu.dl[i] * x[i];
+                } else {
+                    x[i + 1] -= lu.dl[i] * x[i];
+                }
+            }
+        }
+        for i in (0..n).rev() {
+            for (lu, x) in lus.iter().zip(xs.iter_mut()) {
+                lu.back_step(x, i);
+            }
+        }
+    }
+
+    /// Row i of the back substitution (with the rescale after an overflow).
+    #[inline(always)]
+    fn back_step(&self, x: &mut [f64], i: usize) {
+        let n = x.len();
+        let mut v = x[i];
+        if i + 1 < n {
+            v -= self.du[i] * x[i + 1];
+        }
+        if i + 2 < n {
+            v -= self.du2[i] * x[i + 2];
+        }
+        x[i] = v / self.dd[i];
+        if !x[i].is_finite() {
+            // Overflow from a tiny pivot: the vector is all but found; rescale.
+            let mx = x
+                .iter()
+                .fold(0.0f64, |a, v| if v.is_finite() { a.max(v.abs()) } else { a });
+            let s = if mx > 0.0 { 1.0 / mx } else { 1.0 };
+            for v in x.iter_mut() {
+                *v = if v.is_finite() { *v * s } else { v.signum() };
+            }
+        }
+    }
+
     /// x ← (T − λI)⁻¹ x.
     pub(super) fn solve(&self, x: &mut [f64]) {
         let n = x.len();
@@ -288,24 +341,7 @@ impl TriLu {
             }
         }
         for i in (0..n).rev() {
-            let mut v = x[i];
-            if i + 1 < n {
-                v -= self.du[i] * x[i + 1];
-            }
-            if i + 2 < n {
-                v -= self.du2[i] * x[i + 2];
-            }
-            x[i] = v / self.dd[i];
-            if !x[i].is_finite() {
-                // Overflow from a tiny pivot: the vector is all but found; rescale.
-                let mx = x
-                    .iter()
-                    .fold(0.0f64, |a, v| if v.is_finite() { a.max(v.abs()) } else { a });
-                let s = if mx > 0.0 { 1.0 / mx } else { 1.0 };
-                for v in x.iter_mut() {
-                    *v = if v.is_finite() { *v * s } else { v.signum() };
-                }
-            }
+            self.back_step(x, i);
         }
     }
 }
@@ -469,6 +505,85 @@ mod tests {
                 (tr - got).abs() <= 1e-9 * (1.0 + tr.abs()),
                 "n {n}: trace {tr} vs {got}"
             );
+        }
+    }
+
+    /// Solving two, three or four shifted systems side by side gives each the bits of
+    /// solving it alone — near-singular shifts (an eigenvalue of T, the overflow rescale)
+    /// included — and the solutions solve their systems.
+    #[test]
+    fn solving_side_by_side_equals_one_at_a_time() {
+        let mut rng = rand::rngs::StdRng::seed_from_u64(11);
+        let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+        for n in (1..=70usize).chain([8; 10]).chain([60; 10]) {
+            let d: Vec<f64> = (0..n).map(|_| rng.gen_range(-2.0..2.0)).collect();
+            let e: Vec<f64> = (0..n.saturating_sub(1))
+                .map(|_| rng.gen_range(-1.0..1.0))
+                .collect();
+            let mut lus: Vec<TriLu> = (0..4).map(|_| TriLu::new(n)).collect();
+            let mut eig = d.clone();
+            let mut e2: Vec<f64> = e.iter().map(|x| x * x).chain([0.0]).collect();
+            ql_values(&mut eig, &mut e2).unwrap();
+            for (k, lu) in lus.iter_mut().enumerate() {
+                // Shifts: at an eigenvalue (nearly singular), next to one, and arbitrary.
+                let lam = match k {
+                    0 => eig[0],
+                    1 => eig[n / 2] + 1e-9,
+                    _ => rng.gen_range(-3.0..3.0),
+                };
+                lu.factor(&d, &e, lam, f64::EPSILON);
+            }
+            let rhs: Vec<Vec<f64>> = (0..4)
+                .map(|_| (0..n).map(|_| rng.gen_range(-1.0..1.0)).collect())
+                .collect();
+            let alone: Vec<Vec<f64>> = (0..4)
+                .map(|k| {
+                    let mut x = rhs[k].clone();
+                    lus[k].solve(&mut x);
+                    x
+                })
+                .collect();
+            let [mut a, mut b, mut c, mut dd] = [0, 1, 2, 3].map(|k| rhs[k].clone());
+            TriLu::solve_many([&lus[0], &lus[1]], [&mut a, &mut b]);
+            assert_eq!(
+                (bits(&a), bits(&b)),
+                (bits(&alone[0]), bits(&alone[1])),
+                "n {n}: two"
+            );
+            let [mut a, mut b] = [0, 1].map(|k| rhs[k].clone());
+            TriLu::solve_many([&lus[0], &lus[1], &lus[2]], [&mut a, &mut b, &mut c]);
+            assert_eq!(
+                (bits(&a), bits(&b), bits(&c)),
+                (bits(&alone[0]), bits(&alone[1]), bits(&alone[2])),
+                "n {n}: three"
+            );
+            let [mut a, mut b, mut c] = [0, 1, 2].map(|k| rhs[k].clone());
+            TriLu::solve_many(
+                [&lus[0], &lus[1], &lus[2], &lus[3]],
+                [&mut a, &mut b, &mut c, &mut dd],
+            );
+            assert_eq!(
+                [bits(&a), bits(&b), bits(&c), bits(&dd)].to_vec(),
+                alone.iter().map(|x| bits(x)).collect::<Vec<_>>(),
+                "n {n}: four"
+            );
+        }
+        // A solve solves: (T − λI) x = b for a well-conditioned shift.
+        let (d, e) = (vec![4.0, 5.0, 6.0, 7.0], vec![1.0, -0.5, 0.25]);
+        let mut lu = TriLu::new(4);
+        lu.factor(&d, &e, 0.5, f64::EPSILON);
+        let b = [1.0, -2.0, 0.5, 3.0];
+        let mut x = b.to_vec();
+        lu.solve(&mut x);
+        for i in 0..4 {
+            let mut r = (d[i] - 0.5) * x[i];
+            if i > 0 {
+                r += e[i - 1] * x[i - 1];
+            }
+            if i + 1 < 4 {
+                r += e[i] * x[i + 1];
+            }
+            assert!((r - b[i]).abs() < 1e-12, "row {i}: {r} vs {}", b[i]);
         }
     }
 }
