@@ -17,6 +17,12 @@ use rubato::{Fft, FixedSync, Indexing, Resampler as _};
 
 /// Input frames per chunk the converter aims for (rubato rounds to its FFT size).
 const CHUNK_IN: usize = 1024;
+/// The largest upsampling ratio accepted (a 1 kHz recording has nothing to localize at
+/// 16 kHz; the limit keeps a hostile header from asking for gigabytes).
+const MAX_UPSAMPLING: u64 = 16;
+/// Samples (input and output chunk, all channels) one conversion step may hold: rates
+/// with a small common factor (44 101 Hz to 16 000 Hz) need long FFT blocks.
+const MAX_CHUNK_SAMPLES: usize = 1 << 24;
 
 /// A streaming sample-rate converter (see the [module docs](self)).
 pub struct Resampler {
@@ -49,8 +55,23 @@ impl Resampler {
         // frames): the FFT sizes are then even, and the delay (half of each) a whole number
         // of samples on both sides — with odd sizes the output would lag half an input
         // sample.
-        let min_in = (rate_in / gcd(rate_in, rate_out)) as usize;
+        if rate_out as u64 > MAX_UPSAMPLING * rate_in as u64 {
+            return Err(Error::Config(format!(
+                "resampling {rate_in} Hz to {rate_out} Hz: more than {MAX_UPSAMPLING}x upsampling (the input holds nothing above {} Hz to localize)",
+                rate_in / 2
+            )));
+        }
+        let g = gcd(rate_in, rate_out);
+        let min_in = (rate_in / g) as usize;
         let periods = CHUNK_IN.div_ceil(min_in).next_multiple_of(2);
+        let fft_in = periods * min_in;
+        let fft_out = periods * (rate_out / g) as usize;
+        if (fft_in + fft_out) * channels > MAX_CHUNK_SAMPLES {
+            return Err(Error::Config(format!(
+                "resampling {rate_in} Hz to {rate_out} Hz with {channels} channels: the rates have {g} Hz as greatest common factor, which needs blocks of {fft_in} input frames (at most {} samples in all are allowed)",
+                MAX_CHUNK_SAMPLES
+            )));
+        }
         let fft = Fft::<f32>::new(
             rate_in as usize,
             rate_out as usize,

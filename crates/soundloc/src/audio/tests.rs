@@ -397,6 +397,14 @@ fn resampling_does_not_depend_on_the_block_sizes() {
     // Bad blocks are errors, not panics.
     assert!(rs.process(&[0.0; 5], &mut Vec::new()).is_err());
     assert!(Resampler::new(0, 16000, 2).is_err());
+    // Hostile rates are errors, not gigabytes: 1 Hz input, coprime rates with many channels.
+    let e = Resampler::new(1, 16000, 8).err().unwrap().to_string();
+    assert!(e.contains("1 Hz") && e.contains("upsampling"), "{e}");
+    let e = Resampler::new(999_983, 16000, 64).err().unwrap().to_string();
+    assert!(e.contains("999983 Hz") && e.contains("common factor"), "{e}");
+    // Awkward but reasonable rates still work.
+    assert!(Resampler::new(44101, 16000, 60).is_ok());
+    assert!(Resampler::new(8000, 16000, 2).is_ok());
 }
 
 #[test]
