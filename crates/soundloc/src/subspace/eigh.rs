@@ -275,7 +275,7 @@ fn iterate_group(
                 [&mut **x0, &mut **x1, &mut **x2, &mut **x3],
             ),
         }
-        orth0(&mut **x0);
+        orth0(x0);
     }
     for (v, x) in xs.iter_mut().enumerate().take(g) {
         let nrm = dot_real(x, x).sqrt();
