@@ -5,6 +5,7 @@ use crate::{channel_count, directions, err, results, samples};
 use pyo3::exceptions::{PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
+use soundloc::audio::resample::Resampler;
 use soundloc::{Block, Localizer, Output};
 use std::path::PathBuf;
 use std::sync::{Mutex, MutexGuard};
@@ -38,9 +39,14 @@ impl PyLocalizer {
         fs: Option<u32>,
         channels_first: Option<bool>,
     ) -> PyResult<Bound<'py, PyDict>> {
-        self.check_rate(fs)?;
-        self.lock()?.reset().map_err(err)?;
-        let mut out = self.run(py, x, channels_first.unwrap_or(self.channels_first), true)?;
+        let channels_first = channels_first.unwrap_or(self.channels_first);
+        let mut out = match self.converter(x, fs, channels_first)? {
+            None => {
+                self.lock()?.reset().map_err(err)?;
+                self.run(py, x, channels_first, true)?
+            }
+            Some(r) => self.run_converted(py, x, channels_first, r)?,
+        };
         results(py, &mut out, self.lock()?.grid().len())
     }
 
@@ -67,9 +73,14 @@ impl PyLocalizer {
         let mut inner = self.lock()?;
         let loc = &mut *inner;
         py.allow_threads(|| -> soundloc::Result<usize> {
-            let audio = soundloc::audio::read_audio(&input)?;
-            loc.check_input(audio.sample_rate_hz, audio.num_channels())
-                .map_err(|e| soundloc::Error::Config(format!("{}: {e}", input.display())))?;
+            let mut audio = soundloc::audio::read_audio(&input)?;
+            let named = |e: soundloc::Error| soundloc::Error::Config(format!("{}: {e}", input.display()));
+            if let Some(r) = loc
+                .input_converter(audio.sample_rate_hz, audio.num_channels())
+                .map_err(named)?
+            {
+                audio = soundloc::audio::resample::resample_audio(&audio, r.rate_out()).map_err(named)?;
+            }
             loc.reset()?;
             let run = loc.localize(&audio.channels)?;
             if csv {
@@ -163,14 +174,67 @@ impl PyLocalizer {
             .map_err(|_| PyRuntimeError::new_err("the localizer failed in another thread"))
     }
 
-    fn check_rate(&self, fs: Option<u32>) -> PyResult<()> {
-        let want = self.lock()?.config().sample_rate_hz;
+    /// How audio at `fs` Hz reaches the localizer: as it is (`None`), through a converter
+    /// (`resample=True` and another rate), or an error naming both rates.
+    fn converter(
+        &self,
+        x: &Bound<'_, PyAny>,
+        fs: Option<u32>,
+        channels_first: bool,
+    ) -> PyResult<Option<Resampler>> {
+        let guard = self.lock()?;
+        let want = guard.config().sample_rate_hz;
         match fs {
-            Some(f) if f != want => Err(PyValueError::new_err(format!(
-                "the audio is sampled at {f} Hz, but the transfer functions are for {want} Hz"
-            ))),
-            _ => Ok(()),
+            Some(f) if f != want => {
+                let s = samples(x)?;
+                let n_ch = channel_count(s.shape(), channels_first, |c| guard.check_input(want, c))?;
+                guard
+                    .input_converter(f, n_ch)
+                    .map_err(|e| PyValueError::new_err(format!("the audio is sampled at {f} Hz: {e}")))
+            }
+            _ => Ok(None),
         }
+    }
+
+    /// A whole recording through `r`: reset, convert, push, flush.
+    fn run_converted(
+        &mut self,
+        py: Python<'_>,
+        x: &Bound<'_, PyAny>,
+        channels_first: bool,
+        mut r: Resampler,
+    ) -> PyResult<Output> {
+        let s = samples(x)?;
+        let [rows, cols] = s.shape();
+        let data = s.data();
+        let mut guard = self.lock()?;
+        let inner = &mut *guard;
+        let mut out = Output::default();
+        py.allow_threads(|| -> soundloc::Result<()> {
+            // Interleaved input for the converter.
+            let inter: Vec<f32> = if channels_first {
+                (0..cols)
+                    .flat_map(|i| (0..rows).map(move |c| data[c * cols + i]))
+                    .collect()
+            } else {
+                data.to_vec()
+            };
+            let n_ch = if channels_first { rows } else { cols };
+            let mut conv = Vec::new();
+            r.process(&inter, &mut conv)?;
+            r.finish(&mut conv)?;
+            inner.reset()?;
+            inner.push(
+                Block::Interleaved {
+                    data: &conv,
+                    channels: n_ch,
+                },
+                &mut out,
+            )?;
+            inner.flush(&mut out)
+        })
+        .map_err(err)?;
+        Ok(out)
     }
 
     fn run(

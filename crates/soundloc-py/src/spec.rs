@@ -45,7 +45,7 @@ impl PySpec {
     noise=None, noise_range=None, noise_cm=None, noise_segments=None, noise_preceding=None,
     track=false, tracker_thresh_db=0.0, device="auto", precision="f32", channels=None,
     input_channels=None, spectrum=true, grid_radius=1.0, speed_of_sound=343.0, channels_first=false,
-    subspace_dim=None, normalize_bins=false, refine=false, subspace_tracking=false))]
+    subspace_dim=None, normalize_bins=false, refine=false, subspace_tracking=false, resample=false))]
 #[allow(clippy::too_many_arguments)] // mirrors the Python keywords
 pub(crate) fn spec(
     tf: Option<PathBuf>,
@@ -80,6 +80,7 @@ pub(crate) fn spec(
     normalize_bins: bool,
     refine: bool,
     subspace_tracking: bool,
+    resample: bool,
 ) -> PyResult<PySpec> {
     let grid_spec: Option<GridSpec> = match grid {
         Some(g) => match g.extract::<String>() {
@@ -163,6 +164,7 @@ pub(crate) fn spec(
     spec.device = parse::<DeviceChoice>("device", device)?;
     spec.precision = parse::<Precision>("precision", precision)?;
     spec.spectrum = spectrum;
+    spec.resample = resample;
     // A noise recording as an array: K from it, through the same channel map.
     let noise_audio: Option<(Vec<f32>, [usize; 2])> = noise
         .map(samples)

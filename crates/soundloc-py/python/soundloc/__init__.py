@@ -33,6 +33,9 @@ Arguments (HARK LocalizeMUSIC name / pyroomacoustics name):
     track: SourceTracker ids; device: "auto"|"cpu"|"cuda"; precision: "f32"|"f64".
     channels (TF_CHANNEL_SELECTION), input_channels (ChannelSelector).
     channels_first: arrays are (channels, samples) instead of (samples, channels).
+    resample: audio given to localize(x, fs) or localize_file at another rate than the
+        analysis's (e.g. 48 kHz with a 16 kHz TF file) is converted instead of refused
+        (band-limited, no delay added); push() takes blocks at the analysis rate (``loc.fs``).
 
 Errors: ValueError (bad input or configuration), OSError (files), RuntimeError (device).
 """
