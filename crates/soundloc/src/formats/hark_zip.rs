@@ -54,6 +54,17 @@ pub fn looks_like_zip(bytes: &[u8]) -> bool {
     bytes.starts_with(b"PK\x03\x04") || bytes.starts_with(b"PK\x05\x06")
 }
 
+/// True when the file at `path` starts like a zip archive (false when it cannot be read:
+/// the reader that follows reports why).
+pub fn file_looks_like_zip(path: &Path) -> bool {
+    use std::io::Read;
+    let mut head = [0u8; 4];
+    std::fs::File::open(path)
+        .and_then(|mut f| f.read_exact(&mut head))
+        .is_ok()
+        && looks_like_zip(&head)
+}
+
 /// The path used in error messages for entry `entry` of zip `zip`:
 /// `tf.zip: transferFunction/localization/tf00003.mat`.
 pub fn entry_path(zip: &Path, entry: &str) -> PathBuf {

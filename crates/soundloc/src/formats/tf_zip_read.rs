@@ -30,7 +30,24 @@ struct Head {
     names: Vec<String>,
 }
 
-fn read_head(path: &Path) -> Result<Head> {
+/// The settings (FFT length, sampling rate) a TF zip was made for, from its small entries
+/// alone (no matrix is inflated): what `--resample` needs before choosing the bins to read.
+pub fn read_tf_zip_config(path: &Path) -> Result<HarkConfig> {
+    let (_, _, _, _, cfg) = read_small(path)?;
+    Ok(cfg)
+}
+
+/// The open archive, its small entries, the container root, source.xml (parsed) and the
+/// config it holds.
+fn read_small(
+    path: &Path,
+) -> Result<(
+    ZipReader,
+    BTreeMap<String, Vec<u8>>,
+    String,
+    xml::Element,
+    HarkConfig,
+)> {
     let mut zr = ZipReader::open(path)?;
     let small_names: Vec<String> = zr
         .names()
@@ -59,6 +76,12 @@ fn read_head(path: &Path) -> Result<Head> {
     let src_path = entry_path(path, &src_name);
     let src = xml::parse_file_text(&entry_text(&entries, &src_name, path)?, &src_path)?;
     let cfg = HarkConfig::from_xml(&src, &src_path)?;
+    Ok((zr, entries, root, src, cfg))
+}
+
+fn read_head(path: &Path) -> Result<Head> {
+    let (zr, entries, root, src, cfg) = read_small(path)?;
+    let src_path = entry_path(path, &format!("{root}source.xml"));
     let points = read_positions(&src, "soundsource", &src_path)?
         .ok_or_else(|| Error::format(&src_path, "no <positions type=\"soundsource\">"))?;
     if points.is_empty() {

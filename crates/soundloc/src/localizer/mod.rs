@@ -250,6 +250,17 @@ impl LocalizerSpec {
         let used = config.bin_range();
         let tf = match &self.array {
             ArraySpec::TransferFunctions { path } => {
+                // Resampling runs the analysis at the file's rate, whatever the input's:
+                // the bins to read are those of that rate (read from the zip's small
+                // entries first).
+                let mut config = config.clone();
+                if self.resample && crate::formats::hark_zip::file_looks_like_zip(path) {
+                    let c = crate::formats::tf_zip_read::read_tf_zip_config(path)?;
+                    if c.nfft == config.nfft {
+                        config.sample_rate_hz = c.sampling_rate_hz;
+                    }
+                }
+                let used = config.bin_range();
                 let (tf, outcome) = TransferFunctions::load_cached(
                     path,
                     Some((config.nfft, config.sample_rate_hz, used)),
@@ -574,6 +585,36 @@ fn noise_from_recording(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// With `resample`, a TF zip made at 16 kHz is read for the bins the analysis uses at
+    /// 16 kHz even when the input (and so the spec's analysis) is at 48 kHz; without it the
+    /// mismatch keeps every bin (so the plan can say why).
+    #[test]
+    fn resampling_reads_the_bins_of_the_files_own_rate() {
+        let geo = crate::array::Geometry::circle(8, 0.0365, 0.0);
+        let grid = crate::array::Grid::ring(30.0, 0.0, 1.0);
+        let tf = crate::array::freefield::free_field(&geo, &grid, 512, 16000, 0..257, 343.0).unwrap();
+        let dir = crate::audio::tests::temp_dir("resample-tf");
+        let path = dir.join("tf16k.zip");
+        crate::formats::hark_zip::write_tf_zip(&tf, &path).unwrap();
+        let mut spec = LocalizerSpec::from_tf(&path);
+        spec.tf_cache = TfCache::Off;
+        let config = LocalizeConfig {
+            sample_rate_hz: 48000,
+            ..LocalizeConfig::default()
+        };
+        let at16 = LocalizeConfig {
+            sample_rate_hz: 16000,
+            ..config.clone()
+        }
+        .bin_range();
+        assert_eq!(spec.load_array(&config).unwrap().bins(), 0..257);
+        spec.resample = true;
+        let got = spec.load_array(&config).unwrap();
+        assert_eq!((got.bins(), got.sample_rate_hz), (at16.clone(), 16000));
+        assert_eq!(at16, 16..89);
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
 
     /// The robust default's subspace: num_sources + 2 on small arrays, M/2 on large ones,
     /// always below M; a named algorithm or an explicit --subspace-dim is left alone.
