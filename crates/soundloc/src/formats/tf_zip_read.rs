@@ -39,15 +39,16 @@ pub fn read_tf_zip_config(path: &Path) -> Result<HarkConfig> {
 
 /// The open archive, its small entries, the container root, source.xml (parsed) and the
 /// config it holds.
-fn read_small(
-    path: &Path,
-) -> Result<(
+type Small = (
     ZipReader,
     BTreeMap<String, Vec<u8>>,
     String,
     xml::Element,
     HarkConfig,
-)> {
+);
+
+/// [`Small`] of the zip at `path`.
+fn read_small(path: &Path) -> Result<Small> {
     let mut zr = ZipReader::open(path)?;
     let small_names: Vec<String> = zr
         .names()
