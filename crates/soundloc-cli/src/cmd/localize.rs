@@ -11,7 +11,6 @@ use soundloc::array::freefield::DEFAULT_SPEED_OF_SOUND_M_S;
 use soundloc::array::grid::GridSpec;
 use soundloc::array::tf_cache::TfCache;
 use soundloc::array::Geometry;
-use soundloc::audio::resample::Resampler;
 use soundloc::audio::AudioFormat;
 use soundloc::config::{Denominator, SpectrumWeight};
 use soundloc::tracking::TrackerConfig;
@@ -422,6 +421,7 @@ pub fn drive(
     let mut resampler = loc
         .input_converter(fmt.sample_rate_hz, fmt.channels)
         .map_err(|e| anyhow!("{}: {e}", name.display()))?;
+    let in_rate = fmt.sample_rate_hz;
     let fmt = match &resampler {
         Some(r) => {
             note(
@@ -472,7 +472,8 @@ pub fn drive(
     let mut progress = Progress::default();
     let mut next_report = 10.0;
     let ctx = |e: soundloc::Error| anyhow!("{}: {e}", name.display());
-    let catch_up = (soundloc::input::CATCH_UP_S * fs) as usize * nch;
+    // Queued blocks arrive at the input's rate.
+    let catch_up = (soundloc::input::CATCH_UP_S * in_rate as f64) as usize * nch;
     let mut held: Option<Msg> = None;
     loop {
         let msg = match held.take() {
@@ -496,23 +497,22 @@ pub fn drive(
         }
         let mut gap = gap;
         if let Some(r) = &mut resampler {
-            // Each stretch of contiguous input is converted on its own: before a gap or
-            // the end, the converter's last samples go in; after a gap a fresh one starts.
-            if gap > 0 || end {
-                converted.clear();
+            // Before a gap or the end the converter's last samples go in; a gap becomes
+            // the output frames that keep later samples at their true times.
+            converted.clear();
+            if gap > 0 {
+                gap = r.gap(gap, &mut converted).map_err(ctx)?;
+            }
+            if end {
                 r.finish(&mut converted).map_err(ctx)?;
-                if !converted.is_empty() {
-                    let block = Block::Interleaved {
-                        data: &converted,
-                        channels: nch,
-                    };
-                    loc.push(block, &mut out).map_err(ctx)?;
-                    audio_frames += (converted.len() / nch) as u64;
-                }
-                if gap > 0 {
-                    *r = Resampler::new(r.rate_in(), r.rate_out(), nch).map_err(ctx)?;
-                    gap = r.gap(gap);
-                }
+            }
+            if !converted.is_empty() {
+                let block = Block::Interleaved {
+                    data: &converted,
+                    channels: nch,
+                };
+                loc.push(block, &mut out).map_err(ctx)?;
+                audio_frames += (converted.len() / nch) as u64;
             }
             if !end {
                 converted.clear();

@@ -20,8 +20,10 @@ const CHUNK_IN: usize = 1024;
 /// The largest upsampling ratio accepted (a 1 kHz recording has nothing to localize at
 /// 16 kHz; the limit keeps a hostile header from asking for gigabytes).
 const MAX_UPSAMPLING: u64 = 16;
-/// Samples (input and output chunk, all channels) one conversion step may hold: rates
-/// with a small common factor (44 101 Hz to 16 000 Hz) need long FFT blocks.
+/// Frames per FFT block, and samples (input and output chunk, all channels), one
+/// conversion step may hold: rates with a small common factor (44 101 Hz to 16 000 Hz)
+/// need long blocks, and the converter keeps several buffers of each size.
+const MAX_FFT_FRAMES: usize = 1 << 18;
 const MAX_CHUNK_SAMPLES: usize = 1 << 24;
 
 /// A streaming sample-rate converter (see the [module docs](self)).
@@ -36,10 +38,10 @@ pub struct Resampler {
     chunk: Vec<f32>,
     /// Output frames still to drop (the converter's delay).
     delay_left: usize,
+    /// Input frames so far, gaps included (the input's clock).
     frames_in: u64,
+    /// Output frames so far, emitted or skipped for gaps (the output's clock).
     frames_out: u64,
-    /// Input frames skipped by [`Resampler::gap`] (their output counterpart is skipped too).
-    gap_in: u64,
     finished: bool,
 }
 
@@ -66,10 +68,9 @@ impl Resampler {
         let periods = CHUNK_IN.div_ceil(min_in).next_multiple_of(2);
         let fft_in = periods * min_in;
         let fft_out = periods * (rate_out / g) as usize;
-        if (fft_in + fft_out) * channels > MAX_CHUNK_SAMPLES {
+        if fft_in.max(fft_out) > MAX_FFT_FRAMES || (fft_in + fft_out) * channels > MAX_CHUNK_SAMPLES {
             return Err(Error::Config(format!(
-                "resampling {rate_in} Hz to {rate_out} Hz with {channels} channels: the rates have {g} Hz as greatest common factor, which needs blocks of {fft_in} input frames (at most {} samples in all are allowed)",
-                MAX_CHUNK_SAMPLES
+                "resampling {rate_in} Hz to {rate_out} Hz with {channels} channels: the rates have {g} Hz as greatest common factor, which needs blocks of {fft_in} input frames (at most {MAX_FFT_FRAMES} frames per block and {MAX_CHUNK_SAMPLES} samples over all channels are allowed)"
             )));
         }
         let fft = Fft::<f32>::new(
@@ -92,7 +93,6 @@ impl Resampler {
             delay_left,
             frames_in: 0,
             frames_out: 0,
-            gap_in: 0,
             finished: false,
         })
     }
@@ -149,22 +149,38 @@ impl Resampler {
         Ok(())
     }
 
-    /// The input skipped `frames` frames (live input that fell behind): returns how many
-    /// output frames to skip so that later samples keep their true times. The converter's
-    /// state runs on across the gap.
-    pub fn gap(&mut self, frames: u64) -> u64 {
-        let before = self.output_frames(self.gap_in);
-        self.gap_in += frames;
-        self.output_frames(self.gap_in) - before
+    /// The input skipped `frames` frames (live input that fell behind): the stretch before
+    /// the gap is finished (its last samples appended to `out`), the converter restarts,
+    /// and the number of output frames to skip is returned — so that the next stretch
+    /// starts at output frame ⌈(input frames so far, gaps included) · out / in⌉ and result
+    /// times stay true (within one output sample, never accumulating over gaps).
+    pub fn gap(&mut self, frames: u64, out: &mut Vec<f32>) -> Result<u64> {
+        if self.finished {
+            return Err(Error::Config("resampler: input after the end".into()));
+        }
+        self.end_stretch(out)?;
+        self.frames_in += frames;
+        let skip = self.output_frames(self.frames_in) - self.frames_out;
+        self.frames_out += skip;
+        self.fft.reset();
+        self.delay_left = self.fft.output_delay();
+        Ok(skip)
     }
 
     /// The input ended: append the remaining output (the converter's delay drained), so
-    /// that the stream's output holds exactly [`Resampler::output_frames`] of its input.
+    /// that the stream's output, gaps included, holds exactly [`Resampler::output_frames`]
+    /// of its input.
     pub fn finish(&mut self, out: &mut Vec<f32>) -> Result<()> {
         if self.finished {
             return Ok(());
         }
+        self.end_stretch(out)?;
         self.finished = true;
+        Ok(())
+    }
+
+    /// Drain the current stretch up to output frame ⌈frames_in · out / in⌉.
+    fn end_stretch(&mut self, out: &mut Vec<f32>) -> Result<()> {
         let total = self.output_frames(self.frames_in);
         let pending = std::mem::take(&mut self.pending);
         let mut partial = pending.len() / self.channels;
@@ -180,6 +196,8 @@ impl Resampler {
         let extra = (self.frames_out - total) as usize * self.channels;
         out.truncate(out.len() - extra);
         self.frames_out = total;
+        zeros.clear();
+        self.pending = zeros;
         Ok(())
     }
 

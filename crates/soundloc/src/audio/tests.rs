@@ -391,9 +391,14 @@ fn resampling_does_not_depend_on_the_block_sizes() {
     }
     // One frame at a time.
     assert_eq!(run(&vec![1; 30011]), whole);
-    // A gap of input frames maps to the output frames at the same times.
+    // Gaps: output frames are skipped by position, so many gaps do not accumulate a lag.
     let mut rs = Resampler::new(48000, 16000, ch).unwrap();
-    assert_eq!([rs.gap(1), rs.gap(1), rs.gap(1), rs.gap(3000)], [1, 0, 0, 1000]);
+    let mut sink = Vec::new();
+    let skips: Vec<u64> = [1, 1, 1, 3000]
+        .iter()
+        .map(|&g| rs.gap(g, &mut sink).unwrap())
+        .collect();
+    assert_eq!((skips, sink.len()), (vec![1, 0, 0, 1000], 0));
     // Bad blocks are errors, not panics.
     assert!(rs.process(&[0.0; 5], &mut Vec::new()).is_err());
     assert!(Resampler::new(0, 16000, 2).is_err());
@@ -405,6 +410,46 @@ fn resampling_does_not_depend_on_the_block_sizes() {
     // Awkward but reasonable rates still work.
     assert!(Resampler::new(44101, 16000, 60).is_ok());
     assert!(Resampler::new(8000, 16000, 2).is_ok());
+}
+
+/// Live input with many gaps: every stretch lands at its true output time (the samples
+/// after the last gap match the signal at their absolute times), and the output holds
+/// exactly ⌈(frames and gaps) · out / in⌉ frames.
+#[test]
+fn resampling_across_gaps_keeps_true_times() {
+    use super::resample::Resampler;
+    let ch = 2;
+    let n = 48000;
+    let input = tones(48000, n, ch);
+    let mut rs = Resampler::new(48000, 16000, ch).unwrap();
+    let mut out = Vec::new();
+    let mut at = 0;
+    // 40 stretches of 1001 frames, each followed by a gap of 2 frames (⌈2/3⌉ = 1 output
+    // frame rounded up each time: a per-gap rounding would drift 40 samples).
+    for _ in 0..40 {
+        rs.process(&input[at * ch..(at + 1001) * ch], &mut out).unwrap();
+        at += 1001;
+        let skip = rs.gap(2, &mut out).unwrap() as usize;
+        out.extend(std::iter::repeat_n(f32::NAN, skip * ch));
+        at += 2;
+    }
+    // The last stretch starts at output frame ⌈40 120 / 3⌉: no lag accumulated.
+    let start = out.len() / ch;
+    assert_eq!(start, at.div_ceil(3));
+    rs.process(&input[at * ch..], &mut out).unwrap();
+    rs.finish(&mut out).unwrap();
+    assert_eq!(out.len(), 16000 * ch);
+    // Its samples, away from its edges, are the signal from input frame `at` on (output
+    // frame `start` holds input time at / 48 000 s: less than one output sample early).
+    let reference = tones(48000, n, ch);
+    let mut worst = 0.0f32;
+    for i in start + 200..16000 - 200 {
+        for c in 0..ch {
+            let k = at + 3 * (i - start);
+            worst = worst.max((out[i * ch + c] - reference[k * ch + c]).abs());
+        }
+    }
+    assert!(worst < 2.0, "worst error after 40 gaps: {worst}");
 }
 
 #[test]

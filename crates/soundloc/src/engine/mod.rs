@@ -256,7 +256,7 @@ impl<T: Real> Engine<T> {
     pub fn check_input(&self, sample_rate_hz: u32, channels: usize) -> Result<()> {
         if sample_rate_hz != self.plan.config.sample_rate_hz {
             return Err(Error::Mismatch(format!(
-                "sampled at {} Hz, but the transfer functions are for {} Hz (convert it with --resample, or `resample: true` in a spec)",
+                "sampled at {} Hz, but the transfer functions are for {} Hz (the resample option converts it: --resample, resample=True)",
                 sample_rate_hz, self.plan.config.sample_rate_hz
             )));
         }

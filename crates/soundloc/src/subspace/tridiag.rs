@@ -509,7 +509,7 @@ mod tests {
     }
 
     /// Solving two, three or four shifted systems side by side gives each the bits of
-    /// solving it alone — near-singular shifts (an eigenvalue of T, the overflow rescale)
+    /// solving it alone — near-singular shifts (at an eigenvalue of T, tiny pivots)
     /// included — and the solutions solve their systems.
     #[test]
     fn solving_side_by_side_equals_one_at_a_time() {
