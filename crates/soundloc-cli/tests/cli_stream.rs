@@ -3,7 +3,7 @@
 
 mod common;
 
-use common::{bin, s16le};
+use common::{bin, s16le, spawn_piped};
 use soundloc::audio::Audio;
 use std::io::{BufRead, BufReader, Read, Write};
 use std::net::{TcpListener, TcpStream};
@@ -82,15 +82,7 @@ fn lines_of(r: impl Read + Send + 'static) -> mpsc::Receiver<String> {
 fn stdin_wav_prints_results_before_the_input_ends() {
     let (audio, geo, wav) = scene();
     let want = from_file(&wav, &geo);
-    let mut child = bin()
-        .args(["localize", "-", "--geometry"])
-        .arg(&geo)
-        .args(OPTS)
-        .stdin(Stdio::piped())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
+    let mut child = spawn_piped(bin().args(["localize", "-", "--geometry"]).arg(&geo).args(OPTS));
     let mut stdin = child.stdin.take().unwrap();
     let rx = lines_of(child.stdout.take().unwrap());
     stdin.write_all(&streaming_wav_header(8, 16000)).unwrap();
@@ -124,25 +116,22 @@ fn stdin_wav_prints_results_before_the_input_ends() {
 fn raw_pcm_on_stdin_equals_the_file() {
     let (audio, geo, wav) = scene();
     let want = from_file(&wav, &geo);
-    let mut child = bin()
-        .args([
-            "localize",
-            "-",
-            "--raw",
-            "s16le",
-            "--raw-channels",
-            "8",
-            "--rate",
-            "16000",
-            "--geometry",
-        ])
-        .arg(&geo)
-        .args(OPTS)
-        .stdin(Stdio::piped())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
+    let mut child = spawn_piped(
+        bin()
+            .args([
+                "localize",
+                "-",
+                "--raw",
+                "s16le",
+                "--raw-channels",
+                "8",
+                "--rate",
+                "16000",
+                "--geometry",
+            ])
+            .arg(&geo)
+            .args(OPTS),
+    );
     let mut stdin = child.stdin.take().unwrap();
     let bytes = s16le(&audio, 0..audio.num_samples());
     // Odd-sized writes: frames split across writes.
@@ -343,27 +332,24 @@ fn ctrl_c_ends_a_live_session_cleanly() {
     let dir = tmp("ctrlc");
     std::fs::create_dir_all(&dir).unwrap();
     let out = dir.join("live.jsonl");
-    let mut child = bin()
-        .args([
-            "localize",
-            "-",
-            "--raw",
-            "s16le",
-            "--raw-channels",
-            "8",
-            "--rate",
-            "16000",
-            "--geometry",
-        ])
-        .arg(&geo)
-        .args(&OPTS[..8])
-        .arg("-o")
-        .arg(&out)
-        .stdin(Stdio::piped())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
+    let mut child = spawn_piped(
+        bin()
+            .args([
+                "localize",
+                "-",
+                "--raw",
+                "s16le",
+                "--raw-channels",
+                "8",
+                "--rate",
+                "16000",
+                "--geometry",
+            ])
+            .arg(&geo)
+            .args(&OPTS[..8])
+            .arg("-o")
+            .arg(&out),
+    );
     let mut stdin = child.stdin.take().unwrap();
     let mut err = BufReader::new(child.stderr.take().unwrap());
     let mut line = String::new();
@@ -470,16 +456,13 @@ fn resample_converts_a_48_khz_input_and_noise_recording() {
         got.len()
     );
     // Piped in odd-sized pieces: the same lines as from the file (block-size independent).
-    let mut child = bin()
-        .args(["localize", "-", "--tf"])
-        .arg(&tf)
-        .args(opts)
-        .arg("--resample")
-        .stdin(Stdio::piped())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
+    let mut child = spawn_piped(
+        bin()
+            .args(["localize", "-", "--tf"])
+            .arg(&tf)
+            .args(opts)
+            .arg("--resample"),
+    );
     let mut stdin = child.stdin.take().unwrap();
     let bytes = std::fs::read(&wav48).unwrap();
     let writer = std::thread::spawn(move || {

@@ -1,7 +1,7 @@
 //! `soundloc._native.Localizer`: one stream (see `soundloc.Localizer` in Python).
 
 use crate::spec::PySpec;
-use crate::{channel_count, directions, err, results, samples};
+use crate::{channel_count, directions, err, results, samples, Samples};
 use pyo3::exceptions::{PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
@@ -40,12 +40,13 @@ impl PyLocalizer {
         channels_first: Option<bool>,
     ) -> PyResult<Bound<'py, PyDict>> {
         let channels_first = channels_first.unwrap_or(self.channels_first);
-        let mut out = match self.converter(x, fs, channels_first)? {
+        let s = samples(x)?;
+        let mut out = match self.converter(&s, fs, channels_first)? {
             None => {
                 self.lock()?.reset().map_err(err)?;
-                self.run(py, x, channels_first, true)?
+                self.run(py, &s, channels_first, true)?
             }
-            Some(r) => self.run_converted(py, x, channels_first, r)?,
+            Some(r) => self.run_converted(py, &s, channels_first, r)?,
         };
         results(py, &mut out, self.lock()?.grid().len())
     }
@@ -101,7 +102,8 @@ impl PyLocalizer {
         x: &Bound<'py, PyAny>,
         channels_first: Option<bool>,
     ) -> PyResult<Bound<'py, PyDict>> {
-        let mut out = self.run(py, x, channels_first.unwrap_or(self.channels_first), false)?;
+        let s = samples(x)?;
+        let mut out = self.run(py, &s, channels_first.unwrap_or(self.channels_first), false)?;
         results(py, &mut out, self.lock()?.grid().len())
     }
 
@@ -178,7 +180,7 @@ impl PyLocalizer {
     /// (`resample=True` and another rate), or an error naming both rates.
     fn converter(
         &self,
-        x: &Bound<'_, PyAny>,
+        s: &Samples<'_>,
         fs: Option<u32>,
         channels_first: bool,
     ) -> PyResult<Option<Resampler>> {
@@ -186,7 +188,6 @@ impl PyLocalizer {
         let want = guard.config().sample_rate_hz;
         match fs {
             Some(f) if f != want => {
-                let s = samples(x)?;
                 let n_ch = channel_count(s.shape(), channels_first, |c| guard.check_input(want, c))?;
                 guard
                     .input_converter(f, n_ch)
@@ -200,37 +201,24 @@ impl PyLocalizer {
     fn run_converted(
         &mut self,
         py: Python<'_>,
-        x: &Bound<'_, PyAny>,
+        s: &Samples<'_>,
         channels_first: bool,
         mut r: Resampler,
     ) -> PyResult<Output> {
-        let s = samples(x)?;
         let [rows, cols] = s.shape();
-        let data = s.data();
+        let n_ch = if channels_first { rows } else { cols };
+        let block = block_of(s.data(), n_ch, channels_first);
         let mut guard = self.lock()?;
         let inner = &mut *guard;
         let mut out = Output::default();
         py.allow_threads(|| -> soundloc::Result<()> {
-            // Interleaved input for the converter.
-            let inter: Vec<f32> = if channels_first {
-                (0..cols)
-                    .flat_map(|i| (0..rows).map(move |c| data[c * cols + i]))
-                    .collect()
-            } else {
-                data.to_vec()
-            };
-            let n_ch = if channels_first { rows } else { cols };
+            let mut inter = Vec::new();
+            block.append_interleaved(&mut inter)?;
             let mut conv = Vec::new();
             r.process(&inter, &mut conv)?;
             r.finish(&mut conv)?;
             inner.reset()?;
-            inner.push(
-                Block::Interleaved {
-                    data: &conv,
-                    channels: n_ch,
-                },
-                &mut out,
-            )?;
+            inner.push(block_of(&conv, n_ch, false), &mut out)?;
             inner.flush(&mut out)
         })
         .map_err(err)?;
@@ -240,11 +228,10 @@ impl PyLocalizer {
     fn run(
         &mut self,
         py: Python<'_>,
-        x: &Bound<'_, PyAny>,
+        s: &Samples<'_>,
         channels_first: bool,
         flush: bool,
     ) -> PyResult<Output> {
-        let s = samples(x)?;
         let mut guard = self.lock()?;
         let fs = guard.config().sample_rate_hz;
         let n_ch = channel_count(s.shape(), channels_first, |c| guard.check_input(fs, c))?;
@@ -252,12 +239,7 @@ impl PyLocalizer {
         let data = s.data();
         let inner = &mut *guard;
         py.allow_threads(|| -> soundloc::Result<()> {
-            let block = if channels_first {
-                Block::ChannelsFirst { data, channels: n_ch }
-            } else {
-                Block::Interleaved { data, channels: n_ch }
-            };
-            inner.push(block, &mut out)?;
+            inner.push(block_of(data, n_ch, channels_first), &mut out)?;
             if flush {
                 inner.flush(&mut out)?;
             }
@@ -265,5 +247,14 @@ impl PyLocalizer {
         })
         .map_err(err)?;
         Ok(out)
+    }
+}
+
+/// A view of (samples, channels) or, channels first, (channels, samples) data.
+fn block_of(data: &[f32], channels: usize, channels_first: bool) -> Block<'_> {
+    if channels_first {
+        Block::ChannelsFirst { data, channels }
+    } else {
+        Block::Interleaved { data, channels }
     }
 }

@@ -48,6 +48,20 @@ impl<'a> Block<'a> {
         }
     }
 
+    /// The block's frames appended to `out`, interleaved (a copy only where the layout is
+    /// another).
+    pub fn append_interleaved(&self, out: &mut Vec<f32>) -> Result<()> {
+        let n = self.samples()?;
+        match *self {
+            Block::Interleaved { data, .. } => out.extend_from_slice(data),
+            Block::ChannelsFirst { data, channels } => {
+                out.extend((0..n).flat_map(|i| (0..channels).map(move |c| data[c * n + i])))
+            }
+            Block::Planar(p) => out.extend((0..n).flat_map(|i| p.iter().map(move |c| c[i]))),
+        }
+        Ok(())
+    }
+
     /// Samples per channel; an error when the layout is inconsistent (a length that is not
     /// a multiple of the channel count, channels of different lengths, no channel).
     pub fn samples(&self) -> Result<usize> {

@@ -58,3 +58,13 @@ pub fn s16le(audio: &Audio, range: std::ops::Range<usize>) -> Vec<u8> {
     }
     b
 }
+
+/// Spawn `cmd` with standard input, output and error piped.
+pub fn spawn_piped(cmd: &mut Command) -> std::process::Child {
+    use std::process::Stdio;
+    cmd.stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap()
+}

@@ -241,9 +241,7 @@ pub fn resample_audio(audio: &Audio, rate_hz: u32) -> Result<Audio> {
     let n = audio.num_samples();
     let mut rs = Resampler::new(audio.sample_rate_hz, rate_hz, ch)?;
     let mut inter = Vec::with_capacity(n * ch);
-    for i in 0..n {
-        inter.extend(audio.channels.iter().map(|c| c[i]));
-    }
+    crate::input::Block::Planar(&audio.channels).append_interleaved(&mut inter)?;
     let mut out = Vec::new();
     rs.process(&inter, &mut out)?;
     rs.finish(&mut out)?;

@@ -280,7 +280,7 @@ impl TriLu {
     /// [`TriLu::solve`].
     pub(super) fn solve_many<const N: usize>(lus: [&TriLu; N], mut xs: [&mut [f64]; N]) {
         let n = xs[0].len();
-        if xs.iter().any(|x| x.len() != n) {
+        if N > 1 && xs.iter().any(|x| x.len() != n) {
             for (lu, x) in lus.iter().zip(xs.iter_mut()) {
                 lu.solve(x);
             }
@@ -330,19 +330,7 @@ impl TriLu {
 
     /// x ← (T − λI)⁻¹ x.
     pub(super) fn solve(&self, x: &mut [f64]) {
-        let n = x.len();
-        for i in 0..n.saturating_sub(1) {
-            if self.swap[i] {
-                let t = x[i];
-                x[i] = x[i + 1];
-                x[i + 1] = t - self.dl[i] * x[i];
-            } else {
-                x[i + 1] -= self.dl[i] * x[i];
-            }
-        }
-        for i in (0..n).rev() {
-            self.back_step(x, i);
-        }
+        Self::solve_many([self], [x]);
     }
 }
 
