@@ -8,10 +8,12 @@
 //                                        the eigenvectors of A Aᴴ, σ = √λ)
 //   H = Q T Qᴴ,  Q = H_0 H_1 ⋯ H_{n−2},  H_k = I − τ_k v_k v_kᴴ  (LAPACK's zhetd2, lower),
 //   T scaled to ‖T‖ ≈ 1; λ_0 ≥ … ≥ λ_{Ns−1} to EH_BTOL by multisection of Sturm counts
-//   (the block's warps shared among the values, 32 points per warp and round); z_r by
-//   inverse iteration with partial pivoting (LAPACK's dlagtf/dstein idea, two solves; the
-//   Ns vectors are then orthonormalised, which also separates clustered values); λ_0 from
-//   the Rayleigh quotient z_0ᵀ T z_0; e_r = Q z_r.
+//   (Ns ≤ warps: the block's warps shared among the values, 32 points per warp and round;
+//   more values: P ≤ 16 lanes per value, all values at once); z_r by inverse iteration
+//   with partial pivoting (LAPACK's dlagtf/dstein idea, two solves, one thread per vector;
+//   the Ns vectors are then orthonormalised by the block, which also separates clustered
+//   values); λ_0 from the Rayleigh quotient z_0ᵀ T z_0; e_r = Q z_r (each warp applies
+//   the reflectors to up to EH_BT vectors at once).
 //
 // Two kernels: form_h (modes 1–3) writes H to global memory, eigh reads it (or R in
 // mode 0) and does the rest; apart, the products' register tiles do not cap the
@@ -27,8 +29,11 @@
 // Threads: EH_THREADS (256, or 512 for tuning) = EH_TY × 16; the products use 4 (or 2)
 // rows × 4 columns of registers per thread, so M ≤ 64. Shared memory (dynamic, see
 // `eigh_smem` / `form_h_smem` on the host): A (M × lda complex doubles, lda = M | 1: odd,
-// so column reads are conflict-free), p (M), v (2 × M), τ (M), d, e, e² (M each), λ (Ns),
-// Z (Ns × M), inverse-iteration scratch (min(Ns, EH_VEC) × 5M), 1 + 32 ints.
+// so column reads are conflict-free) and xd = 3·(M|1) (rounded up to even) doubles after
+// it, p (M), v (2 × M), τ (M), d, e, e² (M each), λ (Ns), 1 + 32 ints. After the
+// reduction A's storage holds the packed reflectors ((M−1)(M−2)/2 complex), then Z
+// (Ns rows of stride M|1) and the inverse-iteration scratch (3 rows of stride M|1 per
+// vector solved at once; at least one fits).
 //
 // R and W arrive in double whatever T is (the correlation hands R on unrounded).
 // Outputs as decompose.cu: E [blk][Ns][M] (rank order) in T and, when E64 is not null, the
@@ -45,9 +50,12 @@
 #define EH_RT (EH_MAXN / EH_TY)    // rows per thread in the products
 #define EH_PARTS (EH_THREADS / 64)  // threads per row in the matrix-vector product
 #ifndef EH_BTOL
-#define EH_BTOL 1e-10  // bisection stops at this fraction of ‖T‖ (then inverse iteration)
+// Bisection stops at this fraction of ‖T‖ (then inverse iteration). Not 1e-10: values
+// near the noise floor are ~1e-4‖T‖ and close together, and shifts that far off left
+// the robust default's deepest vectors 1e-4 dB from the CPU's (2026-11-27).
+#define EH_BTOL 1e-14
 #endif
-#define EH_VEC 8                    // eigenvectors of T solved at once (lanes of warp 0)
+#define EH_BT 2                     // vectors per warp at once in the back-transformation
 
 typedef cplx<double> zd;
 
@@ -234,17 +242,26 @@ __device__ void eigh_impl(const zd* __restrict__ R, const zd* __restrict__ Hg, i
     } while (0)
     EH_PROF(0);
     zd* A = reinterpret_cast<zd*>(sm);
-    zd* pv = A + (size_t)n * lda;
+    // After the reduction A's storage (and xd doubles after it) is reused: the packed
+    // reflectors first, then the vectors of T (Ns rows of stride us, odd: conflict-free
+    // when each thread walks its own row), then the inverse-iteration scratch.
+    const int us = n | 1;
+    const int xd = (3 * us + 1) & ~1;  // one solver's scratch guaranteed (even: keeps pv aligned)
+    double* F = reinterpret_cast<double*>(A);
+    zd* pv = reinterpret_cast<zd*>(F + 2 * (size_t)n * lda + xd);
     zd* vv = pv + n;  // two buffers of n
     zd* tau = vv + 2 * n;
     double* dd = reinterpret_cast<double*>(tau + n);
     double* ee = dd + n;  // off-diagonal β_k (real, signed)
     double* e2 = ee + n;  // β_k²
     double* lam = e2 + n;
-    double* zs = lam + ns;                    // Ns × n
-    double* scr = zs + (size_t)ns * n;         // EH_VEC × 5n
-    int* steps = reinterpret_cast<int*>(scr + (size_t)min(ns, EH_VEC) * 5 * n);
+    int* steps = reinterpret_cast<int*>(lam + ns);
     int* bfirst = steps + 1;  // per warp, multisection
+    const int npk = (n - 1) * (n - 2) / 2;   // packed reflector entries: v_k(k+2 … n−1)
+    const zd* Pk = reinterpret_cast<const zd*>(F);
+    double* zs = F + 2 * (size_t)npk;         // Ns × us
+    double* scr = zs + (size_t)ns * us;       // vpp × 3 × us: 1/U diagonal, U's two superdiagonals
+    const int vpp = max(1, min(ns, (2 * n * lda + xd - 2 * npk - ns * us) / (3 * us)));
     const zd* Rm = R + (size_t)blockIdx.x * M * M;    // column-major, R_ik = Rm[k*M + i]
 
     // ---- H in A: R itself (mode 0) or the product form_h wrote ----
@@ -376,23 +393,52 @@ __device__ void eigh_impl(const zd* __restrict__ R, const zd* __restrict__ Hg, i
     __syncthreads();
     EH_PROF(2);
 
-    // ---- the top Ns eigenvalues of T: multisection, the block's warps shared among the
-    // values of a chunk (wpe warps per value: 32·wpe points per round) ----
+    // ---- pack the reflectors: v_k(i), i = k+2 … n−1, to Pk[off(k) + i − k − 2] with
+    // off(k) = k(2n−3−k)/2, freeing the rest of A's storage for Z and the solver scratch.
+    // Through registers: packed positions overlap earlier columns' entries.
+    {
+        constexpr int CMAX = (EH_MAXN * EH_MAXN / 2 + EH_THREADS - 1) / EH_THREADS;
+        zd tmp[CMAX];
+        const int c2 = 2 * n - 3;
+#pragma unroll
+        for (int c = 0; c < CMAX; ++c) {
+            const int p = tid + c * nt;
+            if (p < npk) {
+                int k = (int)floor(0.5 * ((double)c2 - sqrt((double)c2 * c2 - 8.0 * p)));
+                k = max(k, 0);
+                while (k > 0 && k * (c2 - k) / 2 > p) --k;
+                while ((k + 1) * (c2 - k - 1) / 2 <= p) ++k;
+                tmp[c] = A[(size_t)k * lda + k + 2 + (p - k * (c2 - k) / 2)];
+            }
+        }
+        __syncthreads();
+        zd* Pw = reinterpret_cast<zd*>(F);
+#pragma unroll
+        for (int c = 0; c < CMAX; ++c) {
+            const int p = tid + c * nt;
+            if (p < npk) Pw[p] = tmp[c];
+        }
+        __syncthreads();
+    }
+
+    // ---- the top Ns eigenvalues of T: multisection of Sturm counts ----
     const double eps = 2.220446049250313e-16;
     const double tiny = 1e-30;  // pivot guard, relative to ‖T‖ = 1 (LAPACK's pivmin role)
     const double glo = -1.0 - 4.0 * n * eps, ghi = 1.0 + 4.0 * n * eps;  // Gershgorin
     // To EH_BTOL·‖T‖ only: inverse iteration below converges from there, and λ_0 is then
     // taken from the Rayleigh quotient of its vector.
     const double btol = fmax(EH_BTOL, 4.0 * eps);
-    for (int r0e = 0; r0e < ns; r0e += nwarps) {  // uniform over the block
-        const int cnt_e = min(ns - r0e, nwarps);
+    if (ns <= nwarps) {
+        // Few values: the block's warps shared among them (wpe warps per value: 32·wpe
+        // points per round).
+        const int cnt_e = ns;
         const int wpe = nwarps / cnt_e;
         const int npts = 32 * wpe;
         int rounds = 0;  // the same in every thread: each round divides the width by npts + 1
         for (double w = ghi - glo; w > btol && rounds < 64; w /= (double)(npts + 1)) ++rounds;
         const int e = warp / wpe, sub = warp - e * wpe;
         const bool act = e < cnt_e && tn > 0.0;
-        const int r = r0e + e;
+        const int r = e;
         const int want = n - 1 - r;  // ascending index of λ_r
         double lo = glo, hi = ghi;
         for (int it = 0; it < rounds; ++it) {
@@ -423,31 +469,79 @@ __device__ void eigh_impl(const zd* __restrict__ R, const zd* __restrict__ Hg, i
             lam[r] = 0.5 * (lo + hi);
             if (r == 0) steps[0] = rounds;
         }
+    } else {
+        // Many values (the robust default's M/2): P lanes of one warp per value, all values
+        // at once (fewer, wider rounds than a warp each in turn); no barrier inside.
+        int P = 16;
+        while (P > 1 && P * ns > nt) P >>= 1;
+        const int vpass = nt / P;
+        int rounds = 0;
+        for (double w = ghi - glo; w > btol && rounds < 64; w /= (double)(P + 1)) ++rounds;
+        const int e = tid / P, sub = tid - e * P;
+        const int sh = (lane / P) * P;
+        const unsigned segm = (1u << P) - 1u;
+        for (int r0e = 0; r0e < ns; r0e += vpass) {  // uniform over the block
+            const int r = r0e + e;
+            const bool act = r < ns && tn > 0.0;
+            const int want = n - 1 - r;
+            double lo = glo, hi = ghi;
+            for (int it = 0; it < rounds; ++it) {
+                int cnt = 0;
+                if (act) cnt = sturm_count(dd, e2, n, lo + (hi - lo) * (double)(sub + 1) / (double)(P + 1), tiny);
+                const unsigned bal = (__ballot_sync(0xffffffffu, act && cnt > want) >> sh) & segm;
+                const int gp = bal ? __ffs((int)bal) - 1 : P;
+                const double nlo = gp == 0 ? lo : lo + (hi - lo) * (double)gp / (double)(P + 1);
+                const double nhi = gp == P ? hi : lo + (hi - lo) * (double)(gp + 1) / (double)(P + 1);
+                lo = nlo;
+                hi = fmax(nhi, nlo);
+            }
+            if (act && sub == 0) {
+                lam[r] = 0.5 * (lo + hi);
+                if (r == 0) steps[0] = rounds;
+            }
+        }
     }
     __syncthreads();
     EH_PROF(3);
 
-    // ---- eigenvectors of T: inverse iteration, EH_VEC at a time on warp 0 ----
-    if (warp == 0) {
-        for (int r0v = 0; r0v < ns; r0v += EH_VEC) {
-            const int r = r0v + lane;
-            if (lane < EH_VEC && r < ns) {
-                double* u0 = scr + (size_t)lane * 5 * n;  // 1 / U diagonal
-                double* u1 = u0 + n;                       // U first superdiagonal
-                double* u2 = u1 + n;                       // U second superdiagonal
-                double* ml = u2 + n;                       // multipliers
-                double* sw = ml + n;                       // 1: rows k, k+1 swapped
-                double* z = zs + (size_t)r * n;
+    // ---- eigenvectors of T: inverse iteration, one thread per vector, vpp at a time,
+    // rounds of (solve every vector; orthonormalise them all): two, or three when two of
+    // the values are closer than 10⁻³‖T‖ (dstein's cluster distance; LAPACK iterates
+    // such clusters more, the CPU path three times). P L U = T − λ I with
+    // partial pivoting is factored again in each solve together with its forward
+    // elimination (so only U is kept: three rows of stride us per thread). Orthonormalising
+    // between the solves, not only after them, keeps close values apart: vectors of one
+    // cluster come out of the first solve nearly parallel, and the second solve, from an
+    // orthonormal start, amplifies each within the cluster's span only.
+    int close = 0;
+    for (int r = 1 + tid; r < ns; r += nt) close |= lam[r - 1] - lam[r] < 1e-3;
+    const int rounds_v = __syncthreads_or(close) ? 3 : 2;
+    for (int iter = 0; iter < rounds_v; ++iter) {
+        for (int r0v = 0; r0v < ns; r0v += vpp) {  // uniform over the block
+            const int r = r0v + tid;
+            if (tid < vpp && r < ns) {
+                double* u0 = scr + (size_t)tid * us;              // 1 / U diagonal
+                double* u1 = scr + (size_t)(vpp + tid) * us;      // U first superdiagonal
+                double* u2 = scr + (size_t)(2 * vpp + tid) * us;  // U second superdiagonal
+                double* z = zs + (size_t)r * us;
                 if (tn == 0.0) {
                     for (int i = 0; i < n; ++i) z[i] = i == r ? 1.0 : 0.0;
                 } else {
                     const double lm = lam[r];
                     const double piv_min = 4.0 * eps;  // |pivot| floor (‖T‖ = 1)
-                    // P L U = T − λ I with partial pivoting; row k's pending entries (p0, p1).
-                    double p0 = dd[0] - lm, p1 = n > 1 ? ee[0] : 0.0;
+                    if (iter == 0) {
+                        for (int i = 0; i < n; ++i) {
+                            // a fixed, non-special start vector (dstein uses random numbers)
+                            const unsigned h = (unsigned)(i * 2654435761u) ^ (unsigned)(r * 40503u + 12345u);
+                            z[i] = 0.5 + (double)(h % 1024u) / 1024.0;
+                        }
+                    }
+                    // Each solve multiplies the wanted component by ≥ 1 / EH_BTOL against
+                    // values outside its cluster (growth ≤ 1 / (4ε): no rescaling needed).
+                    double p0 = dd[0] - lm, p1 = n > 1 ? ee[0] : 0.0;  // row k's pending entries
                     for (int kk = 0; kk < n - 1; ++kk) {
-                        const double sub = ee[kk];                         // T(k+1, k)
-                        const double dn = dd[kk + 1] - lm;                 // T(k+1, k+1)
+                        const double sub = ee[kk];                             // T(k+1, k)
+                        const double dn = dd[kk + 1] - lm;                     // T(k+1, k+1)
                         const double sup = kk + 1 < n - 1 ? ee[kk + 1] : 0.0;  // T(k+1, k+2)
                         if (fabs(p0) >= fabs(sub) || fabs(sub) < piv_min) {
                             const double ip = rcp_fast(fabs(p0) < piv_min ? (p0 < 0.0 ? -piv_min : piv_min) : p0);
@@ -455,8 +549,7 @@ __device__ void eigh_impl(const zd* __restrict__ R, const zd* __restrict__ Hg, i
                             u0[kk] = ip;
                             u1[kk] = p1;
                             u2[kk] = 0.0;
-                            ml[kk] = mu;
-                            sw[kk] = 0.0;
+                            z[kk + 1] -= mu * z[kk];
                             p0 = dn - mu * p1;
                             p1 = sup;
                         } else {
@@ -465,113 +558,121 @@ __device__ void eigh_impl(const zd* __restrict__ R, const zd* __restrict__ Hg, i
                             u0[kk] = is;
                             u1[kk] = dn;
                             u2[kk] = sup;
-                            ml[kk] = mu;
-                            sw[kk] = 1.0;
+                            const double t = z[kk];
+                            z[kk] = z[kk + 1];
+                            z[kk + 1] = t - mu * z[kk + 1];
                             p0 = p1 - mu * dn;
                             p1 = -mu * sup;
                         }
                     }
                     u0[n - 1] = rcp_fast(fabs(p0) < piv_min ? (p0 < 0.0 ? -piv_min : piv_min) : p0);
-                    for (int i = 0; i < n; ++i) {
-                        // a fixed, non-special start vector (dstein uses random numbers)
-                        const unsigned h = (unsigned)(i * 2654435761u) ^ (unsigned)(r * 40503u + 12345u);
-                        z[i] = 0.5 + (double)(h % 1024u) / 1024.0;
-                    }
-                    // Two solves: each multiplies the wanted component by ≥ 1 / EH_BTOL
-                    // against the others (growth ≤ 1 / (4ε) per solve: no rescaling needed).
-                    for (int iter = 0; iter < 2; ++iter) {
-                        for (int kk = 0; kk < n - 1; ++kk) {  // the factorisation's row operations
-                            if (sw[kk] != 0.0) {
-                                const double t = z[kk];
-                                z[kk] = z[kk + 1];
-                                z[kk + 1] = t - ml[kk] * z[kk + 1];
-                            } else {
-                                z[kk + 1] -= ml[kk] * z[kk];
-                            }
-                        }
-                        z[n - 1] *= u0[n - 1];  // U z = rhs
-                        if (n > 1) z[n - 2] = (z[n - 2] - u1[n - 2] * z[n - 1]) * u0[n - 2];
-                        for (int kk = n - 3; kk >= 0; --kk)
-                            z[kk] = (z[kk] - u1[kk] * z[kk + 1] - u2[kk] * z[kk + 2]) * u0[kk];
-                    }
+                    z[n - 1] *= u0[n - 1];  // U z = rhs
+                    if (n > 1) z[n - 2] = (z[n - 2] - u1[n - 2] * z[n - 1]) * u0[n - 2];
+                    for (int kk = n - 3; kk >= 0; --kk)
+                        z[kk] = (z[kk] - u1[kk] * z[kk + 1] - u2[kk] * z[kk + 2]) * u0[kk];
                 }
             }
-            __syncwarp();
+            __syncthreads();
         }
-        // Orthonormalise Z (modified Gram–Schmidt, twice): separates clustered values.
-        for (int r = 0; r < ns; ++r) {
-            double* z = zs + (size_t)r * n;
-            for (int pass = 0; pass < 2; ++pass) {
-                for (int q = 0; q < r; ++q) {
-                    const double* zq = zs + (size_t)q * n;
+        // Orthonormalise Z in rank order (classical Gram–Schmidt, twice, by the whole
+        // block); the solver scratch holds the dot products.
+        double* dots = scr;
+        for (int r = 0; r < ns; ++r) {  // uniform over the block
+            double* z = zs + (size_t)r * us;
+            for (int pass = 0; pass < 2 && r > 0; ++pass) {
+                for (int q = warp; q < r; q += nwarps) {
+                    const double* zq = zs + (size_t)q * us;
                     double s = 0.0;
                     for (int i = lane; i < n; i += 32) s += zq[i] * z[i];
                     s = warp_sum_d(s);
-                    __syncwarp();
-                    for (int i = lane; i < n; i += 32) z[i] -= s * zq[i];
-                    __syncwarp();
+                    if (lane == 0) dots[q] = s;
                 }
+                __syncthreads();
+                for (int i = tid; i < n; i += nt) {
+                    double acc = z[i];
+                    for (int q = 0; q < r; ++q) acc -= dots[q] * zs[(size_t)q * us + i];
+                    z[i] = acc;
+                }
+                __syncthreads();
             }
             double s = 0.0;
             for (int i = lane; i < n; i += 32) s += z[i] * z[i];
             s = warp_sum_d(s);
             const double inv = s > 0.0 ? 1.0 / sqrt(s) : 0.0;
-            __syncwarp();
-            for (int i = lane; i < n; i += 32) z[i] *= inv;
-            __syncwarp();
+            __syncthreads();
+            for (int i = tid; i < n; i += nt) z[i] *= inv;
+            __syncthreads();
         }
-        // λ_0 = z_0ᵀ T z_0 (error O(‖T‖ δ²) for a vector error δ).
-        if (ns > 0 && tn > 0.0) {
-            double s = 0.0;
-            for (int i = lane; i < n; i += 32) {
-                double tz = dd[i] * zs[i];
-                if (i > 0) tz += ee[i - 1] * zs[i - 1];
-                if (i < n - 1) tz += ee[i] * zs[i + 1];
-                s += zs[i] * tz;
-            }
-            s = warp_sum_d(s);
-            if (lane == 0) lam[0] = s;  // of the scaled T
+    }
+    // λ_0 = z_0ᵀ T z_0 (error O(‖T‖ δ²) for a vector error δ).
+    if (warp == 0 && ns > 0 && tn > 0.0) {
+        double s = 0.0;
+        for (int i = lane; i < n; i += 32) {
+            double tz = dd[i] * zs[i];
+            if (i > 0) tz += ee[i - 1] * zs[i - 1];
+            if (i < n - 1) tz += ee[i] * zs[i + 1];
+            s += zs[i] * tz;
         }
+        s = warp_sum_d(s);
+        if (lane == 0) lam[0] = s;  // of the scaled T
     }
     __syncthreads();
     EH_PROF(4);
 
-    // ---- e_r = Q z_r = H_0 (H_1 (⋯ H_{n−2} z_r)) (one warp per vector), rank order ----
-    for (int r = warp; r < ns; r += nwarps) {
-        const double* z = zs + (size_t)r * n;
-        zd u[2];
+    // ---- e_r = Q z_r = H_0 (H_1 (⋯ H_{n−2} z_r)), rank order: warp q takes vectors
+    // q, q + nwarps, … (up to EH_BT at once, their reductions interleaved) ----
+    for (int rb = 0; rb < ns; rb += nwarps * EH_BT) {  // uniform over the block
+        const int jn = min(EH_BT, max(0, (ns - rb - warp + nwarps - 1) / nwarps));  // this warp's vectors
+        zd u[EH_BT][2];
 #pragma unroll
-        for (int h = 0; h < 2; ++h) {
-            const int i = lane + 32 * h;
-            u[h] = cx<double>(i < n ? z[i] : 0.0, 0.0);
-        }
-        for (int k = n - 2; k >= 0; --k) {
-            const zd tk = tau[k];
-            if (tk.re == 0.0 && tk.im == 0.0) continue;
-            zd v[2];
-            zd s = czero<double>();
+        for (int j = 0; j < EH_BT; ++j) {
+            const int r = rb + warp + nwarps * j;
 #pragma unroll
             for (int h = 0; h < 2; ++h) {
                 const int i = lane + 32 * h;
-                v[h] = i == k + 1 ? cx<double>(1.0, 0.0) : (i > k + 1 && i < n ? A[(size_t)k * lda + i] : czero<double>());
-                cmacc(s, v[h], u[h]);
-            }
-            s.re = warp_sum_d(s.re);
-            s.im = warp_sum_d(s.im);
-            const zd f = cx<double>(tk.re * s.re - tk.im * s.im, tk.re * s.im + tk.im * s.re);  // τ vᴴu
-#pragma unroll
-            for (int h = 0; h < 2; ++h) {
-                u[h].re -= v[h].re * f.re - v[h].im * f.im;
-                u[h].im -= v[h].re * f.im + v[h].im * f.re;
+                u[j][h] = cx<double>(j < jn && i < n ? zs[(size_t)r * us + i] : 0.0, 0.0);
             }
         }
-        const size_t off = ((size_t)blockIdx.x * ns + r) * M;
+        for (int k = n - 2; k >= 0 && jn > 0; --k) {
+            const zd tk = tau[k];
+            if (tk.re == 0.0 && tk.im == 0.0) continue;
+            const int off = k * (2 * n - 3 - k) / 2 - (k + 2);
+            zd v[2];
 #pragma unroll
-        for (int h = 0; h < 2; ++h) {
-            const int i = lane + 32 * h;
-            if (i < n) {
-                E[off + i] = cx<T>((T)u[h].re, (T)u[h].im);
-                if (E64 != nullptr) E64[off + i] = u[h];
+            for (int h = 0; h < 2; ++h) {
+                const int i = lane + 32 * h;
+                v[h] = i == k + 1 ? cx<double>(1.0, 0.0) : (i > k + 1 && i < n ? Pk[off + i] : czero<double>());
+            }
+#pragma unroll
+            for (int j = 0; j < EH_BT; ++j) {
+                if (j < jn) {
+                    zd s = czero<double>();
+#pragma unroll
+                    for (int h = 0; h < 2; ++h) cmacc(s, v[h], u[j][h]);
+                    s.re = warp_sum_d(s.re);
+                    s.im = warp_sum_d(s.im);
+                    const zd f = cx<double>(tk.re * s.re - tk.im * s.im, tk.re * s.im + tk.im * s.re);  // τ vᴴu
+#pragma unroll
+                    for (int h = 0; h < 2; ++h) {
+                        u[j][h].re -= v[h].re * f.re - v[h].im * f.im;
+                        u[j][h].im -= v[h].re * f.im + v[h].im * f.re;
+                    }
+                }
+            }
+        }
+#pragma unroll
+        for (int j = 0; j < EH_BT; ++j) {
+            const int r = rb + warp + nwarps * j;
+            if (j < jn) {
+                const size_t o = ((size_t)blockIdx.x * ns + r) * M;
+#pragma unroll
+                for (int h = 0; h < 2; ++h) {
+                    const int i = lane + 32 * h;
+                    if (i < n) {
+                        E[o + i] = cx<T>((T)u[j][h].re, (T)u[j][h].im);
+                        if (E64 != nullptr) E64[o + i] = u[j][h];
+                    }
+                }
             }
         }
     }

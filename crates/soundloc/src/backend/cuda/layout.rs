@@ -57,9 +57,6 @@ pub(super) struct Layout {
     pub(super) peak_smem: usize,
 }
 
-/// Eigenvectors of the tridiagonal matrix solved at once by eigh.cu (its EH_VEC).
-pub(super) const EIGH_VEC: usize = 8;
-
 pub(super) fn layout<T: Real>(plan: &Plan<T>, gpu: &dyn Gpu) -> Result<Layout> {
     let cs = csize::<T>();
     let m = plan.num_mics;
@@ -114,8 +111,11 @@ pub(super) fn layout<T: Real>(plan: &Plan<T>, gpu: &dyn Gpu) -> Result<Layout> {
     // The tridiagonal eigensolver whenever only the signal vectors are needed and its
     // register tiles cover M (SOUNDLOC_CUDA_DEC=jacobi keeps the Jacobi kernel, for A/B runs).
     let eigh_threads = kernels::eigh_threads();
-    let eigh_smem =
-        (m * (m | 1) + 4 * m) * 16 + (3 * m + ns + ns * m + ns.min(EIGH_VEC) * 5 * m) * 8 + 33 * 4;
+    // eigh.cu: A (m × (m|1) complex; after the reduction also the packed reflectors, the
+    // vectors of T and the solver scratch), one solver's scratch after it, p, v (two), τ,
+    // d, e, e², λ, 1 + 32 ints.
+    let eigh_xd = (3 * (m | 1) + 1) & !1;
+    let eigh_smem = (m * (m | 1) + 4 * m) * 16 + (eigh_xd + 3 * m + ns) * 8 + 33 * 4;
     let form_h_smem = m * (m | 1) * 16;
     let eigh = squared
         && !srp
