@@ -491,3 +491,83 @@ fn resample_converts_a_48_khz_input_and_noise_recording() {
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     assert_eq!(azimuths(&String::from_utf8(o.stdout).unwrap()).len(), want.len());
 }
+
+#[test]
+fn outputs_never_replace_inputs_or_each_other() {
+    let (_, geo, wav) = scene();
+    let dir = tmp("noclobber");
+    std::fs::create_dir_all(&dir).unwrap();
+    let rec = dir.join("in.wav");
+    std::fs::copy(&wav, &rec).unwrap();
+    let link = dir.join("link.wav");
+    let _ = std::fs::remove_file(&link);
+    std::os::unix::fs::symlink(&rec, &link).unwrap();
+    let (rec_bytes, geo_bytes) = (std::fs::read(&rec).unwrap(), std::fs::read(&geo).unwrap());
+    let out = dir.join("out.jsonl");
+    let side_dir = dir.join("spec.npy.json");
+    std::fs::create_dir_all(&side_dir).unwrap();
+    let s = |p: &Path| p.to_str().unwrap().to_string();
+    for (flags, want) in [
+        (vec!["-o".to_string(), s(&rec)], "would overwrite the input"),
+        (
+            vec!["--log-xml".to_string(), s(&link)],
+            "would overwrite the input",
+        ),
+        (
+            vec!["--spectrum".to_string(), s(&geo)],
+            "would overwrite the input",
+        ),
+        (
+            vec!["-o".to_string(), s(&out), "--log-xml".to_string(), s(&out)],
+            "name the same file",
+        ),
+        (
+            vec!["--spectrum".to_string(), s(&dir.join("spec.npy"))],
+            "is a directory",
+        ),
+    ] {
+        let o = bin()
+            .arg("localize")
+            .arg(&rec)
+            .arg("--geometry")
+            .arg(&geo)
+            .args(OPTS)
+            .args(&flags)
+            .output()
+            .unwrap();
+        let e = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{flags:?}: {e}");
+        assert!(e.contains(want), "{flags:?}: {e}");
+        assert!(o.stdout.is_empty(), "{flags:?}: no work before the error");
+    }
+    assert!(!out.exists() && !dir.join("spec.npy").exists());
+    assert_eq!(std::fs::read(&rec).unwrap(), rec_bytes);
+    assert_eq!(std::fs::read(&geo).unwrap(), geo_bytes);
+    // batch: a result named like one of the recordings, and tf make over its geometry.
+    let bdir = dir.join("b");
+    std::fs::create_dir_all(&bdir).unwrap();
+    let named = bdir.join("a.jsonl");
+    std::fs::copy(&wav, &named).unwrap();
+    let o = bin()
+        .args(["batch", "--overwrite", "--out-dir"])
+        .arg(&bdir)
+        .arg(&named)
+        .arg("--geometry")
+        .arg(&geo)
+        .args(OPTS)
+        .output()
+        .unwrap();
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{e}");
+    assert!(e.contains("would overwrite the input"), "{e}");
+    assert_eq!(std::fs::read(&named).unwrap(), rec_bytes);
+    let o = bin()
+        .args(["tf", "make", "--grid", "ring:5", "--geometry"])
+        .arg(&geo)
+        .arg("-o")
+        .arg(&geo)
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(2), "{}", String::from_utf8_lossy(&o.stderr));
+    assert_eq!(std::fs::read(&geo).unwrap(), geo_bytes);
+}

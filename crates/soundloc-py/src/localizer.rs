@@ -36,9 +36,10 @@ impl PyLocalizer {
         &mut self,
         py: Python<'py>,
         x: &Bound<'py, PyAny>,
-        fs: Option<u32>,
+        fs: Option<&Bound<'py, PyAny>>,
         channels_first: Option<bool>,
     ) -> PyResult<Bound<'py, PyDict>> {
+        let fs = fs.map(crate::spec::rate).transpose()?;
         let channels_first = channels_first.unwrap_or(self.channels_first);
         let s = samples(x)?;
         let mut out = match self.converter(&s, fs, channels_first)? {
@@ -74,6 +75,7 @@ impl PyLocalizer {
         let mut inner = self.lock()?;
         let loc = &mut *inner;
         py.allow_threads(|| -> soundloc::Result<usize> {
+            soundloc::output::atomic::check_outputs(&[(&output, "output")], &[(&input, "input")])?;
             let mut audio = soundloc::audio::read_audio(&input)?;
             let named = |e: soundloc::Error| soundloc::Error::Config(format!("{}: {e}", input.display()));
             if let Some(r) = loc

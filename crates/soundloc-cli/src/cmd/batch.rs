@@ -113,6 +113,25 @@ pub fn run(mut a: Args) -> anyhow::Result<ExitCode> {
             jobs.push((p.clone(), out));
         }
     }
+    // No result may replace a recording of the list or one of the run's files.
+    let r = &a.run;
+    let files: Vec<(&Path, &str)> = all
+        .iter()
+        .map(|p| (p.as_path(), "a recording of this batch"))
+        .chain(
+            [
+                (r.tf.as_deref(), "--tf"),
+                (r.geometry.as_deref(), "--geometry"),
+                (r.noise.as_deref(), "--noise"),
+                (r.noise_cm.as_deref(), "--noise-cm"),
+            ]
+            .into_iter()
+            .filter_map(|(p, w)| p.map(|p| (p, w))),
+        )
+        .collect();
+    for (_, out) in &jobs {
+        soundloc::output::atomic::check_outputs(&[(out.as_path(), "the result")], &files)?;
+    }
     std::fs::create_dir_all(&a.out_dir)
         .with_context(|| format!("{}: cannot create the folder", a.out_dir.display()))?;
     let quiet = a.run.quiet;

@@ -137,7 +137,7 @@ mod capture {
             }
             return Ok(ExitCode::SUCCESS);
         }
-        super::super::sinks::Sinks::check_paths(&a.run)?;
+        super::super::sinks::Sinks::check_paths(&a.run, None)?;
         let device = match &a.input_device {
             None => host
                 .default_input_device()

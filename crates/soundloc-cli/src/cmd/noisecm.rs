@@ -128,6 +128,24 @@ fn make(a: MakeArgs) -> anyhow::Result<ExitCode> {
             a.output.display()
         );
     }
+    let format = a.format.unwrap_or_else(|| {
+        let zip = a
+            .output
+            .extension()
+            .is_some_and(|e| e.eq_ignore_ascii_case("zip"));
+        if zip {
+            CmFormat::Zip
+        } else {
+            CmFormat::Text
+        }
+    });
+    let (re, im) = text_pair_paths(&a.output);
+    let outs: Vec<(&std::path::Path, &str)> = if format == CmFormat::Text {
+        vec![(&re, "-o (real part)"), (&im, "-o (imaginary part)")]
+    } else {
+        vec![(&a.output, "-o")]
+    };
+    soundloc::output::atomic::check_outputs(&outs, &[(&a.input, "the recording")])?;
     let audio = read_audio(&a.input)?;
     let audio = if a.input_channels.is_empty() {
         audio
@@ -145,17 +163,6 @@ fn make(a: MakeArgs) -> anyhow::Result<ExitCode> {
         a.range,
     )
     .with_context(|| format!("{}", a.input.display()))?;
-    let format = a.format.unwrap_or_else(|| {
-        let zip = a
-            .output
-            .extension()
-            .is_some_and(|e| e.eq_ignore_ascii_case("zip"));
-        if zip {
-            CmFormat::Zip
-        } else {
-            CmFormat::Text
-        }
-    });
     let shape = format!(
         "{} channels, {} bins (nfft {}), {} frames of {}",
         cm.num_mics,
@@ -166,7 +173,6 @@ fn make(a: MakeArgs) -> anyhow::Result<ExitCode> {
     );
     match format {
         CmFormat::Text => {
-            let (re, im) = text_pair_paths(&a.output);
             cm.write_text_pair(&re, &im)?;
             println!(
                 "wrote {} (real part) and {} (imaginary part): {shape}",

@@ -215,20 +215,47 @@ fn check_dir(p: &Path, what: &str) -> anyhow::Result<()> {
 }
 
 impl Sinks {
-    /// Check every output path before anything is computed.
-    pub fn check_paths(a: &RunArgs) -> anyhow::Result<()> {
+    /// Check every output path before anything is computed: its folder exists, it is not
+    /// a folder, and it replaces neither an input (`input`: the recording's path, if any,
+    /// and the run's other files) nor another output.
+    pub fn check_paths(a: &RunArgs, input: Option<&Path>) -> anyhow::Result<()> {
+        let sidecar = a.spectrum.as_deref().map(spectrum_sidecar);
+        let l = &a.live;
+        let odas_files = [(&l.odas_ssl, "--odas-ssl"), (&l.odas_sst, "--odas-sst")];
+        let mut outputs: Vec<(&Path, &str)> = Vec::new();
         for (p, what) in [
-            (&a.output, "--output"),
-            (&a.spectrum, "--spectrum"),
-            (&a.plot, "--plot"),
-            (&a.summary, "--summary"),
-            (&a.log_text, "--log-text"),
-            (&a.log_xml, "--log-xml"),
-        ] {
+            (a.output.as_deref(), "--output"),
+            (a.spectrum.as_deref(), "--spectrum"),
+            (sidecar.as_deref(), "--spectrum's .json"),
+            (a.plot.as_deref(), "--plot"),
+            (a.summary.as_deref(), "--summary"),
+            (a.log_text.as_deref(), "--log-text"),
+            (a.log_xml.as_deref(), "--log-xml"),
+        ]
+        .into_iter()
+        .chain(odas_files.iter().map(|(v, what)| {
+            let file = v.as_deref().filter(|v| odas_target(v).is_none());
+            (file.map(Path::new), *what)
+        })) {
             if let Some(p) = p {
                 check_dir(p, what)?;
+                if p.is_dir() {
+                    bail!("{}: {what}: is a directory; name a file", p.display());
+                }
+                outputs.push((p, what));
             }
         }
+        let inputs: Vec<(&Path, &str)> = [
+            (input, "the recording"),
+            (a.tf.as_deref(), "--tf"),
+            (a.geometry.as_deref(), "--geometry"),
+            (a.noise.as_deref(), "--noise"),
+            (a.noise_cm.as_deref(), "--noise-cm"),
+        ]
+        .into_iter()
+        .filter_map(|(p, w)| p.map(|p| (p, w)))
+        .collect();
+        soundloc::output::atomic::check_outputs(&outputs, &inputs)?;
         if let Some(p) = &a.plot {
             let ext = p
                 .extension()
@@ -244,7 +271,6 @@ impl Sinks {
         if a.summary.is_some() && !a.track {
             bail!("--summary needs --track");
         }
-        let l = &a.live;
         if l.odas_sst.is_some() && !a.track {
             bail!("--odas-sst needs --track (SST messages carry tracked sources)");
         }
@@ -254,11 +280,6 @@ impl Sinks {
         for (n, what) in [(l.odas_pots, "--odas-pots"), (l.odas_tracks, "--odas-tracks")] {
             if !(1..=64).contains(&n) {
                 bail!("{what} must be 1..=64, got {n}");
-            }
-        }
-        for (v, what) in [(&l.odas_ssl, "--odas-ssl"), (&l.odas_sst, "--odas-sst")] {
-            if let Some(v) = v.as_deref().filter(|v| odas_target(v).is_none()) {
-                check_dir(Path::new(v), what)?;
             }
         }
         Ok(())
@@ -507,11 +528,16 @@ fn write_spectrum(path: &Path, table: &SpectrumTable, az: &[f64], el: &[f64]) ->
         "azimuth_deg": az,
         "elevation_deg": el,
     });
-    let mut side = path.as_os_str().to_owned();
-    side.push(".json");
-    write_atomically(PathBuf::from(side), |w| {
+    write_atomically(spectrum_sidecar(path), |w| {
         serde_json::to_writer(&mut *w, &meta)?;
         writeln!(w)
     })?;
     Ok(())
+}
+
+/// The spectrum's metadata file: `FILE.json` next to `FILE` (e.g. `spec.npy.json`).
+fn spectrum_sidecar(path: &Path) -> PathBuf {
+    let mut side = path.as_os_str().to_owned();
+    side.push(".json");
+    PathBuf::from(side)
 }

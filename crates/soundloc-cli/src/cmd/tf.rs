@@ -118,6 +118,9 @@ fn inspect(a: InspectArgs) -> anyhow::Result<ExitCode> {
 }
 
 fn make(a: MakeArgs) -> anyhow::Result<ExitCode> {
+    if let Some(g) = &a.geometry {
+        soundloc::output::atomic::check_outputs(&[(&a.output, "-o")], &[(g, "--geometry")])?;
+    }
     let geometry = match (&a.geometry, a.builtin) {
         (Some(p), _) => Geometry::load(p)?,
         (None, Some(b)) => b.geometry(),

@@ -189,6 +189,59 @@ fn resolve_links(path: &Path) -> PathBuf {
     p
 }
 
+/// What a path names, for comparing outputs with inputs and with each other: links
+/// resolved and the directory made absolute. `None` for what is not a regular file
+/// (a device or FIFO is written in place, replacing nothing).
+fn identity(path: &Path) -> Option<PathBuf> {
+    let t = resolve_links(path);
+    match std::fs::metadata(&t) {
+        Ok(m) if !m.is_file() => return None,
+        Ok(_) => return std::fs::canonicalize(&t).ok(),
+        Err(_) => {}
+    }
+    let name = t.file_name()?;
+    let dir = match t.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
+    Some(
+        std::fs::canonicalize(dir)
+            .unwrap_or_else(|_| dir.to_path_buf())
+            .join(name),
+    )
+}
+
+/// Refuses, before any work, outputs that would replace one of the run's inputs or each
+/// other. Both lists hold `(path, what)` pairs, `what` naming the option or role for the
+/// message. Writing results over the recording or the transfer functions they come from
+/// would destroy them; two outputs on one path would keep only the last.
+pub fn check_outputs(outputs: &[(&Path, &str)], inputs: &[(&Path, &str)]) -> Result<()> {
+    let ins: Vec<(PathBuf, &Path, &str)> = inputs
+        .iter()
+        .filter_map(|&(p, w)| identity(p).map(|k| (k, p, w)))
+        .collect();
+    let mut seen: Vec<(PathBuf, &Path, &str)> = Vec::new();
+    for &(p, what) in outputs {
+        let Some(k) = identity(p) else { continue };
+        if let Some((_, ip, iw)) = ins.iter().find(|(ik, ..)| *ik == k) {
+            return Err(Error::Config(format!(
+                "{}: {what} would overwrite the input {} ({iw}): name another file",
+                p.display(),
+                ip.display()
+            )));
+        }
+        if let Some((_, op, ow)) = seen.iter().find(|(sk, ..)| *sk == k) {
+            return Err(Error::Config(format!(
+                "{}: {what} and {ow} ({}) name the same file",
+                p.display(),
+                op.display()
+            )));
+        }
+        seen.push((k, p, what));
+    }
+    Ok(())
+}
+
 /// Write `path` atomically with `f`, which receives the open temporary file.
 pub fn write_atomically<F>(path: impl AsRef<Path>, f: F) -> Result<()>
 where
@@ -219,6 +272,47 @@ mod tests {
             .collect();
         v.sort();
         v
+    }
+
+    #[test]
+    fn outputs_may_not_replace_inputs_or_each_other() {
+        let d = temp_dir("check");
+        let input = d.join("in.wav");
+        std::fs::write(&input, b"RIFF").unwrap();
+        let link = d.join("link.wav");
+        #[cfg(unix)]
+        std::os::unix::fs::symlink(&input, &link).unwrap();
+        let ins = [(input.as_path(), "the input")];
+        // The input itself, by another spelling, and through a link.
+        let dotted = d.join(".").join("in.wav");
+        for out in [&input, &dotted] {
+            let e = check_outputs(&[(out, "--output")], &ins).unwrap_err().to_string();
+            assert!(
+                e.contains("would overwrite the input") && e.contains("--output"),
+                "{e}"
+            );
+        }
+        #[cfg(unix)]
+        assert!(check_outputs(&[(&link, "--log-xml")], &ins).is_err());
+        // Two outputs on one (not yet existing) path.
+        let out = d.join("out.jsonl");
+        let e = check_outputs(&[(&out, "--output"), (&out, "--log-xml")], &ins)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("name the same file"), "{e}");
+        // Distinct files pass; devices may repeat (nothing is replaced there).
+        let other = d.join("out.xml");
+        check_outputs(&[(&out, "--output"), (&other, "--log-xml")], &ins).unwrap();
+        #[cfg(unix)]
+        check_outputs(
+            &[
+                (Path::new("/dev/null"), "--output"),
+                (Path::new("/dev/null"), "--log-xml"),
+            ],
+            &[(Path::new("/dev/null"), "the input")],
+        )
+        .unwrap();
+        assert_eq!(std::fs::read(&input).unwrap(), b"RIFF");
     }
 
     #[test]
