@@ -20,6 +20,7 @@
 //! neighbours, a flat or saddle-shaped fit) the grid direction is kept.
 
 use super::PeakTable;
+use crate::array::grid::RING_ELEVATION_TOLERANCE_DEG;
 use crate::array::Grid;
 
 /// Fraction of the mean neighbour distance the refined direction may move.
@@ -78,9 +79,11 @@ pub fn refine<V: Copy + Into<f64>>(grid: &Grid, table: &PeakTable, db: &[V], dir
     if ys.iter().any(|y| !y.is_finite()) || !y0.is_finite() {
         return keep;
     }
+    // Neighbours on the peak's own ring (within the tolerance that makes a grid a ring:
+    // measured transfer functions, HARK's among them, jitter by hundredths of a degree).
     let same_ring = nbrs
         .iter()
-        .all(|&j| (grid.elevation_deg(j as usize) - keep.elevation_deg).abs() < 1e-6);
+        .all(|&j| (grid.elevation_deg(j as usize) - keep.elevation_deg).abs() < RING_ELEVATION_TOLERANCE_DEG);
     if same_ring && keep.elevation_deg.abs() < 89.9 {
         let ss: Vec<f64> = nbrs
             .iter()
@@ -291,6 +294,32 @@ mod tests {
             );
             assert!(err < wrap180(g.azimuth_deg(peak) - truth_az).abs() + 1e-9);
             assert_eq!(r.elevation_deg, 0.0);
+        }
+    }
+
+    #[test]
+    fn measured_rings_with_jittered_elevations_refine_too() {
+        // HARK's tamago TFs: a 5° ring whose elevations vary by ~0.01° point to point.
+        let pts: Vec<[f64; 3]> = (0..72)
+            .map(|i| {
+                let a = (i as f64 * 5.0).to_radians();
+                let e = (16.7 + 0.01 * ((i * 7919) % 5) as f64 - 0.02).to_radians();
+                [e.cos() * a.cos(), e.cos() * a.sin(), e.sin()]
+            })
+            .collect();
+        let g = Grid::from_points(pts).unwrap();
+        let t = PeakTable::new(&g, &LocalizeConfig::default()).unwrap();
+        for truth_az in [31.3, -118.2, 62.4] {
+            let (a, e) = (f64::to_radians(truth_az), 16.7f64.to_radians());
+            let db = field(&g, [e.cos() * a.cos(), e.cos() * a.sin(), e.sin()], 12.0);
+            let peak = (0..g.len()).max_by(|&i, &j| db[i].total_cmp(&db[j])).unwrap();
+            let r = refine(&g, &t, &db, peak);
+            let err = wrap180(r.azimuth_deg - truth_az).abs();
+            assert!(err < 5.0 / 4.0, "az {truth_az}: refined {}", r.azimuth_deg);
+            assert!(
+                err < wrap180(g.azimuth_deg(peak) - truth_az).abs() - 0.5,
+                "az {truth_az}: not moved"
+            );
         }
     }
 
