@@ -95,6 +95,44 @@ impl<'a> Block<'a> {
         }
     }
 
+    /// Sample `frame` of channel `c` (both in range).
+    pub fn at(&self, frame: usize, c: usize) -> f32 {
+        match *self {
+            Block::Interleaved { data, channels } => data[frame * channels + c],
+            Block::ChannelsFirst { data, channels } => data[c * (data.len() / channels) + frame],
+            Block::Planar(p) => p[c][frame],
+        }
+    }
+
+    /// The first frame (and its input channel) among channels `idx` where `bad` holds,
+    /// or `None`: a branch-free pass first (it vectorises), the position only when
+    /// something is wrong.
+    pub fn find(&self, idx: &[usize], bad: impl Fn(f32) -> bool) -> Option<(usize, usize)> {
+        let n = self.samples().ok()?;
+        let any = |xs: &[f32]| xs.iter().fold(false, |b, &v| b | bad(v));
+        match *self {
+            Block::Interleaved { data, channels } => {
+                if !any(data) {
+                    return None;
+                }
+                data.chunks_exact(channels)
+                    .enumerate()
+                    .find_map(|(i, f)| idx.iter().find(|&&c| bad(f[c])).map(|&c| (i, c)))
+            }
+            Block::ChannelsFirst { .. } | Block::Planar(_) => {
+                let chan = |c: usize| match *self {
+                    Block::ChannelsFirst { data, .. } => &data[c * n..(c + 1) * n],
+                    Block::Planar(p) => &p[c][..],
+                    Block::Interleaved { .. } => unreachable!(),
+                };
+                idx.iter()
+                    .filter(|&&c| any(chan(c)))
+                    .filter_map(|&c| chan(c).iter().position(|&v| bad(v)).map(|i| (i, c)))
+                    .min()
+            }
+        }
+    }
+
     /// Append samples `range` of channels `idx[k]` to `outs[k]`, for every k. Interleaved
     /// blocks are transposed in tiles of [`TILE`] frames (the tile stays in cache while
     /// every channel takes its samples): ~8× faster than a strided pass per channel at
@@ -188,9 +226,10 @@ impl ChannelMap {
         if !self.tf_channels.is_empty() && idx.len() != self.tf_channels.len() {
             if idx.len() != self.full_mics {
                 return Err(Error::Mismatch(format!(
-                    "has {} channels; --channels selects {} of the transfer functions' {}",
+                    "has {} channels; --channels selects {} of the transfer functions' {} microphones, so it takes an input of {} (pick the input's channels with --input-channels)",
                     idx.len(),
                     self.tf_channels.len(),
+                    self.full_mics,
                     self.full_mics
                 )));
             }
@@ -198,8 +237,9 @@ impl ChannelMap {
         }
         if idx.len() != self.mics {
             return Err(Error::Mismatch(format!(
-                "has {} channels, but the transfer functions have {} microphones (select with --channels)",
+                "has {} channels, but the transfer functions have {} microphones (pick {} input channels with --input-channels)",
                 idx.len(),
+                self.mics,
                 self.mics
             )));
         }

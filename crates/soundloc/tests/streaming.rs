@@ -372,6 +372,45 @@ fn bad_blocks_and_misuse_are_clear_errors() {
     assert!(e.to_string().contains("reset"), "{e}");
 }
 
+#[test]
+fn a_rejected_block_leaves_the_stream_as_it_was() {
+    let scene = ring8_drone(0.0, 1).unwrap();
+    let audio = scene.render();
+    let spec = spec_for(&scene, &LocalizeConfig::default());
+    let reference = Localizer::new(&spec).unwrap().localize(&audio.channels).unwrap();
+    let mut loc = Localizer::new(&spec).unwrap();
+    let mut out = Output::default();
+    let split = 10_000;
+    let part = |r: std::ops::Range<usize>| -> Vec<Vec<f32>> {
+        audio.channels.iter().map(|c| c[r.clone()].to_vec()).collect()
+    };
+    loc.push(Block::Planar(&part(0..split)), &mut out).unwrap();
+    // The next 4000 samples with one NaN near the end of each layout: refused whole.
+    let mut bad = part(split..split + 4000);
+    bad[5][3900] = f32::NAN;
+    let e = loc.push(Block::Planar(&bad), &mut out).unwrap_err();
+    assert!(
+        e.to_string()
+            .contains(&format!("sample {} of input channel 5 is NaN", split + 3900)),
+        "{e}"
+    );
+    let inter: Vec<f32> = (0..4000).flat_map(|i| bad.iter().map(move |c| c[i])).collect();
+    let e = loc
+        .push(
+            Block::Interleaved {
+                data: &inter,
+                channels: 8,
+            },
+            &mut out,
+        )
+        .unwrap_err();
+    assert!(e.to_string().contains("is NaN"), "{e}");
+    let n = audio.channels[0].len();
+    loc.push(Block::Planar(&part(split..n)), &mut out).unwrap();
+    loc.flush(&mut out).unwrap();
+    assert_same(&out, &reference, "rejected blocks in the middle");
+}
+
 const FS: u32 = 16000;
 const CHANGE_S: f64 = 2.0;
 /// Talk bursts (seconds); the noise field changes at 2 s.
@@ -521,6 +560,22 @@ fn sevd_rejects_online_updates_and_bad_rules_are_errors() {
         run.notes
             .iter()
             .any(|n| n.contains("noise segment 0") && n.contains("not used")),
+        "{:?}",
+        run.notes
+    );
+    // Preceding frames longer than the input: K is never updated, and the notes say so.
+    spec.noise_update = NoiseUpdate::Preceding { frames: 1000, gap: 0 };
+    let run = Localizer::new(&spec).unwrap().localize(&loud).unwrap();
+    assert!(!run.results.is_empty());
+    assert!(
+        run.notes.iter().any(|n| n.contains("never updated")),
+        "{:?}",
+        run.notes
+    );
+    spec.noise_update = NoiseUpdate::Preceding { frames: 20, gap: 0 };
+    let run = Localizer::new(&spec).unwrap().localize(&loud).unwrap();
+    assert!(
+        !run.notes.iter().any(|n| n.contains("never updated")),
         "{:?}",
         run.notes
     );

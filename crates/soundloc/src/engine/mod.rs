@@ -307,6 +307,30 @@ impl<T: Real> Engine<T> {
                 idx
             }
         };
+        // The whole block is checked before any of it is taken: a rejected push leaves
+        // the stream as it was.
+        let bad = |v: f32| v.is_nan() | (v.abs() > T::MAX_SAMPLE);
+        if let Some((i, c)) = block.find(&idx, bad) {
+            let v = block.at(i, c);
+            let what = if v.is_nan() {
+                "NaN".to_string()
+            } else if v.is_infinite() {
+                "infinite".to_string()
+            } else {
+                format!(
+                    "{v:e}, beyond what {} correlation matrices hold (|x| <= {:e}; use --precision f64 or scale the input)",
+                    T::NAME,
+                    T::MAX_SAMPLE
+                )
+            };
+            return Err(Error::numerical(
+                "audio",
+                format!(
+                    "sample {} of input channel {c} is {what} (0-based)",
+                    self.stft.samples_received() + i
+                ),
+            ));
+        }
         let step = CHUNK_FRAMES * self.plan.config.hop;
         let mut pos = 0;
         while pos < len {
@@ -322,32 +346,6 @@ impl<T: Real> Engine<T> {
                 if !k.1 {
                     let v0 = *k.0.get_or_insert(tail.first().copied().unwrap_or(0.0));
                     k.1 = tail.iter().any(|&v| v != v0);
-                }
-                // A branch-free pass first (it vectorises), the position
-                // only when something is wrong.
-                let bad = |v: &f32| v.is_nan() | (v.abs() > T::MAX_SAMPLE);
-                let any_bad = tail.iter().fold(false, |b, v| b | bad(v));
-                if let Some(i) = any_bad.then(|| tail.iter().position(bad)).flatten() {
-                    let what = if tail[i].is_nan() {
-                        "NaN".to_string()
-                    } else if tail[i].is_infinite() {
-                        "infinite".to_string()
-                    } else {
-                        format!(
-                            "{:e}, beyond what {} correlation matrices hold (|x| <= {:e}; use --precision f64 or scale the input)",
-                            tail[i],
-                            T::NAME,
-                            T::MAX_SAMPLE
-                        )
-                    };
-                    return Err(Error::numerical(
-                        "audio",
-                        format!(
-                            "sample {} of input channel {} is {what} (0-based)",
-                            first + i,
-                            idx[c]
-                        ),
-                    ));
                 }
             }
             let notes = self.noise.observe_samples(buf_start, buf, first + n)?;

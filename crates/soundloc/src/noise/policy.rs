@@ -203,6 +203,8 @@ pub(crate) struct NoisePolicy {
     initial_given: InitialNoise,
     segments: Vec<Segment>,
     last_preceding: KSource,
+    /// Some window had its preceding frames (NoiseUpdate::Preceding).
+    preceding_used: bool,
     first_bin: usize,
     fs: f64,
     num_bins: usize,
@@ -251,6 +253,7 @@ impl NoisePolicy {
             initial_given: initial,
             segments,
             last_preceding: KSource::Initial,
+            preceding_used: false,
             first_bin: bins.start,
             fs,
             num_bins: bins.len(),
@@ -357,6 +360,13 @@ impl NoisePolicy {
             notes.extend(note);
             self.initial = Some(Some(k));
         }
+        if let NoiseUpdate::Preceding { frames: f, gap } = self.update {
+            if !self.preceding_used {
+                notes.push(format!(
+                    "warning: no window had {f} noise frames {gap} frames before it (the input has {frames} frames): K was never updated from preceding frames"
+                ));
+            }
+        }
         if let NoiseUpdate::Segments(v) = &self.update {
             for (i, s) in self.segments.iter().enumerate() {
                 if s.k.is_none() && s.frames.end != usize::MAX && s.frames.end > frames {
@@ -425,6 +435,7 @@ impl NoisePolicy {
             NoiseUpdate::Preceding { frames, gap } => {
                 if let Some(s0) = w.start.checked_sub(gap + frames) {
                     self.last_preceding = KSource::Frames(s0..s0 + frames);
+                    self.preceding_used = true;
                 }
                 self.last_preceding.clone()
             }
