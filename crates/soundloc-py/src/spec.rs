@@ -41,11 +41,12 @@ impl PySpec {
 /// The spec from `soundloc.Localizer`'s keyword arguments.
 #[pyfunction]
 #[pyo3(signature = (*, tf=None, geometry=None, grid=None, algorithm=None, num_sources=2, max_peaks=-1,
-    window=50, period=50, window_type="future", freq_range=(500.0, 2800.0), nfft=512, hop=160, fs=16000,
+    window=50, period=50, window_type="future", freq_range=None, nfft=512, hop=160, fs=None,
     noise=None, noise_range=None, noise_cm=None, noise_segments=None, noise_preceding=None,
     track=false, tracker_thresh_db=0.0, device="auto", precision="f32", channels=None,
     input_channels=None, spectrum=true, grid_radius=1.0, speed_of_sound=343.0, channels_first=false,
-    subspace_dim=None, normalize_bins=false, refine=false, subspace_tracking=false, resample=false))]
+    subspace_dim=None, normalize_bins=false, refine=false, subspace_tracking=false, resample=false,
+    diagonal_loading=0.0))]
 #[allow(clippy::too_many_arguments)] // mirrors the Python keywords
 pub(crate) fn spec(
     tf: Option<PathBuf>,
@@ -57,12 +58,12 @@ pub(crate) fn spec(
     window: usize,
     period: usize,
     window_type: &str,
-    freq_range: (f64, f64),
+    freq_range: Option<&Bound<'_, PyAny>>,
     nfft: usize,
     hop: usize,
-    fs: u32,
+    fs: Option<&Bound<'_, PyAny>>,
     noise: Option<&Bound<'_, PyAny>>,
-    noise_range: Option<(f64, f64)>,
+    noise_range: Option<&Bound<'_, PyAny>>,
     noise_cm: Option<PathBuf>,
     noise_segments: Option<Vec<(f64, f64)>>,
     noise_preceding: Option<(usize, usize)>,
@@ -81,7 +82,12 @@ pub(crate) fn spec(
     refine: bool,
     subspace_tracking: bool,
     resample: bool,
+    diagonal_loading: f64,
 ) -> PyResult<PySpec> {
+    // Defaults: HARK's band (500–2800 Hz) and 16 kHz.
+    let freq_range = freq_range.map_or(Ok((500.0, 2800.0)), |r| pair(r, "freq_range"))?;
+    let noise_range = noise_range.map(|r| pair(r, "noise_range")).transpose()?;
+    let fs = fs.map_or(Ok(16000), rate)?;
     let grid_spec: Option<GridSpec> = match grid {
         Some(g) => match g.extract::<String>() {
             Ok(s) => Some(s.parse().map_err(err)?),
@@ -131,6 +137,7 @@ pub(crate) fn spec(
     a.nfft = nfft;
     a.hop = hop;
     a.sample_rate_hz = fs;
+    a.diagonal_loading = diagonal_loading;
     spec.channels = channels.unwrap_or_default();
     spec.input_channels = input_channels.unwrap_or_default();
     let given = [noise.is_some(), noise_range.is_some(), noise_cm.is_some()];
@@ -185,6 +192,33 @@ pub(crate) fn spec(
         grid_radius,
         speed_of_sound,
     })
+}
+
+/// Two numbers from a tuple, list or array (pyroomacoustics users write `[500, 4000]`).
+fn pair(v: &Bound<'_, PyAny>, what: &str) -> PyResult<(f64, f64)> {
+    match v.extract::<Vec<f64>>() {
+        Ok(p) if p.len() == 2 => Ok((p[0], p[1])),
+        _ => Err(PyValueError::new_err(format!(
+            "{what} must be two numbers (start, end), got {}",
+            v.repr().map(|r| r.to_string()).unwrap_or_default()
+        ))),
+    }
+}
+
+/// A sample rate in Hz: a positive whole number (16000 or 16000.0).
+pub(crate) fn rate(v: &Bound<'_, PyAny>) -> PyResult<u32> {
+    let bad = || {
+        PyValueError::new_err(format!(
+            "fs must be a positive whole number of Hz, got {}",
+            v.repr().map(|r| r.to_string()).unwrap_or_default()
+        ))
+    };
+    let f: f64 = v.extract().map_err(|_| bad())?;
+    if f.fract() == 0.0 && f >= 1.0 && f <= u32::MAX as f64 {
+        Ok(f as u32)
+    } else {
+        Err(bad())
+    }
 }
 
 impl PySpec {

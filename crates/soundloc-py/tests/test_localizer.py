@@ -245,3 +245,41 @@ def test_resample_converts_another_rate(tmp_path):
     with pytest.raises(ValueError, match="48000 Hz"):
         localizer().localize_file(wav, tmp_path / "no.jsonl")
     assert not (tmp_path / "no.jsonl").exists()
+    # Results never replace the recording they come from.
+    before = wav.read_bytes()
+    with pytest.raises(ValueError, match="would overwrite the input"):
+        loc.localize_file(wav, wav)
+    assert wav.read_bytes() == before
+
+
+def test_arguments_as_pyroomacoustics_users_write_them():
+    """Lists and arrays for ranges, a float sample rate, diagonal loading of K, and a
+    rejected block that leaves the stream as it was."""
+    x = scene(seconds=2.0, seed=3)
+    ref = localizer(freq_range=(500.0, 2800.0), noise_range=(0.0, 0.5)).localize(x, FS)
+    got = localizer(freq_range=[500, 2800], noise_range=np.array([0.0, 0.5])).localize(x, float(FS))
+    np.testing.assert_array_equal(got.azimuth_deg, ref.azimuth_deg)
+    with pytest.raises(ValueError, match="freq_range must be two numbers"):
+        localizer(freq_range=[500])
+    with pytest.raises(ValueError, match="positive whole number"):
+        localizer().localize(x, 16000.5)
+    # K from too few noise frames is not positive definite; diagonal loading makes it usable.
+    noise = (np.random.default_rng(5).standard_normal((1500, 8)) * 30).astype(np.int16)
+    with pytest.raises(ValueError, match="diagonal loading"):
+        localizer(noise=noise).localize(x, FS)
+    r = localizer(noise=noise, diagonal_loading=0.1).localize(x, FS)
+    for row in r.azimuth_deg:
+        for t in TALKERS:
+            assert min(angle(a, t) for a in row) <= 5.0, (row, t)
+    # One NaN in a pushed block: the block is refused whole, the stream goes on unchanged.
+    loc, whole = localizer(period=10), localizer(period=10)
+    want = whole.push(x)
+    bad = x[12000:16000].astype(np.float32)
+    bad[3900, 5] = np.nan
+    first = loc.push(x[:12000])
+    assert len(first) > 0
+    with pytest.raises(ValueError, match="NaN"):
+        loc.push(bad)
+    rest = loc.push(x[12000:])
+    np.testing.assert_array_equal(np.concatenate([first.frames, rest.frames]), want.frames)
+    np.testing.assert_array_equal(np.concatenate([first.azimuth_deg, rest.azimuth_deg]), want.azimuth_deg)

@@ -55,10 +55,10 @@ pub struct InputArgs {
     #[arg(long, value_enum, requires_all = ["raw_channels", "rate"])]
     pub raw: Option<RawArg>,
     /// Channels of --raw input.
-    #[arg(long)]
+    #[arg(long, requires = "raw")]
     pub raw_channels: Option<usize>,
     /// Sampling rate of --raw input, Hz.
-    #[arg(long)]
+    #[arg(long, requires = "raw")]
     pub rate: Option<u32>,
     /// Live input: audio buffered while the localizer is behind, seconds; beyond it whole
     /// blocks are dropped (and counted).

@@ -166,7 +166,7 @@ pub struct RunArgs {
     /// Write results here instead of stdout.
     #[arg(long, short = 'o')]
     pub output: Option<PathBuf>,
-    /// Write the dB spectrum [result][direction] as .npy (plus FILE.json with times and directions).
+    /// Write the dB spectrum [result][direction] as .npy (plus FILE.json next to it, e.g. spec.npy.json, with times and directions).
     #[arg(long)]
     pub spectrum: Option<PathBuf>,
     /// Write a plot of the spectrum over time × azimuth (.png or .svg).
@@ -176,19 +176,19 @@ pub struct RunArgs {
     #[arg(long)]
     pub track: bool,
     /// SourceTracker THRESH (dB): peaks below are ignored.
-    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
+    #[arg(long, requires = "track", default_value_t = 0.0, allow_hyphen_values = true)]
     pub thresh: f64,
     /// SourceTracker PAUSE_LENGTH.
-    #[arg(long, default_value_t = 800.0)]
+    #[arg(long, requires = "track", default_value_t = 800.0)]
     pub pause_length: f64,
     /// SourceTracker MIN_SRC_INTERVAL (degrees).
-    #[arg(long, default_value_t = 20.0)]
+    #[arg(long, requires = "track", default_value_t = 20.0)]
     pub min_src_interval: f64,
     /// SourceTracker MIN_ID.
-    #[arg(long, default_value_t = 0)]
+    #[arg(long, requires = "track", default_value_t = 0)]
     pub min_id: i64,
     /// SourceIntervalExtender PREROLL_LENGTH (frames); 0 = off.
-    #[arg(long, default_value_t = 0)]
+    #[arg(long, requires = "track", default_value_t = 0)]
     pub preroll: usize,
     /// With --track: write the per-source summary (JSON) here.
     #[arg(long)]
@@ -391,7 +391,7 @@ impl RunArgs {
 }
 
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
-    Sinks::check_paths(&args.run)?;
+    Sinks::check_paths(&args.run, Some(Path::new(&args.input.input)))?;
     let input = args.input.open(args.run.quiet)?;
     let (fmt, rx) = spawn_reader(
         input.source,

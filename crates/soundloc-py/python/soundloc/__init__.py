@@ -31,7 +31,8 @@ Arguments (HARK LocalizeMUSIC name / pyroomacoustics name):
     noise: (samples, channels) noise-only array; noise_range: (t0, t1) seconds of the input;
         noise_cm: HARK noise-CM file; noise_segments / noise_preceding: online K updates.
     track: SourceTracker ids; device: "auto"|"cpu"|"cuda"; precision: "f32"|"f64".
-    channels (TF_CHANNEL_SELECTION), input_channels (ChannelSelector).
+    channels (TF_CHANNEL_SELECTION), input_channels (ChannelSelector); diagonal_loading: K + δ·(tr K / M)·I
+        (a K that is not positive definite is otherwise an error).
     channels_first: arrays are (channels, samples) instead of (samples, channels).
     resample: audio given to localize(x, fs) or localize_file at another rate than the
         analysis's (e.g. 48 kHz with a 16 kHz TF file) is converted instead of refused

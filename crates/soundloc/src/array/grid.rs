@@ -360,8 +360,10 @@ impl FromStr for GridSpec {
                         .map_err(|_| bad("the elevation must be a number of degrees"))?,
                     None => 0.0,
                 };
-                if !(elevation_deg.is_finite() && (-90.0..=90.0).contains(&elevation_deg)) {
-                    return Err(bad("the elevation must be in [-90, 90] degrees"));
+                if !(elevation_deg.is_finite() && elevation_deg.abs() < 90.0) {
+                    return Err(bad(
+                        "the elevation must be in (-90, 90) degrees (at ±90 every direction of a ring is the same point)",
+                    ));
                 }
                 Ok(GridSpec::Ring {
                     step_deg,
@@ -512,6 +514,8 @@ mod tests {
             "ring:0",
             "ring:x",
             "ring:5:100",
+            "ring:5:90",
+            "ring:5:-90",
             "sphere:1",
             "sphere:x",
             "cube:3",

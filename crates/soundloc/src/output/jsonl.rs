@@ -6,7 +6,8 @@
 //!
 //! `frame` is the result frame c, `time_s` = c·hop/fs in seconds, `sources` strongest
 //! first; angles in degrees (azimuth = atan2(y, x) from +x toward +y, elevation from the
-//! x-y plane), `power_db` = 10·log10(P̄ + 1). `id` is omitted for untracked sources.
+//! x-y plane), `power_db` = 10·log10(P̄ + 1). `id` is omitted for untracked sources;
+//! `num_active` (the window's estimated number of active sources) where it was estimated.
 //! Non-finite numbers are written as `null` (JSON has no NaN) and read back as NaN.
 //! A result with no sources is written with `"sources":[]`.
 
@@ -34,6 +35,8 @@ struct ResultOut {
     frame: usize,
     time_s: Option<f64>,
     sources: Vec<SourceOut>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    num_active: Option<usize>,
 }
 
 #[derive(Deserialize)]
@@ -54,6 +57,8 @@ struct ResultIn {
     frame: usize,
     time_s: Option<f64>,
     sources: Vec<SourceIn>,
+    #[serde(default)]
+    num_active: Option<usize>,
 }
 
 fn fin(v: f64) -> Option<f64> {
@@ -83,6 +88,7 @@ pub fn to_json_line(result: &LocalizationResult) -> String {
                 grid_index: s.grid_index,
             })
             .collect(),
+        num_active: result.num_active,
     };
     // Serialising plain structs of numbers cannot fail.
     serde_json::to_string(&out).unwrap_or_default()
@@ -92,7 +98,7 @@ pub fn to_json_line(result: &LocalizationResult) -> String {
 pub fn from_json_line(line: &str) -> std::result::Result<LocalizationResult, serde_json::Error> {
     let r: ResultIn = serde_json::from_str(line)?;
     Ok(LocalizationResult {
-        num_active: None,
+        num_active: r.num_active,
         frame: r.frame,
         time_s: nan(r.time_s),
         sources: r
@@ -210,7 +216,7 @@ mod tests {
                 ],
             },
             LocalizationResult {
-                num_active: None,
+                num_active: Some(2),
                 frame: 50,
                 time_s: 0.5,
                 sources: vec![],
@@ -229,7 +235,7 @@ mod tests {
         assert!(line.contains("{\"azimuth_deg\":-60.0"), "{line}");
         assert_eq!(
             to_json_line(&sample_results()[1]),
-            "{\"frame\":50,\"time_s\":0.5,\"sources\":[]}"
+            "{\"frame\":50,\"time_s\":0.5,\"sources\":[],\"num_active\":2}"
         );
     }
 
