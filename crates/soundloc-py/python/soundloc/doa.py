@@ -15,7 +15,8 @@ pyroomacoustics' own scale (MUSIC: mean over bins of 1/aᴴ(I − EsEsᴴ)a; Nor
 bin normalised to a maximum of 1 first; SRP: mean over bins and microphone pairs of
 Re aᴴ R̃ a with R̃ the phase-transformed correlation), so existing plotting code works.
 Peaks: local maxima of the grid (left/right on a circle, the 6 nearest directions on a
-sphere), strongest first.
+sphere); ``src_idx`` / ``azimuth_recon`` hold the ``num_src`` strongest in
+pyroomacoustics' order (its ``find_peaks``: weakest of them first, strongest last).
 """
 
 from types import SimpleNamespace
@@ -126,7 +127,8 @@ class _DOA:
         weights = [] if weights.all() else weights.tolist()
         db, peaks = self._native.process(X, (lo, hi), weights, self.num_src)
         self.grid.values = self._scale(10.0 ** (db.astype(np.float64) / 10.0) - 1.0)
-        self.src_idx = np.asarray(peaks, dtype=np.int64)
+        # soundloc gives them strongest first; pyroomacoustics ascending.
+        self.src_idx = np.asarray(peaks[::-1], dtype=np.int64)
         self.azimuth_recon = self.grid.azimuth[self.src_idx]
         if self.dim == 3:
             self.colatitude_recon = self.grid.colatitude[self.src_idx]
