@@ -571,3 +571,39 @@ fn outputs_never_replace_inputs_or_each_other() {
     assert_eq!(o.status.code(), Some(2), "{}", String::from_utf8_lossy(&o.stderr));
     assert_eq!(std::fs::read(&geo).unwrap(), geo_bytes);
 }
+
+#[test]
+fn outputs_never_replace_a_noise_cm_pair() {
+    let (audio, geo, wav) = scene();
+    let dir = tmp("noclobber-cm");
+    std::fs::create_dir_all(&dir).unwrap();
+    // K from the first second, written as a text pair K_r / K_i.
+    let o = bin()
+        .args(["noisecm", "make"])
+        .arg(&wav)
+        .args(["--range", "0:1", "--format", "text", "-o"])
+        .arg(dir.join("K"))
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(audio.num_channels() == 8);
+    let imag = std::fs::read(dir.join("K_i")).unwrap();
+    for cm in [dir.join("K_r"), dir.join("K")] {
+        let o = bin()
+            .arg("localize")
+            .arg(&wav)
+            .arg("--geometry")
+            .arg(&geo)
+            .arg("--noise-cm")
+            .arg(&cm)
+            .args(OPTS)
+            .arg("--log-text")
+            .arg(dir.join("K_i"))
+            .output()
+            .unwrap();
+        let e = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{cm:?}: {e}");
+        assert!(e.contains("would overwrite the input"), "{cm:?}: {e}");
+    }
+    assert_eq!(std::fs::read(dir.join("K_i")).unwrap(), imag);
+}

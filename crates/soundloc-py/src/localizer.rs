@@ -17,15 +17,30 @@ pub(crate) struct PyLocalizer {
     /// `Send`, not `Sync`).
     inner: Mutex<Localizer>,
     channels_first: bool,
+    /// Files the localizer was built from (the TF file, a noise-CM pair or recording):
+    /// `localize_file` never writes over them.
+    files: Vec<PathBuf>,
 }
 
 #[pymethods]
 impl PyLocalizer {
     #[new]
     fn new(py: Python<'_>, spec: &PySpec) -> PyResult<Self> {
+        let mut files = Vec::new();
+        if let soundloc::ArraySpec::TransferFunctions { path } = &spec.spec.array {
+            files.push(path.clone());
+        }
+        match &spec.spec.noise {
+            soundloc::NoiseSource::CorrelationFile { path } => {
+                files.extend(soundloc::formats::noise_cm::NoiseCm::files_read(path))
+            }
+            soundloc::NoiseSource::Recording { path } => files.push(path.clone()),
+            _ => {}
+        }
         Ok(PyLocalizer {
             inner: Mutex::new(spec.localizer(py)?),
             channels_first: spec.channels_first,
+            files,
         })
     }
 
@@ -72,10 +87,14 @@ impl PyLocalizer {
                 )))
             }
         };
+        let files = self.files.clone();
         let mut inner = self.lock()?;
         let loc = &mut *inner;
         py.allow_threads(|| -> soundloc::Result<usize> {
-            soundloc::output::atomic::check_outputs(&[(&output, "output")], &[(&input, "input")])?;
+            let ins: Vec<(&std::path::Path, &str)> = std::iter::once((input.as_path(), "input"))
+                .chain(files.iter().map(|p| (p.as_path(), "a file of this localizer")))
+                .collect();
+            soundloc::output::atomic::check_outputs(&[(&output, "output")], &ins)?;
             let mut audio = soundloc::audio::read_audio(&input)?;
             let named = |e: soundloc::Error| soundloc::Error::Config(format!("{}: {e}", input.display()));
             if let Some(r) = loc
@@ -191,9 +210,7 @@ impl PyLocalizer {
         match fs {
             Some(f) if f != want => {
                 let n_ch = channel_count(s.shape(), channels_first, |c| guard.check_input(want, c))?;
-                guard
-                    .input_converter(f, n_ch)
-                    .map_err(|e| PyValueError::new_err(format!("the audio is sampled at {f} Hz: {e}")))
+                guard.input_converter(f, n_ch).map_err(err)
             }
             _ => Ok(None),
         }

@@ -65,7 +65,7 @@ pub(crate) fn spec(
     noise: Option<&Bound<'_, PyAny>>,
     noise_range: Option<&Bound<'_, PyAny>>,
     noise_cm: Option<PathBuf>,
-    noise_segments: Option<Vec<(f64, f64)>>,
+    noise_segments: Option<Vec<Bound<'_, PyAny>>>,
     noise_preceding: Option<(usize, usize)>,
     track: bool,
     tracker_thresh_db: f64,
@@ -88,6 +88,13 @@ pub(crate) fn spec(
     let freq_range = freq_range.map_or(Ok((500.0, 2800.0)), |r| pair(r, "freq_range"))?;
     let noise_range = noise_range.map(|r| pair(r, "noise_range")).transpose()?;
     let fs = fs.map_or(Ok(16000), rate)?;
+    let noise_segments = noise_segments
+        .map(|v| {
+            v.iter()
+                .map(|r| pair(r, "noise_segments"))
+                .collect::<PyResult<Vec<_>>>()
+        })
+        .transpose()?;
     let grid_spec: Option<GridSpec> = match grid {
         Some(g) => match g.extract::<String>() {
             Ok(s) => Some(s.parse().map_err(err)?),
@@ -213,6 +220,9 @@ pub(crate) fn rate(v: &Bound<'_, PyAny>) -> PyResult<u32> {
             v.repr().map(|r| r.to_string()).unwrap_or_default()
         ))
     };
+    if v.is_instance_of::<pyo3::types::PyBool>() {
+        return Err(bad());
+    }
     let f: f64 = v.extract().map_err(|_| bad())?;
     if f.fract() == 0.0 && f >= 1.0 && f <= u32::MAX as f64 {
         Ok(f as u32)

@@ -263,6 +263,10 @@ def test_arguments_as_pyroomacoustics_users_write_them():
         localizer(freq_range=[500])
     with pytest.raises(ValueError, match="positive whole number"):
         localizer().localize(x, 16000.5)
+    with pytest.raises(ValueError, match="positive whole number"):
+        localizer().localize(x, True)
+    seg = localizer(noise_range=[0.0, 0.5], noise_segments=[[1.0, 1.5]]).localize(x, FS)
+    assert len(seg) == len(ref)
     # K from too few noise frames is not positive definite; diagonal loading makes it usable.
     noise = (np.random.default_rng(5).standard_normal((1500, 8)) * 30).astype(np.int16)
     with pytest.raises(ValueError, match="diagonal loading"):

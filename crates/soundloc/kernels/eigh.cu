@@ -10,14 +10,14 @@
 //   T scaled to ‖T‖ ≈ 1; λ_0 ≥ … ≥ λ_{Ns−1} to EH_BTOL by multisection of Sturm counts
 //   (Ns ≤ warps: the block's warps shared among the values, 32 points per warp and round;
 //   more values: P ≤ 16 lanes per value, all values at once); z_r by inverse iteration
-//   with partial pivoting (LAPACK's dlagtf/dstein idea, two solves, one thread per vector;
-//   the Ns vectors are then orthonormalised by the block, which also separates clustered
-//   values); λ_0 from the Rayleigh quotient z_0ᵀ T z_0; e_r = Q z_r (each warp applies
-//   the reflectors to up to EH_BT vectors at once).
+//   with partial pivoting (LAPACK's dlagtf/dstein idea, one thread per vector; two or
+//   three rounds of solving every vector and orthonormalising them all by the block, which
+//   separates clustered values); λ_0 from the Rayleigh quotient z_0ᵀ T z_0; e_r = Q z_r
+//   (each warp applies the reflectors to up to EH_BT vectors at once).
 //
 // Two kernels: form_h (modes 1–3) writes H to global memory, eigh reads it (or R in
 // mode 0) and does the rest; apart, the products' register tiles do not cap the
-// eigensolver's occupancy (80 registers, three blocks per multiprocessor at M = 60).
+// eigensolver's occupancy (at most 85 registers: three blocks per multiprocessor at M = 60).
 //
 // This is all the squared MUSIC denominator needs (the noise projector is I − E_s E_sᴴ,
 // spectrum.cu). Arithmetic: (16/3)·M³ real flops for the reduction and at most 2·8·M³ for
@@ -699,8 +699,8 @@ __device__ void eigh_impl(const zd* __restrict__ R, const zd* __restrict__ Hg, i
         eigh_impl<T>(R, Hg, M, nb, mode, ns, eigw, weights, mat0, E, E64, gain, bw, info, prof);               \
     }
 
-// Three eigensolver blocks of 256 threads per multiprocessor (85 registers; its shared
-// memory, ~70 KB at M = 60, allows three too); the products take two.
+// Three eigensolver blocks of 256 threads per multiprocessor (at most 85 registers; its
+// shared memory, ~64–66 KB at M = 60, allows three too); the products take two.
 #ifndef EH_MINB
 #define EH_MINB (EH_THREADS <= 256 ? 3 : 1)
 #endif

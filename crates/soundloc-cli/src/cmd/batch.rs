@@ -5,6 +5,7 @@
 use super::input::{spawn_reader, InputArgs};
 use super::localize::{drive, FormatArg, RunArgs};
 use anyhow::{anyhow, bail, Context};
+use soundloc::formats::noise_cm::NoiseCm;
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -115,6 +116,7 @@ pub fn run(mut a: Args) -> anyhow::Result<ExitCode> {
     }
     // No result may replace a recording of the list or one of the run's files.
     let r = &a.run;
+    let cm_files = r.noise_cm.as_deref().map(NoiseCm::files_read).unwrap_or_default();
     let files: Vec<(&Path, &str)> = all
         .iter()
         .map(|p| (p.as_path(), "a recording of this batch"))
@@ -123,15 +125,14 @@ pub fn run(mut a: Args) -> anyhow::Result<ExitCode> {
                 (r.tf.as_deref(), "--tf"),
                 (r.geometry.as_deref(), "--geometry"),
                 (r.noise.as_deref(), "--noise"),
-                (r.noise_cm.as_deref(), "--noise-cm"),
             ]
             .into_iter()
             .filter_map(|(p, w)| p.map(|p| (p, w))),
         )
+        .chain(cm_files.iter().map(|p| (p.as_path(), "--noise-cm")))
         .collect();
-    for (_, out) in &jobs {
-        soundloc::output::atomic::check_outputs(&[(out.as_path(), "the result")], &files)?;
-    }
+    let outs: Vec<(&Path, &str)> = jobs.iter().map(|(_, o)| (o.as_path(), "the result")).collect();
+    soundloc::output::atomic::check_outputs(&outs, &files)?;
     std::fs::create_dir_all(&a.out_dir)
         .with_context(|| format!("{}: cannot create the folder", a.out_dir.display()))?;
     let quiet = a.run.quiet;

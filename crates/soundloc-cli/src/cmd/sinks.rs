@@ -245,15 +245,21 @@ impl Sinks {
                 outputs.push((p, what));
             }
         }
+        // A noise-CM text pair is two files (the imaginary one found by name).
+        let cm_files = a
+            .noise_cm
+            .as_deref()
+            .map(soundloc::formats::noise_cm::NoiseCm::files_read)
+            .unwrap_or_default();
         let inputs: Vec<(&Path, &str)> = [
             (input, "the recording"),
             (a.tf.as_deref(), "--tf"),
             (a.geometry.as_deref(), "--geometry"),
             (a.noise.as_deref(), "--noise"),
-            (a.noise_cm.as_deref(), "--noise-cm"),
         ]
         .into_iter()
         .filter_map(|(p, w)| p.map(|p| (p, w)))
+        .chain(cm_files.iter().map(|p| (p.as_path(), "--noise-cm")))
         .collect();
         soundloc::output::atomic::check_outputs(&outputs, &inputs)?;
         if let Some(p) = &a.plot {

@@ -157,7 +157,7 @@ pub fn estimate(
 ) -> Result<NoiseMatrices> {
     if sample_rate_hz != config.sample_rate_hz {
         return Err(Error::Mismatch(format!(
-            "the noise audio is sampled at {} Hz but the analysis runs at {} Hz",
+            "the noise audio is sampled at {} Hz but the analysis runs at {} Hz (convert it: --resample, resample=True in Python)",
             sample_rate_hz, config.sample_rate_hz
         )));
     }

@@ -293,6 +293,7 @@ impl NoisePolicy {
             s.k = None;
         }
         self.last_preceding = KSource::Initial;
+        self.preceding_used = false;
         self.start(config)
     }
 

@@ -193,6 +193,10 @@ fn resolve_links(path: &Path) -> PathBuf {
 /// resolved and the directory made absolute. `None` for what is not a regular file
 /// (a device or FIFO is written in place, replacing nothing).
 fn identity(path: &Path) -> Option<PathBuf> {
+    // The kernel follows links here, magic ones too (/dev/stdout → a pipe).
+    if std::fs::metadata(path).is_ok_and(|m| !m.is_file()) {
+        return None;
+    }
     let t = resolve_links(path);
     match std::fs::metadata(&t) {
         Ok(m) if !m.is_file() => return None,
@@ -216,28 +220,29 @@ fn identity(path: &Path) -> Option<PathBuf> {
 /// message. Writing results over the recording or the transfer functions they come from
 /// would destroy them; two outputs on one path would keep only the last.
 pub fn check_outputs(outputs: &[(&Path, &str)], inputs: &[(&Path, &str)]) -> Result<()> {
-    let ins: Vec<(PathBuf, &Path, &str)> = inputs
+    use std::collections::HashMap;
+    let ins: HashMap<PathBuf, (&Path, &str)> = inputs
         .iter()
-        .filter_map(|&(p, w)| identity(p).map(|k| (k, p, w)))
+        .filter_map(|&(p, w)| identity(p).map(|k| (k, (p, w))))
         .collect();
-    let mut seen: Vec<(PathBuf, &Path, &str)> = Vec::new();
+    let mut seen: HashMap<PathBuf, (&Path, &str)> = HashMap::new();
     for &(p, what) in outputs {
         let Some(k) = identity(p) else { continue };
-        if let Some((_, ip, iw)) = ins.iter().find(|(ik, ..)| *ik == k) {
+        if let Some((ip, iw)) = ins.get(&k) {
             return Err(Error::Config(format!(
                 "{}: {what} would overwrite the input {} ({iw}): name another file",
                 p.display(),
                 ip.display()
             )));
         }
-        if let Some((_, op, ow)) = seen.iter().find(|(sk, ..)| *sk == k) {
+        if let Some((op, ow)) = seen.get(&k) {
             return Err(Error::Config(format!(
                 "{}: {what} and {ow} ({}) name the same file",
                 p.display(),
                 op.display()
             )));
         }
-        seen.push((k, p, what));
+        seen.insert(k, (p, what));
     }
     Ok(())
 }

@@ -296,13 +296,35 @@ impl NoiseCm {
         Ok((Self::from_noise_matrices(&k, nfft)?, frames))
     }
 
+    /// The files [`load`](Self::load) reads for `path` (a zip: itself; a text pair: both),
+    /// as far as they can be told without reading them; for checking that no output
+    /// replaces them.
+    pub fn files_read(path: &Path) -> Vec<std::path::PathBuf> {
+        if !path.exists() {
+            if let Some((re, im)) = path.to_str().and_then(|s| s.split_once(',')) {
+                return vec![re.into(), im.into()];
+            }
+            let (re, im) = text_pair_paths(path);
+            return vec![re, im];
+        }
+        let mut v = vec![path.to_path_buf()];
+        v.extend(imag_path_candidates(path).into_iter().filter(|p| p.is_file()));
+        v
+    }
+
     /// Loads a zip (detected by its `PK` signature) or a text pair given its real-part file
     /// (the imaginary file is found by name, see the module docs) or both as `REAL,IMAG`
-    /// (when no file has that whole name).
+    /// (when no file has that whole name), or by the name the pair was written for
+    /// (`K` for `K_r` and `K_i`, when no file `K` exists).
     pub fn load(path: &Path, expected: Expected) -> Result<Self> {
         if !path.exists() {
             if let Some((re, im)) = path.to_str().and_then(|s| s.split_once(',')) {
                 return Self::read_text_pair(Path::new(re), Path::new(im), expected);
+            }
+            // The name `noisecm make -o NAME --format text` was given: NAME_r and NAME_i.
+            let (re, im) = text_pair_paths(path);
+            if re.is_file() && im.is_file() {
+                return Self::read_text_pair(&re, &im, expected);
             }
         }
         let mut head = [0u8; 4];

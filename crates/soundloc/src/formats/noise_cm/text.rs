@@ -293,6 +293,14 @@ mod tests {
             assert_eq!(find_imag_path(&r).unwrap(), i, "{out}");
             let back = NoiseCm::load(&r, Expected::default()).unwrap();
             assert_eq!(back, cm);
+            // By the name it was written for, too, when no file has that name.
+            if !dir.join(out).exists() {
+                assert_eq!(
+                    NoiseCm::load(&dir.join(out), Expected::default()).unwrap(),
+                    cm,
+                    "{out}"
+                );
+            }
         }
         let _ = std::fs::remove_dir_all(&dir);
     }
