@@ -307,10 +307,12 @@ fn negative_numbers_parse_and_bad_values_fail_before_any_work() {
     assert!(String::from_utf8_lossy(&o.stderr).contains("max-peaks must be -1"));
     let o = run(&["--min-deg", "-90", "--max-deg", "90", "-q", "--device", "cpu"]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let under_file = format!("{}/out.jsonl", wav.display());
     for (flags, want) in [
         (&["--plot", "x.jpg"][..], "PNG or SVG"),
         (&["--summary", "s.json"][..], "--summary needs --track"),
         (&["-o", "/nonexistent-dir/out.jsonl"][..], "does not exist"),
+        (&["-o", under_file.as_str()][..], "is a file, not a folder"),
         (&["--track", "--thresh", "nan"][..], "THRESH must be finite"),
         (&["--grid", "ring:0.001"][..], "at least 0.1 degrees"),
         (&["--grid-radius", "0"][..], "grid radius must be positive"),

@@ -164,7 +164,13 @@ pub fn run(mut a: Args) -> anyhow::Result<ExitCode> {
             }
             Ok(_) => failed.push(format!("{}: did not finish", p.display())),
             Err(e) => {
-                eprintln!("soundloc: error: {}: {e:#}", p.display());
+                // Most errors already name the recording.
+                let msg = format!("{e:#}");
+                if msg.contains(&p.display().to_string()) {
+                    eprintln!("soundloc: error: {msg}");
+                } else {
+                    eprintln!("soundloc: error: {}: {msg}", p.display());
+                }
                 failed.push(p.display().to_string());
             }
         }

@@ -203,6 +203,9 @@ fn status(p: &Progress, finished: bool) -> live::Status {
 
 fn check_dir(p: &Path, what: &str) -> anyhow::Result<()> {
     if let Some(d) = p.parent().filter(|d| !d.as_os_str().is_empty()) {
+        if d.exists() && !d.is_dir() {
+            bail!("{}: {what}: {} is a file, not a folder", p.display(), d.display());
+        }
         if !d.is_dir() {
             bail!(
                 "{}: {what}: the directory {} does not exist",

@@ -38,7 +38,8 @@ Arguments (HARK LocalizeMUSIC name / pyroomacoustics name):
         analysis's (e.g. 48 kHz with a 16 kHz TF file) is converted instead of refused
         (band-limited, no delay added); push() takes blocks at the analysis rate (``loc.fs``).
 
-Errors: ValueError (bad input or configuration), OSError (files), RuntimeError (device).
+Errors: ValueError (bad input or configuration), TypeError (an argument of the wrong type,
+e.g. a complex array as audio), OSError (files), RuntimeError (device).
 """
 
 from dataclasses import dataclass, field

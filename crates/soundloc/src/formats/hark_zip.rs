@@ -113,7 +113,8 @@ pub fn write_zip_entries(path: &Path, entries: &[(String, Vec<u8>)]) -> Result<(
         .unwrap_or(0);
     let tmp = dir.join(format!(".{fname}.tmp-{}-{stamp}", std::process::id()));
     let result = (|| -> Result<()> {
-        let file = std::fs::File::create(&tmp).map_err(|e| Error::io(&tmp, e))?;
+        // Errors name the file asked for, not the hidden temporary one.
+        let file = std::fs::File::create(&tmp).map_err(|e| Error::io(path, e))?;
         let mut w = zip::ZipWriter::new(std::io::BufWriter::new(file));
         let opts =
             zip::write::SimpleFileOptions::default().compression_method(zip::CompressionMethod::Deflated);
