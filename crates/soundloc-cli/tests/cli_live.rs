@@ -483,17 +483,9 @@ fn odas_ssl_and_sst_reach_a_receiver_that_restarts() {
     let sst = TcpListener::bind("127.0.0.1:0").unwrap();
     let (ssl_port, sst_port) = (ssl.local_addr().unwrap().port(), sst.local_addr().unwrap().port());
     let mut child = bin()
-        .args([
-            "localize",
-            "-",
-            "--raw",
-            "s16le",
-            "--raw-channels",
-            "8",
-            "--rate",
-            "16000",
-            "--geometry",
-        ])
+        .args(["localize", "-"])
+        .args(common::RAW_S16_RING)
+        .arg("--geometry")
         .arg(&geo)
         .args([
             "--grid",

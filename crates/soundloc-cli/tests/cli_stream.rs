@@ -3,7 +3,7 @@
 
 mod common;
 
-use common::{bin, s16le, spawn_piped};
+use common::{bin, s16le, spawn_piped, RAW_S16_RING};
 use soundloc::audio::Audio;
 use std::io::{BufRead, BufReader, Read, Write};
 use std::net::{TcpListener, TcpStream};
@@ -118,17 +118,9 @@ fn raw_pcm_on_stdin_equals_the_file() {
     let want = from_file(&wav, &geo);
     let mut child = spawn_piped(
         bin()
-            .args([
-                "localize",
-                "-",
-                "--raw",
-                "s16le",
-                "--raw-channels",
-                "8",
-                "--rate",
-                "16000",
-                "--geometry",
-            ])
+            .args(["localize", "-"])
+            .args(RAW_S16_RING)
+            .arg("--geometry")
             .arg(&geo)
             .args(OPTS),
     );
@@ -157,16 +149,8 @@ fn tcp_listen_and_connect_equal_the_file_and_a_cut_frame_is_reported() {
     let want = from_file(&wav, &geo);
     // soundloc listens; the test sends raw PCM, then 3 stray bytes, and hangs up.
     let mut child = bin()
-        .args([
-            "localize",
-            "tcp-listen:127.0.0.1:0",
-            "--raw",
-            "s16le",
-            "--raw-channels",
-            "8",
-            "--rate",
-            "16000",
-        ])
+        .args(["localize", "tcp-listen:127.0.0.1:0"])
+        .args(RAW_S16_RING)
         .arg("--geometry")
         .arg(&geo)
         .args(&OPTS[..8])
@@ -336,17 +320,9 @@ fn ctrl_c_ends_a_live_session_cleanly() {
     let out = dir.join("live.jsonl");
     let mut child = spawn_piped(
         bin()
-            .args([
-                "localize",
-                "-",
-                "--raw",
-                "s16le",
-                "--raw-channels",
-                "8",
-                "--rate",
-                "16000",
-                "--geometry",
-            ])
+            .args(["localize", "-"])
+            .args(RAW_S16_RING)
+            .arg("--geometry")
             .arg(&geo)
             .args(&OPTS[..8])
             .arg("-o")

@@ -8,6 +8,9 @@ use soundloc::audio::{Audio, SampleFormat};
 use std::path::PathBuf;
 use std::process::Command;
 
+/// The options of raw 16-bit PCM of the 8-mic scene at 16 kHz (after the input name).
+pub const RAW_S16_RING: [&str; 6] = ["--raw", "s16le", "--raw-channels", "8", "--rate", "16000"];
+
 /// The `soundloc` binary under test.
 pub fn bin() -> Command {
     Command::new(env!("CARGO_BIN_EXE_soundloc"))

@@ -70,7 +70,7 @@ mod text;
 mod zip;
 
 use std::ops::Range;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use num_complex::Complex;
 
@@ -297,19 +297,12 @@ impl NoiseCm {
     }
 
     /// The files [`load`](Self::load) reads for `path` (a zip: itself; a text pair: both),
-    /// as far as they can be told without reading them; for checking that no output
-    /// replaces them.
-    pub fn files_read(path: &Path) -> Vec<std::path::PathBuf> {
-        if !path.exists() {
-            if let Some((re, im)) = path.to_str().and_then(|s| s.split_once(',')) {
-                return vec![re.into(), im.into()];
-            }
-            let (re, im) = text_pair_paths(path);
-            return vec![re, im];
+    /// for checking that no output replaces them; `path` alone where it cannot be read.
+    pub fn files_read(path: &Path) -> Vec<PathBuf> {
+        match locate(path) {
+            Ok(Located::Zip) | Err(_) => vec![path.to_path_buf()],
+            Ok(Located::Pair(re, im)) => vec![re, im],
         }
-        let mut v = vec![path.to_path_buf()];
-        v.extend(imag_path_candidates(path).into_iter().filter(|p| p.is_file()));
-        v
     }
 
     /// Loads a zip (detected by its `PK` signature) or a text pair given its real-part file
@@ -317,26 +310,43 @@ impl NoiseCm {
     /// (when no file has that whole name), or by the name the pair was written for
     /// (`K` for `K_r` and `K_i`, when no file `K` exists).
     pub fn load(path: &Path, expected: Expected) -> Result<Self> {
-        if !path.exists() {
-            if let Some((re, im)) = path.to_str().and_then(|s| s.split_once(',')) {
-                return Self::read_text_pair(Path::new(re), Path::new(im), expected);
-            }
-            // The name `noisecm make -o NAME --format text` was given: NAME_r and NAME_i.
-            let (re, im) = text_pair_paths(path);
-            if re.is_file() && im.is_file() {
-                return Self::read_text_pair(&re, &im, expected);
-            }
+        match locate(path)? {
+            Located::Zip => Self::read_zip(path, expected),
+            Located::Pair(re, im) => Self::read_text_pair(&re, &im, expected),
         }
-        let mut head = [0u8; 4];
-        let n = std::fs::File::open(path)
-            .and_then(|mut f| std::io::Read::read(&mut f, &mut head))
-            .map_err(|e| Error::io(path, e))?;
-        if hark_zip::looks_like_zip(&head[..n]) {
-            return Self::read_zip(path, expected);
-        }
-        let imag = find_imag_path(path)?;
-        Self::read_text_pair(path, &imag, expected)
     }
+}
+
+/// What [`NoiseCm::load`] reads for a name.
+enum Located {
+    /// The file itself, a zip.
+    Zip,
+    /// A text pair: real part, imaginary part.
+    Pair(PathBuf, PathBuf),
+}
+
+/// The rule of [`NoiseCm::load`]: `REAL,IMAG` or the pair written for the name when no
+/// file has the name; else a zip by its signature; else a real-part file and its
+/// imaginary file found by name.
+fn locate(path: &Path) -> Result<Located> {
+    if !path.exists() {
+        if let Some((re, im)) = path.to_str().and_then(|s| s.split_once(',')) {
+            return Ok(Located::Pair(re.into(), im.into()));
+        }
+        // The name `noisecm make -o NAME --format text` was given: NAME_r and NAME_i.
+        let (re, im) = text_pair_paths(path);
+        if re.is_file() && im.is_file() {
+            return Ok(Located::Pair(re, im));
+        }
+    }
+    let mut head = [0u8; 4];
+    let n = std::fs::File::open(path)
+        .and_then(|mut f| std::io::Read::read(&mut f, &mut head))
+        .map_err(|e| Error::io(path, e))?;
+    if hark_zip::looks_like_zip(&head[..n]) {
+        return Ok(Located::Zip);
+    }
+    Ok(Located::Pair(path.to_path_buf(), find_imag_path(path)?))
 }
 
 /// Checks one bin: finite values, Hermitian within [`HERMITIAN_RTOL`].
