@@ -39,6 +39,7 @@
 
 pub mod array;
 pub mod audio;
+pub(crate) mod avx;
 pub mod backend;
 pub mod bench;
 pub mod config;

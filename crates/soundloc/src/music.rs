@@ -146,6 +146,7 @@ pub fn accumulate_bin<T: Real>(
             C::new(T::one(), T::zero()),
             Par::Seq,
         );
+        crate::avx::clear_upper();
         for (i, (dec, acc)) in gdecs.iter().zip(gaccs.iter_mut()).enumerate() {
             accumulate_window(
                 plan,

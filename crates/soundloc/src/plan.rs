@@ -507,6 +507,7 @@ fn bin_whitening<T: Real>(
                 c64::new(1.0, 0.0),
                 faer::Par::Seq,
             );
+            crate::avx::clear_upper();
             let mut st = Vec::with_capacity(d * m);
             let mut n2 = Vec::with_capacity(d);
             for dir in 0..d {

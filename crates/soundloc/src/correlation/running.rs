@@ -22,7 +22,7 @@
 
 use crate::backend::{Job, WindowSpec};
 use crate::real::{Real, C};
-use crate::srp::phase;
+use crate::srp::phase_in_place;
 
 /// How one window's sums are made from the previous window's.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -124,10 +124,14 @@ pub fn run_bin<T: Real, U: Real>(
         y.clear();
         for f in frames {
             let o = (job.local(f) * sp.num_bins + bin) * m;
-            y.extend(sp.data[o..o + m].iter().map(|&z| {
-                let z = if phat { phase(z) } else { z };
-                C::new(z.re.to_f64(), z.im.to_f64())
-            }));
+            y.extend(
+                sp.data[o..o + m]
+                    .iter()
+                    .map(|&z| C::new(z.re.to_f64(), z.im.to_f64())),
+            );
+        }
+        if phat {
+            phase_in_place::<T>(y);
         }
     };
     // S += sign · Yᵀ conj(Y) = sign · Σ_f y_f y_fᴴ (S_ij = Σ y_i conj(y_j)), its upper
@@ -148,6 +152,7 @@ pub fn run_bin<T: Real, U: Real>(
             C::new(sign, 0.0),
             faer::Par::Seq,
         );
+        crate::avx::clear_upper();
     };
     match step {
         Step::Direct => {

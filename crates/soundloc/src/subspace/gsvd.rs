@@ -49,13 +49,14 @@ pub(super) fn full_svd<T: Real>(r: &[c64], w: &[c64], out: &mut Decomposition<T>
         one,
         Par::Seq,
     );
+    crate::avx::clear_upper();
     let mut s = faer::diag::Diag::<c64>::zeros(m);
     let mut u = Mat::<c64>::zeros(m, m);
     let (full, no) = (ComputeSvdVectors::Full, ComputeSvdVectors::No);
     let req = svd::svd_scratch::<c64>(m, m, full, no, Par::Seq, Default::default());
     let mut mem = MemBuffer::new(req);
     let stack = MemStack::new(&mut mem);
-    svd::svd(
+    let status = svd::svd(
         b.as_ref(),
         s.as_mut(),
         Some(u.as_mut()),
@@ -64,7 +65,9 @@ pub(super) fn full_svd<T: Real>(r: &[c64], w: &[c64], out: &mut Decomposition<T>
         stack,
         Default::default(),
     )
-    .map_err(|e| crate::Error::numerical("decompose", format!("SVD did not converge: {e:?}")))?;
+    .map_err(|e| crate::Error::numerical("decompose", format!("SVD did not converge: {e:?}")));
+    crate::avx::clear_upper();
+    status?;
     // faer returns singular values in non-increasing order.
     for k in 0..m {
         out.values[k] = T::of_f64(s[k].re);

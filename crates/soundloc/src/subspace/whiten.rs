@@ -65,6 +65,7 @@ impl Products {
             one,
             Par::Seq,
         );
+        crate::avx::clear_upper();
         let (x, xs) = match right {
             Right::WAdjoint => (wm, if lower { B::TriangularUpper } else { B::Rectangular }),
             Right::TAdjoint => (self.t.as_ref(), B::Rectangular),
@@ -80,6 +81,7 @@ impl Products {
             one,
             Par::Seq,
         );
+        crate::avx::clear_upper();
         for i in 0..m {
             for k in 0..i {
                 let z = self.a[(i, k)];
