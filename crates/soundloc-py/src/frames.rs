@@ -69,7 +69,8 @@ impl PyFrames {
         })
     }
 
-    /// `x`: complex128 (M, F, S); `bins`: the used absolute bins lo..hi; `weights`: per
+    /// `x`: complex128 (M, F, S), C-contiguous or a slice of such an array (read in
+    /// place, no copy); `bins`: the used absolute bins lo..hi; `weights`: per
     /// used bin (empty = uniform). Returns the dB spectrum (D,) and the peak indices,
     /// strongest first.
     fn process<'py>(
@@ -81,15 +82,29 @@ impl PyFrames {
         num_src: usize,
     ) -> PyResult<(Bound<'py, numpy::PyArray1<f32>>, Vec<usize>)> {
         use soundloc::config::SpectrumWeight;
-        let shape = [x.shape()[0], x.shape()[1], x.shape()[2]];
-        if !x.is_c_contiguous() {
+        let view = x.as_array();
+        let shape = [view.shape()[0], view.shape()[1], view.shape()[2]];
+        let st = view.strides();
+        if st.iter().any(|&v| v < 0) {
             return Err(PyValueError::new_err(
-                "x must be C-contiguous (np.ascontiguousarray)",
+                "x has negative strides (np.ascontiguousarray(x) first)",
             ));
         }
-        let xs = x
-            .as_slice()
-            .map_err(|_| PyValueError::new_err("x must be C-contiguous"))?;
+        let strides = [st[0] as usize, st[1] as usize, st[2] as usize];
+        let span = if shape.contains(&0) {
+            0
+        } else {
+            1 + (0..3).map(|d| (shape[d] - 1) * strides[d]).sum::<usize>()
+        };
+        // SAFETY: numpy holds the array's memory for as long as `x` is borrowed (read-only
+        // here); with non-negative strides every element lies in the `span` values from the
+        // first, which `FramesView::new` checks again for each index it will read.
+        let data: &[numpy::Complex64] = if span == 0 {
+            &[]
+        } else {
+            unsafe { std::slice::from_raw_parts(view.as_ptr(), span) }
+        };
+        let frames = soundloc::frames::FramesView::new(data, shape, strides).map_err(err)?;
         let hz = |k: usize| k as f64 * self.fs as f64 / self.nfft as f64;
         let config = soundloc::LocalizeConfig {
             algorithm: self.algorithm,
@@ -110,7 +125,7 @@ impl PyFrames {
             ..Default::default()
         };
         let out = py.allow_threads(|| match self.inner.lock() {
-            Ok(mut inner) => inner.process(&config, xs, shape).map_err(err),
+            Ok(mut inner) => inner.process(&config, &frames).map_err(err),
             Err(_) => Err(PyRuntimeError::new_err(
                 "frames localizer poisoned by an earlier panic",
             )),

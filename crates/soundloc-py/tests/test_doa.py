@@ -88,3 +88,28 @@ def test_bad_input_raises():
         d.locate_sources(X)
     with pytest.raises(ValueError, match="far"):
         soundloc.doa.MUSIC(L, FS, NFFT, mode="near")
+
+
+def test_views_and_dtypes_give_the_same_result():
+    """A slice of X (read in place through its strides), a Fortran-ordered copy, a reversed
+    view and complex64 input give the contiguous complex128 result; a NaN in a bin outside
+    freq_range is not read."""
+    L, X = scene(3, [40.0, 200.0])
+    for name in ["MUSIC", "SRP"]:
+        d = soundloc.doa.algorithms[name](L, FS, NFFT, num_src=2, azimuth=np.radians(np.arange(0, 360, 2.0)))
+        Xw = X[:, :, 5:25]
+        want = d.locate_sources(np.ascontiguousarray(Xw), freq_range=[500.0, 4000.0]).grid.values.copy()
+        for variant in (Xw, np.asfortranarray(Xw), Xw[:, ::-1, :][:, ::-1, :], Xw[::-1][::-1]):
+            got = d.locate_sources(variant, freq_range=[500.0, 4000.0]).grid.values
+            np.testing.assert_array_equal(got, want)
+        X64 = Xw.astype(np.complex64)
+        got = d.locate_sources(X64, freq_range=[500.0, 4000.0]).grid.values
+        want64 = d.locate_sources(X64.astype(np.complex128), freq_range=[500.0, 4000.0]).grid.values
+        np.testing.assert_array_equal(got, want64)
+        bad = np.array(Xw)
+        bad[1, 2, 4] = np.nan  # bin 2 = 125 Hz, below 500 Hz
+        got = d.locate_sources(bad, freq_range=[500.0, 4000.0]).grid.values
+        np.testing.assert_array_equal(got, want)
+        bad[1, 20, 4] = np.nan
+        with pytest.raises(ValueError, match="microphone 1, bin 20, snapshot 4 is not finite"):
+            d.locate_sources(bad, freq_range=[500.0, 4000.0])

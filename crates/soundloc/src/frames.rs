@@ -23,15 +23,62 @@ pub struct FramesResult {
     pub peaks: Vec<Peak>,
 }
 
-/// Checks `x` against `shape` and `config`: sizes, F = nfft/2 + 1, finite values.
-fn check(config: &LocalizeConfig, x: &[num_complex::Complex<f64>], shape: [usize; 3]) -> Result<()> {
-    let [m, f, s] = shape;
-    if m.checked_mul(f).and_then(|v| v.checked_mul(s)) != Some(x.len()) {
-        return Err(Error::Config(format!(
-            "frames: {} values for a {m} × {f} × {s} array",
-            x.len()
-        )));
+/// A read-only view of pyroomacoustics' X: M × F × S complex values (microphones × rfft
+/// bins × snapshots) at element offsets `i·strides[0] + k·strides[1] + s·strides[2]` of
+/// `data` — a C-contiguous array or a slice of one (numpy's `X[:, :, a:b]`), read in
+/// place.
+#[derive(Debug, Clone, Copy)]
+pub struct FramesView<'a> {
+    data: &'a [num_complex::Complex<f64>],
+    shape: [usize; 3],
+    strides: [usize; 3],
+}
+
+impl<'a> FramesView<'a> {
+    /// A view with the given `shape` and `strides` (in elements); every element must lie
+    /// inside `data`.
+    pub fn new(
+        data: &'a [num_complex::Complex<f64>],
+        shape: [usize; 3],
+        strides: [usize; 3],
+    ) -> Result<Self> {
+        let [m, f, s] = shape;
+        let last = (0..3).try_fold(0usize, |acc, d| {
+            shape[d].checked_sub(1).map_or(Some(acc), |n| {
+                n.checked_mul(strides[d]).and_then(|v| v.checked_add(acc))
+            })
+        });
+        let fits = shape.contains(&0) || last.is_some_and(|l| l < data.len());
+        if !fits {
+            return Err(Error::Config(format!(
+                "frames: a {m} × {f} × {s} array with strides {strides:?} does not fit in {} values",
+                data.len()
+            )));
+        }
+        Ok(FramesView { data, shape, strides })
     }
+
+    /// A C-contiguous M × F × S array.
+    pub fn contiguous(data: &'a [num_complex::Complex<f64>], shape: [usize; 3]) -> Result<Self> {
+        let [m, f, s] = shape;
+        if m.checked_mul(f).and_then(|v| v.checked_mul(s)) != Some(data.len()) {
+            return Err(Error::Config(format!(
+                "frames: {} values for a {m} × {f} × {s} array",
+                data.len()
+            )));
+        }
+        Self::new(data, shape, [f * s, s, 1])
+    }
+
+    /// M × F × S.
+    pub fn shape(&self) -> [usize; 3] {
+        self.shape
+    }
+}
+
+/// Checks `x` against `config`: F = nfft/2 + 1 and at least one snapshot.
+fn check(config: &LocalizeConfig, x: &FramesView<'_>) -> Result<()> {
+    let [_, f, s] = x.shape;
     if f != config.nfft / 2 + 1 {
         return Err(Error::Mismatch(format!(
             "frames hold {f} frequency bins, but an {}-point FFT has {}",
@@ -41,12 +88,6 @@ fn check(config: &LocalizeConfig, x: &[num_complex::Complex<f64>], shape: [usize
     }
     if s == 0 {
         return Err(Error::TooShort("frames: no snapshots".into()));
-    }
-    if let Some(i) = x.iter().position(|v| !(v.re.is_finite() && v.im.is_finite())) {
-        return Err(Error::Numerical {
-            stage: "input",
-            message: format!("frames: value {i} is not finite"),
-        });
     }
     Ok(())
 }
@@ -75,8 +116,8 @@ impl<T: Real> Prepared<T> {
         })
     }
 
-    fn run(&mut self, x: &[num_complex::Complex<f64>], shape: [usize; 3]) -> Result<FramesResult> {
-        let [m, f, s] = shape;
+    fn run(&mut self, x: &FramesView<'_>) -> Result<FramesResult> {
+        let [m, _, s] = x.shape;
         if self.plan.num_mics != m {
             return Err(Error::Mismatch(format!(
                 "frames have {m} microphones, the array {}",
@@ -88,10 +129,27 @@ impl<T: Real> Prepared<T> {
         if self.spectra.num_frames != s || self.spectra.num_bins != nb || self.spectra.num_mics != m {
             self.spectra = Spectra::zeros(s, nb, m);
         }
-        for (mic, per_mic) in x.chunks_exact(f * s).enumerate() {
-            for (b, k) in bins.clone().enumerate() {
-                for (snap, v) in per_mic[k * s..(k + 1) * s].iter().enumerate() {
-                    self.spectra.data[(snap * nb + b) * m + mic] = C::new(T::of_f64(v.re), T::of_f64(v.im));
+        // Only the used bins are read (and must be finite); each destination row of M
+        // values is filled from the M microphones' rows, read in order.
+        let [st_mic, st_bin, st_snap] = x.strides;
+        for (b, k) in bins.clone().enumerate() {
+            for snap in 0..s {
+                let src = k * st_bin + snap * st_snap;
+                let dst = &mut self.spectra.data[(snap * nb + b) * m..(snap * nb + b + 1) * m];
+                let mut finite = true;
+                for (mic, out) in dst.iter_mut().enumerate() {
+                    let v = x.data[src + mic * st_mic];
+                    finite &= v.re.is_finite() & v.im.is_finite();
+                    *out = C::new(T::of_f64(v.re), T::of_f64(v.im));
+                }
+                if !finite {
+                    let mic = (0..m)
+                        .find(|&i| !x.data[src + i * st_mic].is_finite())
+                        .unwrap_or(0);
+                    return Err(Error::Numerical {
+                        stage: "input",
+                        message: format!("frames: microphone {mic}, bin {k}, snapshot {snap} is not finite"),
+                    });
                 }
             }
         }
@@ -146,15 +204,10 @@ impl FramesLocalizer {
         }
     }
 
-    /// Localize `x`, laid out `[mic][bin][snapshot]` row-major (M × F × S with
-    /// F = nfft/2 + 1, pyroomacoustics' X), as one window over the bins `config` uses.
-    pub fn process(
-        &mut self,
-        config: &LocalizeConfig,
-        x: &[num_complex::Complex<f64>],
-        shape: [usize; 3],
-    ) -> Result<FramesResult> {
-        check(config, x, shape)?;
+    /// Localize `x` (pyroomacoustics' X, F = nfft/2 + 1) as one window over the bins
+    /// `config` uses; only those bins are read, and they must be finite.
+    pub fn process(&mut self, config: &LocalizeConfig, x: &FramesView<'_>) -> Result<FramesResult> {
+        check(config, x)?;
         if self.cached.as_ref().map(|(c, _)| c) != Some(config) {
             self.cached = None;
             let tf = free_field(
@@ -172,9 +225,112 @@ impl FramesLocalizer {
             self.cached = Some((config.clone(), prepared));
         }
         match self.cached.as_mut().map(|(_, p)| p) {
-            Some(Cached::F32(p)) => p.run(x, shape),
-            Some(Cached::F64(p)) => p.run(x, shape),
+            Some(Cached::F32(p)) => p.run(x),
+            Some(Cached::F64(p)) => p.run(x),
             None => Err(Error::Config("frames: no plan".into())),
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use num_complex::Complex;
+
+    fn config(algorithm: crate::Algorithm) -> LocalizeConfig {
+        LocalizeConfig {
+            algorithm,
+            nfft: 64,
+            sample_rate_hz: 16000,
+            num_sources: 1,
+            max_peaks: 1,
+            lower_freq_hz: 1000.0,
+            upper_freq_hz: 6000.0,
+            ..Default::default()
+        }
+    }
+
+    /// A plane wave from azimuth 60° on a 6-mic circle (far field, ring grid), S frames of
+    /// F bins laid out M × F × S, with a little noise.
+    fn plane_wave(s: usize) -> (Geometry, Vec<Complex<f64>>, [usize; 3]) {
+        let geo = Geometry::circle(6, 0.05, 0.0);
+        let (m, f) = (6, 33);
+        let az = 60f64.to_radians();
+        let dir = [az.cos(), az.sin(), 0.0];
+        let mut seed = 3u64;
+        let mut rnd = || {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+        };
+        let mut x = vec![Complex::new(0.0, 0.0); m * f * s];
+        let src: Vec<Complex<f64>> = (0..f * s).map(|_| Complex::new(rnd(), rnd())).collect();
+        for (i, p) in geo.mics.iter().enumerate() {
+            let delay_s = (p[0] * dir[0] + p[1] * dir[1]) / 343.0;
+            for k in 0..f {
+                let w = 2.0 * std::f64::consts::PI * k as f64 * 16000.0 / 64.0;
+                let steer = Complex::from_polar(1.0, w * delay_s);
+                for t in 0..s {
+                    x[(i * f + k) * s + t] =
+                        src[k * s + t] * steer + Complex::new(0.01 * rnd(), 0.01 * rnd());
+                }
+            }
+        }
+        (geo, x, [m, f, s])
+    }
+
+    /// A slice of a larger array (numpy's `X[:, :, a:b]`), read in place through its
+    /// strides, gives the bits of the same frames copied out contiguously; the source is
+    /// found; a non-finite value outside the used bins is not read, inside them it is
+    /// named.
+    #[test]
+    fn strided_view_equals_the_contiguous_copy() {
+        let (geo, x, [m, f, s]) = plane_wave(40);
+        let (a, b) = (7, 27);
+        let copy: Vec<Complex<f64>> = (0..m * f)
+            .flat_map(|row| x[row * s + a..row * s + b].iter().copied())
+            .collect();
+        for alg in [crate::Algorithm::Sevd, crate::Algorithm::SrpPhat] {
+            let mut fl = FramesLocalizer::new(
+                geo.clone(),
+                Grid::ring(5.0, 0.0, 1e4),
+                343.0,
+                DeviceChoice::Cpu,
+                Precision::F64,
+            );
+            let c = config(alg);
+            let strided = FramesView::new(&x[a..], [m, f, b - a], [f * s, s, 1]).unwrap();
+            let got = fl.process(&c, &strided).unwrap();
+            let want = fl
+                .process(&c, &FramesView::contiguous(&copy, [m, f, b - a]).unwrap())
+                .unwrap();
+            assert_eq!(got, want, "{alg:?}");
+            let az = fl.grid.azimuth_deg(got.peaks[0].dir);
+            assert!((az - 60.0).abs() < 2.6, "{alg:?}: peak at {az}°");
+            // Bin 1 (250 Hz) is below the band: never read. Bin 10 (2.5 kHz) is used.
+            let mut bad = copy.clone();
+            bad[(2 * f + 1) * (b - a) + 3] = Complex::new(f64::NAN, 0.0);
+            let view = FramesView::contiguous(&bad, [m, f, b - a]).unwrap();
+            assert_eq!(fl.process(&c, &view).unwrap(), want, "{alg:?}");
+            bad[(2 * f + 10) * (b - a) + 3] = Complex::new(0.0, f64::INFINITY);
+            let view = FramesView::contiguous(&bad, [m, f, b - a]).unwrap();
+            let e = fl.process(&c, &view).unwrap_err().to_string();
+            assert!(
+                e.contains("microphone 2, bin 10, snapshot 3 is not finite"),
+                "{e}"
+            );
+        }
+    }
+
+    /// Shapes and strides that reach past the data are refused, not read.
+    #[test]
+    fn views_past_the_data_are_refused() {
+        let x = vec![Complex::new(1.0, 0.0); 100];
+        assert!(FramesView::new(&x, [2, 5, 10], [50, 10, 1]).is_ok());
+        assert!(FramesView::new(&x, [2, 5, 11], [50, 10, 1]).is_err());
+        assert!(FramesView::new(&x, [2, 5, 10], [usize::MAX / 2, 10, 1]).is_err());
+        assert!(FramesView::new(&x, [0, 5, 10], [usize::MAX, 10, 1]).is_ok());
+        assert!(FramesView::contiguous(&x, [2, 5, 9]).is_err());
     }
 }

@@ -105,11 +105,33 @@ class _DOA:
         """Localize from X, the rfft of each microphone: (M, nfft/2 + 1, snapshots)."""
         if num_src is not None:
             self.num_src = int(num_src)
-        X = np.ascontiguousarray(X, dtype=np.complex128)
+        X = np.asarray(X)
+        if X.dtype != np.complex128 or any(st < 0 for st in X.strides):
+            X = np.ascontiguousarray(X, dtype=np.complex128)
         if X.ndim != 3 or X.shape[0] != self.M:
             raise ValueError("Number of signals (rows) does not match the number of microphones.")
         if X.shape[1] != self.max_bin:
             raise ValueError("Mismatch in FFT length.")
+        key = (tuple(np.ravel(freq_bins).tolist()) if freq_bins is not None else None,
+               tuple(np.ravel(freq_hz).tolist()) if freq_hz is not None else None,
+               tuple(np.ravel(freq_range).tolist()))
+        if key != getattr(self, "_bins_key", None):
+            self._bins_key, self._bins = key, self._used_bins(freq_range, freq_bins, freq_hz)
+        bins, (lo, hi), weights = self._bins
+        self.freq_bins = bins
+        self.num_freq = bins.size
+        db, peaks = self._native.process(X, (lo, hi), weights, self.num_src)
+        self.grid.values = self._scale(10.0 ** (db.astype(np.float64) / 10.0) - 1.0)
+        # soundloc gives them strongest first; pyroomacoustics ascending.
+        self.src_idx = np.asarray(peaks[::-1], dtype=np.int64)
+        self.azimuth_recon = self.grid.azimuth[self.src_idx]
+        if self.dim == 3:
+            self.colatitude_recon = self.grid.colatitude[self.src_idx]
+        return self
+
+    def _used_bins(self, freq_range, freq_bins, freq_hz):
+        """The used bins, their span lo..hi and the weights within it (kept between calls
+        with the same arguments)."""
         if freq_bins is not None:
             bins = np.asarray(freq_bins, dtype=np.int64)
         elif freq_hz is not None:
@@ -120,19 +142,10 @@ class _DOA:
         bins = np.unique(bins[(bins >= 0) & (bins < self.max_bin)])
         if bins.size == 0:
             raise ValueError("no frequency bin in the requested range")
-        self.freq_bins = bins
-        self.num_freq = bins.size
         lo, hi = int(bins[0]), int(bins[-1]) + 1
         weights = np.isin(np.arange(lo, hi), bins).astype(float)
         weights = [] if weights.all() else weights.tolist()
-        db, peaks = self._native.process(X, (lo, hi), weights, self.num_src)
-        self.grid.values = self._scale(10.0 ** (db.astype(np.float64) / 10.0) - 1.0)
-        # soundloc gives them strongest first; pyroomacoustics ascending.
-        self.src_idx = np.asarray(peaks[::-1], dtype=np.int64)
-        self.azimuth_recon = self.grid.azimuth[self.src_idx]
-        if self.dim == 3:
-            self.colatitude_recon = self.grid.colatitude[self.src_idx]
-        return self
+        return bins, (lo, hi), weights
 
     def _scale(self, p):
         # soundloc's MUSIC term is ‖a‖²/den = M/den, summed over bins.
