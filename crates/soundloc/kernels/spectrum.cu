@@ -108,6 +108,53 @@ __device__ __forceinline__ T proj_sum(const cplx<T>* a, const cplx<T>* e, int M,
     return tot;
 }
 
+// proj_sum<T, true> for RD directions at once (rows a + r·astep of the steering tile):
+// every vector value loaded once serves RD directions (register blocking; the
+// single-direction loop issues about one shared load per complex product). Per
+// direction the same operations in the same order as proj_sum: the same bits.
+template <typename T, int RD>
+__device__ __forceinline__ void proj_sum_rd(const cplx<T>* a, int astep, const cplx<T>* e, int M, int ns,
+                                            T (&tot)[RD]) {
+#pragma unroll
+    for (int r = 0; r < RD; ++r) tot[r] = (T)0;
+    for (int sb = 0; sb < ns; sb += SL_SPEC_NSB) {
+        cplx<T> pr[RD][SL_SPEC_NSB];
+#pragma unroll
+        for (int r = 0; r < RD; ++r)
+#pragma unroll
+            for (int k = 0; k < SL_SPEC_NSB; ++k) pr[r][k] = czero<T>();
+        const int cnt = min(SL_SPEC_NSB, ns - sb);
+        const cplx<T>* eb = e + (size_t)sb * M;
+        if (cnt == SL_SPEC_NSB) {
+#pragma unroll 2
+            for (int i = 0; i < M; ++i) {
+                cplx<T> ek[SL_SPEC_NSB];
+#pragma unroll
+                for (int k = 0; k < SL_SPEC_NSB; ++k) ek[k] = eb[(size_t)k * M + i];
+#pragma unroll
+                for (int r = 0; r < RD; ++r) {
+                    const cplx<T> ai = a[r * astep + i];
+#pragma unroll
+                    for (int k = 0; k < SL_SPEC_NSB; ++k) cmacc(pr[r][k], ai, ek[k]);
+                }
+            }
+        } else {
+            for (int i = 0; i < M; ++i) {
+#pragma unroll
+                for (int r = 0; r < RD; ++r) {
+                    const cplx<T> ai = a[r * astep + i];
+                    for (int k = 0; k < cnt; ++k) cmacc(pr[r][k], ai, eb[(size_t)k * M + i]);
+                }
+            }
+        }
+#pragma unroll
+        for (int r = 0; r < RD; ++r)
+#pragma unroll
+            for (int k = 0; k < SL_SPEC_NSB; ++k)
+                if (k < cnt) tot[r] += cnorm2(pr[r][k]);
+    }
+}
+
 // Re(aᴴ R a) for R column-major M × M (column j at R + j·M).
 template <typename T>
 __device__ __noinline__ T quad_form(const cplx<T>* a, const cplx<T>* R, int M) {
@@ -121,7 +168,9 @@ __device__ __noinline__ T quad_form(const cplx<T>* a, const cplx<T>* R, int M) {
     return q;
 }
 
-template <typename T>
+// RD directions per thread (dt / RD threads per window): 1, or 4 for the squared MUSIC
+// form with a deep signal subspace (proj_sum_rd), chosen by the host (layout.rs).
+template <typename T, int RD>
 __device__ void spectrum_impl(const cplx<T>* __restrict__ St, const T* __restrict__ n2den,
                               const T* __restrict__ n2num, const cplx<T>* __restrict__ E,
                               const cplx<double>* __restrict__ E64, int ne,
@@ -133,19 +182,21 @@ __device__ void spectrum_impl(const cplx<T>* __restrict__ St, const T* __restric
     cplx<T>* tile = reinterpret_cast<cplx<T>*>(sl_smem);
     cplx<T>* etile = tile + (size_t)dt * lds;
     const int tid = threadIdx.x, nt = blockDim.x;
-    const int wg = nt / dt;
-    const int dl = tid % dt, wi = tid / dt;
+    const int tpw = dt / RD;  // threads per window; thread dl has directions dl + r·tpw
+    const int wg = nt / tpw;
+    const int dl = tid % tpw, wi = tid / tpw;
     const int d0 = blockIdx.x * dt;
-    const int d = d0 + dl;
     const int w0 = blockIdx.y * wg;
     const int wl = w0 + wi;
     const int nwg = min(wg, nwin - w0);
     const int bpg = (nb + gridDim.z - 1) / gridDim.z;
     const int b0 = blockIdx.z * bpg, b1 = min(nb, b0 + bpg);
     const int ndt = min(dt, D - d0);
-    const bool mine = d < D && wl < nwin;
+    const bool mine = dl < ndt && wl < nwin;  // its first direction exists
     const T eps = sl_eps<T>::v();
-    T acc = (T)0;
+    T acc[RD];
+#pragma unroll
+    for (int r = 0; r < RD; ++r) acc[r] = (T)0;
     for (int b = b0; b < b1; ++b) {
         __syncthreads();
         const cplx<T>* src = St + ((size_t)b * D + d0) * M;
@@ -164,59 +215,70 @@ __device__ void spectrum_impl(const cplx<T>* __restrict__ St, const T* __restric
         if (!mine) continue;
         const T g = kind ? weights[b] : gain[(size_t)wl * nb + b];
         if (g == (T)0) continue;
-        const cplx<T>* a = tile + dl * lds;
         const cplx<T>* e = e_smem ? etile + (size_t)wi * ne * M : E + ((size_t)wl * nb + b) * ne * M;
-        T num, den;
-        if (kind) {
-            num = sl_max(quad_form(a, e, M) / (T)(M * M), (T)0);  // ≥ 0, as srp.rs
-            den = (T)1;
-        } else {
-            const T nd = n2den[(size_t)b * D + d];
-            num = n2num[(size_t)b * D + d];
-            if (squared) {
-                den = nd - proj_sum<T, true>(a, e, M, 0, ns);
-                if (den < tau * nd && E64 != nullptr) {
-                    den = (T)complement64(a, E64 + ((size_t)wl * nb + b) * ns * M, M, ns);
-                } else {
-                    // Without double vectors (the f32 Jacobi of an f32 plan): the residual
-                    // in T by two Gram–Schmidt passes, floored at ε_T.
-                    if (den < tau * nd) den = residual_norm2(a, e, M, ns);
-                    den = sl_max(den, eps * nd);
-                }
+        T tot[RD];
+        // Rows past ndt hold stale values; their sums are computed and never used.
+        if (RD > 1 && !kind && squared) proj_sum_rd<T, RD>(tile + dl * lds, tpw * lds, e, M, ns, tot);
+#pragma unroll
+        for (int r = 0; r < RD; ++r) {
+            if (dl + r * tpw >= ndt) continue;
+            const int d = d0 + dl + r * tpw;
+            const cplx<T>* a = tile + (dl + r * tpw) * lds;
+            T num, den;
+            if (kind) {
+                num = sl_max(quad_form(a, e, M) / (T)(M * M), (T)0);  // ≥ 0, as srp.rs
+                den = (T)1;
             } else {
-                den = proj_sum<T, false>(a, e, M, ns, M);
-                den = sl_max(den, eps * sl_sqrt(nd));
+                const T nd = n2den[(size_t)b * D + d];
+                num = n2num[(size_t)b * D + d];
+                if (squared) {
+                    den = nd - (RD > 1 ? tot[r] : proj_sum<T, true>(a, e, M, 0, ns));
+                    if (den < tau * nd && E64 != nullptr) {
+                        den = (T)complement64(a, E64 + ((size_t)wl * nb + b) * ns * M, M, ns);
+                    } else {
+                        // Without double vectors (the f32 Jacobi of an f32 plan): the
+                        // residual in T by two Gram–Schmidt passes, floored at ε_T.
+                        if (den < tau * nd) den = residual_norm2(a, e, M, ns);
+                        den = sl_max(den, eps * nd);
+                    }
+                } else {
+                    den = proj_sum<T, false>(a, e, M, ns, M);
+                    den = sl_max(den, eps * sl_sqrt(nd));
+                }
+            }
+            if (!(den > (T)0)) continue;
+            if (pass == 1) {
+                const T p = num / den;
+                if (p > (T)0) atomic_max_pos(binmax + (size_t)wl * nb + b, p);
+            } else if (pass == 2) {
+                const T bm = binmax[(size_t)wl * nb + b];
+                acc[r] += bm > (T)0 ? weights[b] * ((num / den) / bm) : g * num / den;
+            } else {
+                acc[r] += g * num / den;
             }
         }
-        if (!(den > (T)0)) continue;
-        if (pass == 1) {
-            const T p = num / den;
-            if (p > (T)0) atomic_max_pos(binmax + (size_t)wl * nb + b, p);
-        } else if (pass == 2) {
-            const T bm = binmax[(size_t)wl * nb + b];
-            acc += bm > (T)0 ? weights[b] * ((num / den) / bm) : g * num / den;
-        } else {
-            acc += g * num / den;
-        }
     }
-    if (mine && pass != 1) Ppart[((size_t)blockIdx.z * nwin + wl) * D + d] = acc;
+    if (mine && pass != 1) {
+#pragma unroll
+        for (int r = 0; r < RD; ++r)
+            if (dl + r * tpw < ndt) Ppart[((size_t)blockIdx.z * nwin + wl) * D + d0 + dl + r * tpw] = acc[r];
+    }
 }
 
+#define SL_SPECTRUM_KERNEL(NAME, T, RD)                                                                              \
+    extern "C" __global__ void NAME(const cplx<T>* St, const T* n2den, const T* n2num, const cplx<T>* E,             \
+                                    const cplx<double>* E64, int ne, const T* gain, int M, int nb, int D, int ns,      \
+                                    int squared, int nwin, T tau, int dt, int e_smem, int kind, int pass,             \
+                                    const T* weights, T* binmax, T* Ppart) {                                          \
+        spectrum_impl<T, RD>(St, n2den, n2num, E, E64, ne, gain, M, nb, D, ns, squared, nwin, tau, dt, e_smem, kind,  \
+                             pass, weights, binmax, Ppart);                                                           \
+    }
+
 #ifndef SL_NO_F32
-extern "C" __global__ void spectrum_f32(const cplx<float>* St, const float* n2den, const float* n2num,
-                                        const cplx<float>* E, const cplx<double>* E64, int ne, const float* gain, int M, int nb, int D, int ns,
-                                        int squared, int nwin, float tau, int dt, int e_smem, int kind, int pass,
-                                        const float* weights, float* binmax, float* Ppart) {
-    spectrum_impl<float>(St, n2den, n2num, E, E64, ne, gain, M, nb, D, ns, squared, nwin, tau, dt, e_smem, kind, pass,
-                         weights, binmax, Ppart);
-}
+SL_SPECTRUM_KERNEL(spectrum_f32, float, 1)
+SL_SPECTRUM_KERNEL(spectrum4_f32, float, 4)
 #endif
 #ifndef SL_NO_F64
-extern "C" __global__ void spectrum_f64(const cplx<double>* St, const double* n2den, const double* n2num,
-                                        const cplx<double>* E, const cplx<double>* E64, int ne, const double* gain, int M, int nb, int D,
-                                        int ns, int squared, int nwin, double tau, int dt, int e_smem, int kind,
-                                        int pass, const double* weights, double* binmax, double* Ppart) {
-    spectrum_impl<double>(St, n2den, n2num, E, E64, ne, gain, M, nb, D, ns, squared, nwin, tau, dt, e_smem, kind, pass,
-                          weights, binmax, Ppart);
-}
+SL_SPECTRUM_KERNEL(spectrum_f64, double, 1)
+SL_SPECTRUM_KERNEL(spectrum4_f64, double, 4)
 #endif

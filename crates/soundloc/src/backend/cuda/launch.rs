@@ -85,7 +85,10 @@ impl<T: Real> CudaBackend<T> {
     pub(super) fn bin_groups(&self, nwb: usize) -> usize {
         let l = &self.lay;
         let xy = l.d.div_ceil(l.spec_dt) * nwb.div_ceil(l.spec_wg.min(nwb).max(1));
-        (4 * self.gpu.sm_count()).div_ceil(xy.max(1)).clamp(1, l.nb)
+        // About four blocks per SM (of RD-times fewer threads with RD directions each).
+        (4 * l.spec_rd * self.gpu.sm_count())
+            .div_ceil(xy.max(1))
+            .clamp(1, l.nb)
     }
 
     /// Mean cycles per phase of eigh.cu over the last batch's matrices, on stderr
@@ -277,7 +280,7 @@ impl<T: Real> CudaBackend<T> {
                     g,
                     self.f.spectrum,
                     [l.d.div_ceil(l.spec_dt), nwb.div_ceil(wg), nbg],
-                    l.spec_dt * wg,
+                    l.spec_threads(wg),
                     spec_smem,
                 )?;
         }

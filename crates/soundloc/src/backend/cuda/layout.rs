@@ -46,6 +46,11 @@ pub(super) struct Layout {
     pub(super) corr_smem: usize,
     /// Directions per spectrum block.
     pub(super) spec_dt: usize,
+    /// Directions per spectrum thread (spectrum.cu `RD`: 1 or 4; A/B knobs
+    /// `SOUNDLOC_CUDA_SPEC_RD`, `SOUNDLOC_CUDA_SPEC_WG` windows per block,
+    /// `SOUNDLOC_CUDA_SPEC_ESMEM=0` vectors read through L1 when RD is 1; with RD 4 they
+    /// always are).
+    pub(super) spec_rd: usize,
     /// Windows per spectrum block (at most).
     pub(super) spec_wg: usize,
     /// Whether the spectrum kernel stages the windows' vectors in shared memory.
@@ -55,6 +60,20 @@ pub(super) struct Layout {
     pub(super) peak_cap: usize,
     pub(super) peak_kout: usize,
     pub(super) peak_smem: usize,
+}
+
+/// The smallest signal subspace for which the spectrum runs [`SPEC_RD_DEFAULT`]
+/// directions per thread.
+const SPEC_RD_MIN_NS: usize = 8;
+/// Directions per spectrum thread for deep subspaces (one H100, subspace 30 of 60 mics,
+/// 2026-11-27: 0.164 → 0.122 ms per localization against one direction per thread).
+const SPEC_RD_DEFAULT: usize = 4;
+
+impl Layout {
+    /// Threads of a spectrum block of `wg` windows.
+    pub(super) fn spec_threads(&self, wg: usize) -> usize {
+        self.spec_dt / self.spec_rd * wg
+    }
 }
 
 pub(super) fn layout<T: Real>(plan: &Plan<T>, gpu: &dyn Gpu) -> Result<Layout> {
@@ -137,8 +156,29 @@ pub(super) fn layout<T: Real>(plan: &Plan<T>, gpu: &dyn Gpu) -> Result<Layout> {
             "{m} microphones: the spectrum tile does not fit in shared memory"
         )));
     }
-    let spec_wg = if squared { 4 } else { 1 };
-    let spec_e_smem = spec_tile + spec_wg * ne * m * cs <= optin.min(160 * 1024);
+    let knob = |name: &str| std::env::var(name).ok().and_then(|v| v.parse::<usize>().ok());
+    let spec_rd = match knob("SOUNDLOC_CUDA_SPEC_RD") {
+        Some(4) if squared && !srp => 4,
+        Some(_) => 1,
+        None if squared && !srp && ns >= SPEC_RD_MIN_NS => SPEC_RD_DEFAULT,
+        None => 1,
+    };
+    // Four directions per thread read the vectors through L1 (a block's sixteen windows of
+    // vectors would not fit beside the steering tile); one direction per thread stages
+    // its four windows' vectors in shared memory (docs/gpu.md, 2026-11-27 third session).
+    let deep = spec_rd == 4;
+    let spec_wg = knob("SOUNDLOC_CUDA_SPEC_WG")
+        .filter(|&w| (1..=64).contains(&w) && spec_dt / spec_rd * w <= 1024)
+        .unwrap_or(if deep {
+            16
+        } else if squared {
+            4
+        } else {
+            1
+        });
+    let spec_e_smem = !deep
+        && knob("SOUNDLOC_CUDA_SPEC_ESMEM") != Some(0)
+        && spec_tile + spec_wg * ne * m * cs <= optin.min(160 * 1024);
     let peak_cap = d.next_power_of_two().clamp(1, 4096);
     let peak_kout = plan.peak_table.max_out.min(peak_cap);
     let peak_smem = peak_cap * 12;
@@ -171,6 +211,7 @@ pub(super) fn layout<T: Real>(plan: &Plan<T>, gpu: &dyn Gpu) -> Result<Layout> {
         corr_fc,
         corr_smem,
         spec_dt,
+        spec_rd,
         spec_wg,
         spec_e_smem,
         spec_tile,

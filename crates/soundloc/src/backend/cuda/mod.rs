@@ -385,7 +385,11 @@ impl<T: Real> CudaBackend<T> {
             decompose: self.gpu.function(&dec)?,
             eigh: self.gpu.function(&format!("eigh_{t}"))?,
             form_h: self.gpu.function(&format!("form_h_{t}"))?,
-            spectrum: self.gpu.function(&format!("spectrum_{t}"))?,
+            spectrum: self.gpu.function(&if l.spec_rd == 4 {
+                format!("spectrum4_{t}")
+            } else {
+                format!("spectrum_{t}")
+            })?,
             peaks: self.gpu.function(&format!("peaks_{t}"))?,
         };
         for (f, s) in [
@@ -416,7 +420,7 @@ impl<T: Real> CudaBackend<T> {
             (self.f.decompose, "decompose", l.dec_threads),
             (self.f.eigh, "eigh", l.eigh_threads),
             (self.f.form_h, "form_h", l.eigh_threads),
-            (self.f.spectrum, "spectrum", l.spec_dt * l.spec_wg),
+            (self.f.spectrum, "spectrum", l.spec_threads(l.spec_wg)),
             (self.f.peaks, "peaks", 256),
         ] {
             let most = self.gpu.max_threads(f)?;
