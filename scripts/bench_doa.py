@@ -1,6 +1,7 @@
 #!/usr/bin/env python3
 """soundloc.doa against pyroomacoustics.doa on identical STFT windows: ms of compute per
-second of audio and how often the peaks agree. Needs pyroomacoustics and the soundloc wheel.
+second of audio (the fastest of three passes over all windows, for each library) and how
+often the peaks agree. Needs pyroomacoustics and the soundloc wheel.
 
     python scripts/bench_doa.py            # 8-mic ring (72 dirs) and 60-mic sphere (2522 dirs)
 """
@@ -12,6 +13,7 @@ import pyroomacoustics as pra
 import soundloc.doa
 
 FS, NFFT, HOP, WIN = 16000, 512, 160, 50  # HARK-like framing: 50 frames per window
+PASSES = 3
 
 
 def frames(L, seconds, seed):
@@ -41,12 +43,15 @@ def run(label, L, kw, seconds=2.0):
         for lib in (pra.doa, soundloc.doa):
             d = lib.algorithms[name](L, FS, NFFT, num_src=2, **kw)
             d.locate_sources(X[:, :, :WIN], freq_range=[500.0, 4000.0])  # warm-up: plans, caches
-            peaks = []
-            t = time.perf_counter()
-            for w in range(nwin):
-                d.locate_sources(X[:, :, w * WIN:(w + 1) * WIN], freq_range=[500.0, 4000.0])
-                peaks.append(set(np.round(d.src_idx if lib is soundloc.doa else d.src_idx).tolist()))
-            res[lib.__name__] = ((time.perf_counter() - t) * 1e3 / seconds, peaks)
+            best = float("inf")
+            for _ in range(PASSES):  # the fastest pass over all windows, for both libraries
+                peaks = []
+                t = time.perf_counter()
+                for w in range(nwin):
+                    d.locate_sources(X[:, :, w * WIN:(w + 1) * WIN], freq_range=[500.0, 4000.0])
+                    peaks.append(set(np.round(d.src_idx).tolist()))
+                best = min(best, time.perf_counter() - t)
+            res[lib.__name__] = (best * 1e3 / seconds, peaks)
         (tp, pp), (ts, ps) = res["pyroomacoustics.doa"], res["soundloc.doa"]
         same = sum(a == b for a, b in zip(pp, ps))
         print(f"  {name:9s} pyroomacoustics {tp:9.1f} ms/s   soundloc {ts:7.1f} ms/s   {tp / ts:6.1f}x   same peaks {same}/{len(pp)}")
