@@ -84,13 +84,21 @@ impl PyFrames {
         use soundloc::config::SpectrumWeight;
         let view = x.as_array();
         let shape = [view.shape()[0], view.shape()[1], view.shape()[2]];
-        let st = view.strides();
-        if st.iter().any(|&v| v < 0) {
+        // numpy's strides in bytes: whole, non-negative elements, and an aligned start, or
+        // the caller copies first (doa.py does).
+        let elem = std::mem::size_of::<numpy::Complex64>() as isize;
+        let st = x.strides();
+        let aligned = (view.as_ptr() as usize) % std::mem::align_of::<numpy::Complex64>() == 0;
+        if !aligned || st.iter().any(|&v| v < 0 || v % elem != 0) {
             return Err(PyValueError::new_err(
-                "x has negative strides (np.ascontiguousarray(x) first)",
+                "x must be aligned with non-negative strides of whole elements (np.ascontiguousarray(x) first)",
             ));
         }
-        let strides = [st[0] as usize, st[1] as usize, st[2] as usize];
+        let strides = [
+            (st[0] / elem) as usize,
+            (st[1] / elem) as usize,
+            (st[2] / elem) as usize,
+        ];
         let span = if shape.contains(&0) {
             0
         } else {

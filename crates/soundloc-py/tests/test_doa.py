@@ -91,15 +91,20 @@ def test_bad_input_raises():
 
 
 def test_views_and_dtypes_give_the_same_result():
-    """A slice of X (read in place through its strides), a Fortran-ordered copy, a reversed
-    view and complex64 input give the contiguous complex128 result; a NaN in a bin outside
-    freq_range is not read."""
+    """A slice of X (read in place through its strides), a Fortran-ordered copy, reversed
+    views (negative strides: copied), a field of a structured array (strides of no whole
+    number of elements: copied) and complex64 input give the contiguous complex128 result;
+    a NaN in a bin outside freq_range is not read."""
     L, X = scene(3, [40.0, 200.0])
     for name in ["MUSIC", "SRP"]:
         d = soundloc.doa.algorithms[name](L, FS, NFFT, num_src=2, azimuth=np.radians(np.arange(0, 360, 2.0)))
         Xw = X[:, :, 5:25]
         want = d.locate_sources(np.ascontiguousarray(Xw), freq_range=[500.0, 4000.0]).grid.values.copy()
-        for variant in (Xw, np.asfortranarray(Xw), Xw[:, ::-1, :][:, ::-1, :], Xw[::-1][::-1]):
+        rec = np.zeros(Xw.shape, dtype=[("x", np.complex128), ("pad", np.int32)])
+        rec["x"] = Xw
+        reversed_view = np.ascontiguousarray(Xw[:, :, ::-1])[:, :, ::-1]
+        assert reversed_view.strides[2] < 0 and rec["x"].strides[2] % 16 != 0
+        for variant in (Xw, np.asfortranarray(Xw), reversed_view, rec["x"]):
             got = d.locate_sources(variant, freq_range=[500.0, 4000.0]).grid.values
             np.testing.assert_array_equal(got, want)
         X64 = Xw.astype(np.complex64)

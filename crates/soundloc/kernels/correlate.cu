@@ -18,11 +18,14 @@
 
 #define SL_CORR_EPT 8
 
-// Frame coefficient x, or its phase x/|x| (0 where |x| is 0 or not finite) with `phat`.
+// Frame coefficient x, or its phase x/|x| (0 where |x| is 0 or not finite) with `phat`;
+// |x| = √(re² + im²) in double, or hypot where re² + im² leaves double's normal range
+// (srp.rs `phase`, the same rule).
 template <typename T>
 __device__ __forceinline__ cplx<T> load_x(const cplx<T>& x, int phat) {
     if (!phat) return x;
-    const double n = sl_sqrt((double)x.re * (double)x.re + (double)x.im * (double)x.im);
+    const double re = (double)x.re, im = (double)x.im, n2 = re * re + im * im;
+    const double n = (n2 >= 2.2250738585072014e-308 && n2 - n2 == 0.0) ? sl_sqrt(n2) : hypot(re, im);
     if (n > 0.0 && n - n == 0.0) return cx<T>((T)((double)x.re / n), (T)((double)x.im / n));  // n finite
     return czero<T>();
 }

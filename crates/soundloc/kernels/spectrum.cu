@@ -21,7 +21,8 @@
 // n2den/n2num [bin][dir] its ‖·‖² and the raw ‖a‖², E [wl*nb + b][ne][M] the basis of the
 // sub-batch's windows (ne = ns, or M for the unsquared form), E64 the same signal vectors
 // in double (squared form), gain [wl*nb + b].
-// Block: dt directions × (blockDim.x / dt) windows, one (direction, window) per thread;
+// Block: dt directions × (blockDim.x / (dt / RD)) windows, RD directions of one window per
+// thread (RD = 1, or 4: see spectrum_impl);
 // per bin the block stages the steering tile (dt × M) and, when e_smem, the windows'
 // vectors in shared memory. Grid: x = direction tiles, y = window groups, z = groups of
 // bins; each z writes its own partial sum Ppart[z][wl][dir] (summed in peaks.cu, in a
@@ -217,7 +218,8 @@ __device__ void spectrum_impl(const cplx<T>* __restrict__ St, const T* __restric
         if (g == (T)0) continue;
         const cplx<T>* e = e_smem ? etile + (size_t)wi * ne * M : E + ((size_t)wl * nb + b) * ne * M;
         T tot[RD];
-        // Rows past ndt hold stale values; their sums are computed and never used.
+        // Rows past ndt hold stale (on the first bin uninitialised) values; their sums are
+        // computed and never used.
         if (RD > 1 && !kind && squared) proj_sum_rd<T, RD>(tile + dl * lds, tpw * lds, e, M, ns, tot);
 #pragma unroll
         for (int r = 0; r < RD; ++r) {

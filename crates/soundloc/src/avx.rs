@@ -11,10 +11,12 @@
 //! [`clear_upper`] is called after every faer call on a hot path.
 
 /// `vzeroupper` where the CPU has AVX (checked at run time, cached); nothing elsewhere.
-/// Marks every caller-saved register clobbered, so it is safe inside AVX-compiled code.
+/// Marks every caller-saved register clobbered, so it is safe inside AVX-compiled code:
+/// in the System V ABI every vector register is caller-saved. Not on Windows, whose ABI
+/// keeps xmm6–15 (but not their upper halves, which `vzeroupper` clears) across calls.
 #[inline(always)]
 pub fn clear_upper() {
-    #[cfg(target_arch = "x86_64")]
+    #[cfg(all(target_arch = "x86_64", not(windows)))]
     if std::arch::is_x86_feature_detected!("avx") {
         // SAFETY: the CPU has AVX (checked just above); `vzeroupper` touches only vector
         // registers, all declared clobbered by the C ABI clause.

@@ -330,6 +330,7 @@ mod tests {
         assert!(FramesView::new(&x, [2, 5, 10], [50, 10, 1]).is_ok());
         assert!(FramesView::new(&x, [2, 5, 11], [50, 10, 1]).is_err());
         assert!(FramesView::new(&x, [2, 5, 10], [usize::MAX / 2, 10, 1]).is_err());
+        assert!(FramesView::new(&x, [3, 5, 10], [usize::MAX / 2, 10, 1]).is_err()); // overflows
         assert!(FramesView::new(&x, [0, 5, 10], [usize::MAX, 10, 1]).is_ok());
         assert!(FramesView::contiguous(&x, [2, 5, 9]).is_err());
     }

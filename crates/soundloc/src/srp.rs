@@ -40,13 +40,18 @@ impl<T: Real> SrpScratch<T> {
 }
 
 /// Phase of a complex value: z/|z|, or 0 when z = 0 or |z| is not finite. |z| and the
-/// quotient are taken in f64 as the GPU's `load_x` does (`kernels/correlate.cu`), with
-/// `hypot` only where re² + im² overflows f64.
+/// quotient are taken in f64 as the GPU's `load_x` does (`kernels/correlate.cu`):
+/// √(re² + im²), or `hypot` where re² + im² overflows or falls below the normal range of
+/// f64 (|z| < 1.5e-154, only possible in f64 plans).
 #[inline]
 pub fn phase<T: Real>(z: C<T>) -> C<T> {
     let (re, im) = (z.re.to_f64(), z.im.to_f64());
     let n2 = re * re + im * im;
-    let n = if n2.is_finite() { n2.sqrt() } else { re.hypot(im) };
+    let n = if (f64::MIN_POSITIVE..f64::INFINITY).contains(&n2) {
+        n2.sqrt()
+    } else {
+        re.hypot(im)
+    };
     if n > 0.0 && n.is_finite() {
         C::new(T::of_f64(re / n), T::of_f64(im / n))
     } else {
@@ -55,9 +60,9 @@ pub fn phase<T: Real>(z: C<T>) -> C<T> {
 }
 
 /// [`phase`] of every value of `y` (values of `T` widened to f64), in place, rounded to
-/// `T` as [`phase`] rounds. When every |z|² is finite and non-zero — all but hostile
-/// input — one branch-free pass the compiler vectorises (AVX2 where the CPU has it);
-/// else value by value. (libm's
+/// `T` as [`phase`] rounds. When every |z|² is finite and normal — all but hostile input
+/// — one branch-free pass the compiler vectorises (AVX2 where the CPU has it); else value
+/// by value. (libm's
 /// `hypot` per coefficient, then a scalar chain, was half of an SRP call on 8 mics.)
 pub fn phase_in_place<T: Real>(y: &mut [C<f64>]) {
     #[cfg(target_arch = "x86_64")]
@@ -80,7 +85,7 @@ pub fn phase_in_place<T: Real>(y: &mut [C<f64>]) {
 fn phase_in_place_imp<T: Real>(y: &mut [C<f64>]) {
     let ordinary = y.iter().fold(true, |ok, z| {
         let n2 = z.re * z.re + z.im * z.im;
-        ok & (n2 > 0.0) & (n2 < f64::INFINITY)
+        ok & (n2 >= f64::MIN_POSITIVE) & (n2 < f64::INFINITY)
     });
     if ordinary {
         for z in y.iter_mut() {
@@ -249,11 +254,28 @@ mod tests {
         with_zero[5] = C::new(0.0, 0.0);
         check::<f32>(&with_zero);
         check::<f64>(&with_zero);
-        let mut huge = ordinary.clone();
-        huge[3] = C::new(3e200, -4e200); // |z|² overflows f64; |z| = 5e200
-        check::<f64>(&huge);
-        let mut y = huge;
+        // Known answers where |z|² leaves f64's normal range (hypot), and for NaN / ±∞.
+        let mut odd = ordinary.clone();
+        odd[3] = C::new(3e200, -4e200); // |z|² overflows; |z| = 5e200
+        odd[4] = C::new(-3e-200, 4e-200); // |z|² underflows to 0; |z| = 5e-200
+        odd[6] = C::new(3e-160, 4e-160); // |z|² subnormal
+        odd[7] = C::new(f64::NAN, 1.0);
+        odd[8] = C::new(f64::INFINITY, 0.0);
+        check::<f64>(&odd);
+        let mut y = odd.clone();
         phase_in_place::<f64>(&mut y);
-        assert!((y[3].re - 0.6).abs() < 1e-15 && (y[3].im + 0.8).abs() < 1e-15);
+        let close = |z: C<f64>, re: f64, im: f64| (z.re - re).abs() < 1e-15 && (z.im - im).abs() < 1e-15;
+        assert!(close(y[3], 0.6, -0.8) && close(y[4], -0.6, 0.8) && close(y[6], 0.6, 0.8));
+        assert!(close(y[7], 0.0, 0.0) && close(y[8], 0.0, 0.0));
+        // The baseline (non-AVX2) body gives the dispatched bits; phase = z/|z| to rounding.
+        let mut a = ordinary.clone();
+        let mut b = ordinary.clone();
+        phase_in_place::<f64>(&mut a);
+        phase_in_place_imp::<f64>(&mut b);
+        assert_eq!(a, b);
+        for (z, p) in ordinary.iter().zip(&a) {
+            let n = z.re.hypot(z.im);
+            assert!(close(*p, z.re / n, z.im / n));
+        }
     }
 }

@@ -106,7 +106,8 @@ class _DOA:
         if num_src is not None:
             self.num_src = int(num_src)
         X = np.asarray(X)
-        if X.dtype != np.complex128 or any(st < 0 for st in X.strides):
+        if (X.dtype != np.complex128 or not X.flags.aligned
+                or any(st < 0 or st % X.itemsize for st in X.strides)):
             X = np.ascontiguousarray(X, dtype=np.complex128)
         if X.ndim != 3 or X.shape[0] != self.M:
             raise ValueError("Number of signals (rows) does not match the number of microphones.")
@@ -116,7 +117,9 @@ class _DOA:
                tuple(np.ravel(freq_hz).tolist()) if freq_hz is not None else None,
                tuple(np.ravel(freq_range).tolist()))
         if key != getattr(self, "_bins_key", None):
-            self._bins_key, self._bins = key, self._used_bins(freq_range, freq_bins, freq_hz)
+            self._bins = self._used_bins(freq_range, freq_bins, freq_hz)
+            self._bins[0].setflags(write=False)  # shared as self.freq_bins
+            self._bins_key = key
         bins, (lo, hi), weights = self._bins
         self.freq_bins = bins
         self.num_freq = bins.size

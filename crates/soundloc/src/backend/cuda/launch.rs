@@ -85,7 +85,10 @@ impl<T: Real> CudaBackend<T> {
     pub(super) fn bin_groups(&self, nwb: usize) -> usize {
         let l = &self.lay;
         let xy = l.d.div_ceil(l.spec_dt) * nwb.div_ceil(l.spec_wg.min(nwb).max(1));
-        // About four blocks per SM (of RD-times fewer threads with RD directions each).
+        // About four blocks per SM with RD = 1; RD = 4 blocks hold four times the windows
+        // (as many threads), and four times the groups of bins keep as many blocks (the
+        // bins' partial sums are then grouped differently: the same per-bin values, the
+        // broadband sum in another order).
         (4 * l.spec_rd * self.gpu.sm_count())
             .div_ceil(xy.max(1))
             .clamp(1, l.nb)
