@@ -88,7 +88,7 @@ impl PyFrames {
         // the caller copies first (doa.py does).
         let elem = std::mem::size_of::<numpy::Complex64>() as isize;
         let st = x.strides();
-        let aligned = (view.as_ptr() as usize) % std::mem::align_of::<numpy::Complex64>() == 0;
+        let aligned = (view.as_ptr() as usize).is_multiple_of(std::mem::align_of::<numpy::Complex64>());
         if !aligned || st.iter().any(|&v| v < 0 || v % elem != 0) {
             return Err(PyValueError::new_err(
                 "x must be aligned with non-negative strides of whole elements (np.ascontiguousarray(x) first)",

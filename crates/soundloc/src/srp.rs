@@ -85,7 +85,7 @@ pub fn phase_in_place<T: Real>(y: &mut [C<f64>]) {
 fn phase_in_place_imp<T: Real>(y: &mut [C<f64>]) {
     let ordinary = y.iter().fold(true, |ok, z| {
         let n2 = z.re * z.re + z.im * z.im;
-        ok & (n2 >= f64::MIN_POSITIVE) & (n2 < f64::INFINITY)
+        ok & (f64::MIN_POSITIVE..f64::INFINITY).contains(&n2)
     });
     if ordinary {
         for z in y.iter_mut() {
