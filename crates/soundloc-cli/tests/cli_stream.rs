@@ -28,6 +28,13 @@ fn tmp(name: &str) -> PathBuf {
     common::tmp("cli-stream", name)
 }
 
+/// A fresh folder `name` of this test process.
+fn tmp_dir(name: &str) -> PathBuf {
+    let dir = tmp(name);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
 fn scene() -> (Audio, PathBuf, PathBuf) {
     common::ring_scene("cli-stream", "", 1)
 }
@@ -315,8 +322,7 @@ fn negative_numbers_parse_and_bad_values_fail_before_any_work() {
 #[test]
 fn ctrl_c_ends_a_live_session_cleanly() {
     let (audio, geo, _) = scene();
-    let dir = tmp("ctrlc");
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = tmp_dir("ctrlc");
     let out = dir.join("live.jsonl");
     let mut child = spawn_piped(
         bin()
@@ -473,8 +479,7 @@ fn resample_converts_a_48_khz_input_and_noise_recording() {
 #[test]
 fn outputs_never_replace_inputs_or_each_other() {
     let (_, geo, wav) = scene();
-    let dir = tmp("noclobber");
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = tmp_dir("noclobber");
     let rec = dir.join("in.wav");
     std::fs::copy(&wav, &rec).unwrap();
     let link = dir.join("link.wav");
@@ -553,8 +558,7 @@ fn outputs_never_replace_inputs_or_each_other() {
 #[test]
 fn outputs_never_replace_a_noise_cm_pair() {
     let (audio, geo, wav) = scene();
-    let dir = tmp("noclobber-cm");
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = tmp_dir("noclobber-cm");
     // K from the first second, written as a text pair K_r / K_i.
     let o = bin()
         .args(["noisecm", "make"])

@@ -257,13 +257,9 @@ mod tests {
         let (m, f) = (6, 33);
         let az = 60f64.to_radians();
         let dir = [az.cos(), az.sin(), 0.0];
-        let mut seed = 3u64;
-        let mut rnd = || {
-            seed = seed
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
-        };
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand::rngs::StdRng::seed_from_u64(3);
+        let mut rnd = || rng.gen_range(-0.5..0.5);
         let mut x = vec![Complex::new(0.0, 0.0); m * f * s];
         let src: Vec<Complex<f64>> = (0..f * s).map(|_| Complex::new(rnd(), rnd())).collect();
         for (i, p) in geo.mics.iter().enumerate() {

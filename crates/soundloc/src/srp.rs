@@ -240,13 +240,9 @@ mod tests {
                 assert!(n == 0.0 || (n - 1.0).abs() < 1e-6, "value {k}: |phase| = {n}");
             }
         }
-        let mut seed = 7u64;
-        let mut next = || {
-            seed = seed
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
-        };
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand::rngs::StdRng::seed_from_u64(7);
+        let mut next = || rng.gen_range(-0.5..0.5);
         let ordinary: Vec<C<f64>> = (0..37).map(|_| C::new(next() * 1e3, next() * 1e-3)).collect();
         check::<f32>(&ordinary);
         check::<f64>(&ordinary);
