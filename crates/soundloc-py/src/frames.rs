@@ -69,8 +69,8 @@ impl PyFrames {
         })
     }
 
-    /// `x`: complex128 (M, F, S), C-contiguous or a slice of such an array (read in
-    /// place, no copy); `bins`: the used absolute bins lo..hi; `weights`: per
+    /// `x`: complex128 (M, F, S), aligned, with non-negative strides of whole elements
+    /// (a C-contiguous array or a slice of one: read in place, no copy); `bins`: the used absolute bins lo..hi; `weights`: per
     /// used bin (empty = uniform). Returns the dB spectrum (D,) and the peak indices,
     /// strongest first.
     fn process<'py>(
