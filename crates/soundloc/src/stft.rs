@@ -60,6 +60,10 @@ pub fn window_function<T: Real>(kind: WindowFunction, n: usize) -> Vec<T> {
 /// Largest FFT length N accepted (HARK uses 512; 65 536 is 4 s at 16 kHz).
 pub const MAX_NFFT: usize = 1 << 16;
 
+/// Fewer transforms than this in one call run on the calling thread (a few µs each at the
+/// usual sizes: less than a hand-off to the thread pool costs).
+const SERIAL_MAX_TRANSFORMS: usize = 16;
+
 /// A prepared STFT: FFT plan, window and used bins.
 pub struct Stft<T: Real> {
     nfft: usize,
@@ -140,6 +144,24 @@ impl<T: Real> Stft<T> {
         let nb = self.bins.len();
         let frame_len = nb * m;
         let frames = dst.len() / frame_len.max(1);
+        if frames * m < SERIAL_MAX_TRANSFORMS {
+            // A few transforms (a small array's push): a hand-off to the thread pool would
+            // cost more than they do.
+            let (mut inp, mut spec, mut scratch) = (
+                self.fft.make_input_vec(),
+                self.fft.make_output_vec(),
+                self.fft.make_scratch_vec(),
+            );
+            for (f, dst) in dst.chunks_mut(frame_len.max(1)).enumerate() {
+                self.frame_into(
+                    channels,
+                    first_sample + f * self.hop,
+                    (&mut inp, &mut spec, &mut scratch),
+                    dst,
+                );
+            }
+            return;
+        }
         if frames < 2 * rayon::current_num_threads() && m >= 8 {
             // Few frames (a live stream's push): spread the channels over the cores
             // instead, through a [frame][mic][bin] buffer.
@@ -184,19 +206,30 @@ impl<T: Real> Stft<T> {
                 )
             },
             |(inp, spec, scratch), (f, dst)| {
-                let off = first_sample + f * self.hop;
-                for (mic, ch) in channels.iter().enumerate() {
-                    for (i, v) in inp.iter_mut().enumerate() {
-                        *v = T::of_f64(ch[off + i] as f64) * self.window[i];
-                    }
-                    // Lengths come from this plan's own buffers: cannot fail.
-                    let _ = self.fft.process_with_scratch(inp, spec, scratch);
-                    for (b, k) in self.bins.clone().enumerate() {
-                        dst[b * m + mic] = spec[k];
-                    }
-                }
+                self.frame_into(channels, first_sample + f * self.hop, (inp, spec, scratch), dst);
             },
         );
+    }
+
+    /// One frame starting at sample `off` of every channel into `dst` (`[bin][mic]`).
+    fn frame_into(
+        &self,
+        channels: &[Vec<f32>],
+        off: usize,
+        (inp, spec, scratch): (&mut [T], &mut [C<T>], &mut [C<T>]),
+        dst: &mut [C<T>],
+    ) {
+        let m = channels.len();
+        for (mic, ch) in channels.iter().enumerate() {
+            for (i, v) in inp.iter_mut().enumerate() {
+                *v = T::of_f64(ch[off + i] as f64) * self.window[i];
+            }
+            // Lengths come from this plan's own buffers: cannot fail.
+            let _ = self.fft.process_with_scratch(inp, spec, scratch);
+            for (b, k) in self.bins.clone().enumerate() {
+                dst[b * m + mic] = spec[k];
+            }
+        }
     }
 
     /// FFT length N in samples.

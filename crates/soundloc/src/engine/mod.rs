@@ -331,13 +331,20 @@ impl<T: Real> Engine<T> {
                 ),
             ));
         }
+        // The rest on a thread of the pool: the parallel stages of a small push then start
+        // from inside it, so the caller hands off once per push instead of once per stage.
+        rayon::scope(|_| self.push_checked(&block, &idx, len, out))
+    }
+
+    /// [`push`](Self::push) after the checks: `len` samples of `block`, channels `idx`.
+    fn push_checked(&mut self, block: &Block<'_>, idx: &[usize], len: usize, out: &mut Output) -> Result<()> {
         let step = CHUNK_FRAMES * self.plan.config.hop;
         let mut pos = 0;
         while pos < len {
             let n = step.min(len - pos);
             let first = self.stft.samples_received();
             self.stft
-                .append(n, |bufs| block.extend_channels(&idx, pos..pos + n, bufs));
+                .append(n, |bufs| block.extend_channels(idx, pos..pos + n, bufs));
             let (buf_start, buf) = self.stft.buffered();
             self.constant.resize(buf.len(), (None, false));
             for (c, ch) in buf.iter().enumerate() {
