@@ -24,7 +24,7 @@ use crate::subspace::{count, decompose, decompose_pair, Decomposition, Workspace
 use crate::Result;
 use rayon::prelude::*;
 use std::collections::HashMap;
-use std::sync::Arc;
+use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::Instant;
 
 /// Bytes of running sums kept for streams between calls; the least recently used stream's
@@ -45,6 +45,35 @@ pub struct CpuBackend<T: Real> {
     /// with the stream's running sums (which then restart exact).
     tracks: HashMap<StreamId, Vec<BinTrack>>,
     calls: u64,
+    /// Scratch per pool thread, kept between calls (a small array's window costs tens of
+    /// µs: building the scratch anew for each call weighed as much as a stage).
+    scratch: Vec<Mutex<ThreadScratch<T>>>,
+}
+
+/// One pool thread's scratch, built on first use, dropped with a new plan.
+struct ThreadScratch<T: Real> {
+    decompose: Option<Workspace>,
+    spectrum: Option<SpectrumScratch<T>>,
+    srp: Option<SrpScratch<T>>,
+}
+
+/// The scratch of the pool thread running this (any slot outside the pool: the lock
+/// keeps it safe).
+fn thread_scratch<T: Real>(slots: &[Mutex<ThreadScratch<T>>]) -> MutexGuard<'_, ThreadScratch<T>> {
+    let i = rayon::current_thread_index().unwrap_or(0) % slots.len();
+    slots[i].lock().unwrap_or_else(|e| e.into_inner())
+}
+
+fn scratch_slots<T: Real>() -> Vec<Mutex<ThreadScratch<T>>> {
+    (0..rayon::current_num_threads().max(1))
+        .map(|_| {
+            Mutex::new(ThreadScratch {
+                decompose: None,
+                spectrum: None,
+                srp: None,
+            })
+        })
+        .collect()
 }
 
 impl<T: Real> CpuBackend<T> {
@@ -59,6 +88,7 @@ impl<T: Real> CpuBackend<T> {
             running: HashMap::new(),
             tracks: HashMap::new(),
             calls: 0,
+            scratch: scratch_slots(),
         }
     }
 
@@ -201,6 +231,7 @@ impl<T: Real> Backend<T> for CpuBackend<T> {
         self.plan = plan;
         // New whitening: the tracked blocks restart from exact decompositions.
         self.tracks.clear();
+        self.scratch = scratch_slots();
         Ok(())
     }
 
@@ -270,9 +301,13 @@ impl<T: Real> CpuBackend<T> {
         if !srp && !plan.config.subspace_tracking {
             // In pairs: two problems' eigenvalue iterations run side by side (same results).
             let w_of = |i: usize| plan.whitening_matrix64(i % nb);
-            self.decs.par_chunks_mut(2).enumerate().try_for_each_init(
-                || Workspace::new(m),
-                |ws, (c, pair)| {
+            let slots = &self.scratch;
+            self.decs
+                .par_chunks_mut(2)
+                .enumerate()
+                .try_for_each(|(c, pair)| {
+                    let mut slot = thread_scratch(slots);
+                    let ws = slot.decompose.get_or_insert_with(|| Workspace::new(m));
                     let (i0, i1) = (2 * c, 2 * c + 1);
                     let r0 = r_of(i0 / nb, i0 % nb);
                     match pair.split_first_mut() {
@@ -283,8 +318,7 @@ impl<T: Real> CpuBackend<T> {
                         Some((d0, _)) => decompose(alg, r0, w_of(i0), ws, d0),
                         None => Ok(()),
                     }
-                },
-            )?;
+                })?;
         }
         self.times.decomposition_ms += ms(t);
 
@@ -304,26 +338,32 @@ impl<T: Real> CpuBackend<T> {
                 .map(move |d0| d0..(d0 + DIR_BLOCK).min(d))
         };
         if srp {
-            self.contrib.par_chunks_mut(nw * d).enumerate().for_each_init(
-                || SrpScratch::new(plan),
-                |sc, (b, cb)| {
+            let slots = &self.scratch;
+            self.contrib
+                .par_chunks_mut(nw * d)
+                .enumerate()
+                .for_each(|(b, cb)| {
+                    let mut slot = thread_scratch(slots);
+                    let sc = slot.srp.get_or_insert_with(|| SrpScratch::new(plan));
                     for (w, acc) in cb.chunks_mut(d).enumerate() {
                         srp::accumulate_bin(plan, b, r_of(w, b), sc, acc);
                     }
-                },
-            );
+                });
         } else {
-            self.contrib.par_chunks_mut(nw * d).enumerate().for_each_init(
-                || SpectrumScratch::new(plan),
-                |sc, (b, cb)| {
+            let slots = &self.scratch;
+            self.contrib
+                .par_chunks_mut(nw * d)
+                .enumerate()
+                .for_each(|(b, cb)| {
+                    let mut slot = thread_scratch(slots);
+                    let sc = slot.spectrum.get_or_insert_with(|| SpectrumScratch::new(plan));
                     let bin_decs: Vec<&Decomposition<T>> = (0..nw).map(|w| &decs[w * nb + b]).collect();
                     for dirs in blocks() {
                         let mut accs: Vec<&mut [T]> =
                             cb.chunks_mut(d).map(|acc| &mut acc[dirs.clone()]).collect();
                         accumulate_bin(plan, b, dirs.clone(), &bin_decs, sc, &mut accs);
                     }
-                },
-            );
+                });
         }
         if normalize {
             self.contrib.par_chunks_mut(d).enumerate().for_each(|(i, acc)| {
