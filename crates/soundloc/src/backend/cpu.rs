@@ -58,7 +58,9 @@ struct ThreadScratch<T: Real> {
 }
 
 /// The scratch of the pool thread running this (any slot outside the pool: the lock
-/// keeps it safe).
+/// keeps it safe). Work done while holding it must not enter rayon: a job stolen by the
+/// same thread would wait on the lock (the stages' per-bin work runs faer with
+/// `Par::Seq`).
 fn thread_scratch<T: Real>(slots: &[Mutex<ThreadScratch<T>>]) -> MutexGuard<'_, ThreadScratch<T>> {
     let i = rayon::current_thread_index().unwrap_or(0) % slots.len();
     slots[i].lock().unwrap_or_else(|e| e.into_inner())
