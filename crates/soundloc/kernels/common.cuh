@@ -95,6 +95,21 @@ __device__ __forceinline__ void cmacc(cplx<T>& acc, cplx<T> a, cplx<T> b) {
     acc.im += a.re * b.im - a.im * b.re;
 }
 
+__device__ __forceinline__ float sl_fma(float a, float b, float c) { return fmaf(a, b, c); }
+__device__ __forceinline__ double sl_fma(double a, double b, double c) { return fma(a, b, c); }
+
+// acc += conj(a) * b as four fused multiply-adds, in a fixed order (cmacc's form
+// compiles to a multiply, a fused multiply-add and an add per component: three
+// instructions where two do, with one rounding less). The spectrum's inner loops, which
+// are bound by instruction issue (docs/gpu.md, 2026-11-27 fourth session).
+template <typename T>
+__device__ __forceinline__ void cmacc_fma(cplx<T>& acc, cplx<T> a, cplx<T> b) {
+    acc.re = sl_fma(a.re, b.re, acc.re);
+    acc.re = sl_fma(a.im, b.im, acc.re);
+    acc.im = sl_fma(a.re, b.im, acc.im);
+    acc.im = sl_fma(-a.im, b.re, acc.im);
+}
+
 // acc += a * conj(b)
 template <typename T>
 __device__ __forceinline__ void cmac_cb(cplx<T>& acc, cplx<T> a, cplx<T> b) {

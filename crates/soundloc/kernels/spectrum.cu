@@ -15,7 +15,9 @@
 // null (an f32 plan's vectors from the f32 Jacobi, M > 64: only f32-accurate, so a double
 // complement of them would not be exact) the recomputation is ‖(I − E_sE_sᴴ)a‖² in T by
 // two Gram–Schmidt passes, floored at ε_T‖a‖². Bins with den ≤ 0
-// or gain 0 add nothing — the CPU's rules.
+// or gain 0 add nothing — the CPU's rules. The products aᴴe_s accumulate as fused
+// multiply-adds (cmacc_fma: four per complex product; the loops are bound by instruction
+// issue), the same order in the one- and four-direction forms.
 //
 // St [bin][dir][M] the denominator's steering (whitened for the textbook GEVD),
 // n2den/n2num [bin][dir] its ‖·‖² and the raw ‖a‖², E [wl*nb + b][ne][M] the basis of the
@@ -31,6 +33,10 @@
 
 // Signal vectors per pass over a (independent accumulators).
 #define SL_SPEC_NSB 4
+// Unrolling of proj_sum_rd's loop over the microphones (a tuning hook: -DSL_SPEC_UNROLL=k).
+#ifndef SL_SPEC_UNROLL
+#define SL_SPEC_UNROLL 4
+#endif
 
 // ‖(I − E Eᴴ) a‖² for the ns rows of E (each of length M), two MGS passes.
 template <typename T>
@@ -87,18 +93,18 @@ __device__ __forceinline__ T proj_sum(const cplx<T>* a, const cplx<T>* e, int M,
             for (int i = 0; i < M; ++i) {
                 const cplx<T> ai = a[i];
 #pragma unroll
-                for (int k = 0; k < SL_SPEC_NSB; ++k) cmacc(pr[k], ai, eb[(size_t)k * M + i]);
+                for (int k = 0; k < SL_SPEC_NSB; ++k) cmacc_fma(pr[k], ai, eb[(size_t)k * M + i]);
             }
         } else if (cnt == 2) {
             for (int i = 0; i < M; ++i) {
                 const cplx<T> ai = a[i];
-                cmacc(pr[0], ai, eb[i]);
-                cmacc(pr[1], ai, eb[(size_t)M + i]);
+                cmacc_fma(pr[0], ai, eb[i]);
+                cmacc_fma(pr[1], ai, eb[(size_t)M + i]);
             }
         } else {
             for (int i = 0; i < M; ++i) {
                 const cplx<T> ai = a[i];
-                for (int k = 0; k < cnt; ++k) cmacc(pr[k], ai, eb[(size_t)k * M + i]);
+                for (int k = 0; k < cnt; ++k) cmacc_fma(pr[k], ai, eb[(size_t)k * M + i]);
             }
         }
 #pragma unroll
@@ -127,7 +133,7 @@ __device__ __forceinline__ void proj_sum_rd(const cplx<T>* a, int astep, const c
         const int cnt = min(SL_SPEC_NSB, ns - sb);
         const cplx<T>* eb = e + (size_t)sb * M;
         if (cnt == SL_SPEC_NSB) {
-#pragma unroll 2
+#pragma unroll SL_SPEC_UNROLL
             for (int i = 0; i < M; ++i) {
                 cplx<T> ek[SL_SPEC_NSB];
 #pragma unroll
@@ -136,7 +142,7 @@ __device__ __forceinline__ void proj_sum_rd(const cplx<T>* a, int astep, const c
                 for (int r = 0; r < RD; ++r) {
                     const cplx<T> ai = a[r * astep + i];
 #pragma unroll
-                    for (int k = 0; k < SL_SPEC_NSB; ++k) cmacc(pr[r][k], ai, ek[k]);
+                    for (int k = 0; k < SL_SPEC_NSB; ++k) cmacc_fma(pr[r][k], ai, ek[k]);
                 }
             }
         } else {
@@ -144,7 +150,7 @@ __device__ __forceinline__ void proj_sum_rd(const cplx<T>* a, int astep, const c
 #pragma unroll
                 for (int r = 0; r < RD; ++r) {
                     const cplx<T> ai = a[r * astep + i];
-                    for (int k = 0; k < cnt; ++k) cmacc(pr[r][k], ai, eb[(size_t)k * M + i]);
+                    for (int k = 0; k < cnt; ++k) cmacc_fma(pr[r][k], ai, eb[(size_t)k * M + i]);
                 }
             }
         }
@@ -267,20 +273,28 @@ __device__ void spectrum_impl(const cplx<T>* __restrict__ St, const T* __restric
     }
 }
 
-#define SL_SPECTRUM_KERNEL(NAME, T, RD)                                                                              \
-    extern "C" __global__ void NAME(const cplx<T>* St, const T* n2den, const T* n2num, const cplx<T>* E,             \
+// spectrum4_f32 is bounded to 256 threads (its default block: 16 windows × 16 threads)
+// and SL_SPEC4_MINB blocks per SM: three blocks (24 warps) hide the loads of the vectors
+// better than two blocks at 128 registers, at the cost of a few spilled registers outside
+// the inner loop (H100, 2026-11-27: 0.094 → 0.086 ms per localization at Ns = 30).
+#ifndef SL_SPEC4_MINB
+#define SL_SPEC4_MINB 3
+#endif
+#define SL_SPEC4_BOUNDS __launch_bounds__(256, SL_SPEC4_MINB)
+#define SL_SPECTRUM_KERNEL(NAME, T, RD, BOUNDS)                                                                 \
+    extern "C" __global__ void BOUNDS NAME(const cplx<T>* St, const T* n2den, const T* n2num, const cplx<T>* E,             \
                                     const cplx<double>* E64, int ne, const T* gain, int M, int nb, int D, int ns,      \
                                     int squared, int nwin, T tau, int dt, int e_smem, int kind, int pass,             \
                                     const T* weights, T* binmax, T* Ppart) {                                          \
-        spectrum_impl<T, RD>(St, n2den, n2num, E, E64, ne, gain, M, nb, D, ns, squared, nwin, tau, dt, e_smem, kind,  \
-                             pass, weights, binmax, Ppart);                                                           \
+        spectrum_impl<T, RD>(St, n2den, n2num, E, E64, ne, gain, M, nb, D, ns, squared, nwin, tau, dt, e_smem,   \
+                                  kind, pass, weights, binmax, Ppart);                                                \
     }
 
 #ifndef SL_NO_F32
-SL_SPECTRUM_KERNEL(spectrum_f32, float, 1)
-SL_SPECTRUM_KERNEL(spectrum4_f32, float, 4)
+SL_SPECTRUM_KERNEL(spectrum_f32, float, 1, )
+SL_SPECTRUM_KERNEL(spectrum4_f32, float, 4, SL_SPEC4_BOUNDS)
 #endif
 #ifndef SL_NO_F64
-SL_SPECTRUM_KERNEL(spectrum_f64, double, 1)
-SL_SPECTRUM_KERNEL(spectrum4_f64, double, 4)
+SL_SPECTRUM_KERNEL(spectrum_f64, double, 1, )
+SL_SPECTRUM_KERNEL(spectrum4_f64, double, 4, )
 #endif

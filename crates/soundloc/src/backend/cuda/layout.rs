@@ -63,8 +63,9 @@ pub(super) struct Layout {
 }
 
 /// The smallest signal subspace for which the spectrum runs [`SPEC_RD_DEFAULT`]
-/// directions per thread.
-const SPEC_RD_MIN_NS: usize = 8;
+/// directions per thread (one H100, seed config, 2026-11-27 with fused multiply-adds:
+/// subspace 4 0.0232 → 0.0125 ms per localization, subspace 2 0.0163 → 0.0175: slower).
+const SPEC_RD_MIN_NS: usize = 4;
 /// Directions per spectrum thread for deep subspaces (one H100, subspace 30 of 60 mics,
 /// 2026-11-27: 0.164 → 0.122 ms per localization against one direction per thread).
 const SPEC_RD_DEFAULT: usize = 4;
@@ -168,7 +169,10 @@ pub(super) fn layout<T: Real>(plan: &Plan<T>, gpu: &dyn Gpu) -> Result<Layout> {
     // its four windows' vectors in shared memory (docs/gpu.md, 2026-11-27 third session).
     let deep = spec_rd == 4;
     let spec_wg = knob("SOUNDLOC_CUDA_SPEC_WG")
-        .filter(|&w| (1..=64).contains(&w) && spec_dt / spec_rd * w <= 1024)
+        // spectrum4_f32 is bounded to 256 threads per block (spectrum.cu).
+        .filter(|&w| {
+            (1..=64).contains(&w) && spec_dt / spec_rd * w <= if deep && cs == 8 { 256 } else { 1024 }
+        })
         .unwrap_or(if deep {
             16
         } else if squared {
