@@ -66,8 +66,9 @@ fn thread_scratch<T: Real>(slots: &[Mutex<ThreadScratch<T>>]) -> MutexGuard<'_, 
     slots[i].lock().unwrap_or_else(|e| e.into_inner())
 }
 
-fn scratch_slots<T: Real>() -> Vec<Mutex<ThreadScratch<T>>> {
-    (0..rayon::current_num_threads().max(1))
+/// `n` empty slots.
+fn scratch_slots<T: Real>(n: usize) -> Vec<Mutex<ThreadScratch<T>>> {
+    (0..n.max(1))
         .map(|_| {
             Mutex::new(ThreadScratch {
                 decompose: None,
@@ -90,7 +91,7 @@ impl<T: Real> CpuBackend<T> {
             running: HashMap::new(),
             tracks: HashMap::new(),
             calls: 0,
-            scratch: scratch_slots(),
+            scratch: scratch_slots(rayon::current_num_threads()),
         }
     }
 
@@ -233,7 +234,7 @@ impl<T: Real> Backend<T> for CpuBackend<T> {
         self.plan = plan;
         // New whitening: the tracked blocks restart from exact decompositions.
         self.tracks.clear();
-        self.scratch = scratch_slots();
+        self.scratch = scratch_slots(rayon::current_num_threads());
         Ok(())
     }
 
@@ -249,6 +250,10 @@ impl<T: Real> Backend<T> for CpuBackend<T> {
         self.running.remove(&stream);
         self.tracks.remove(&stream);
     }
+
+    fn runs_on_pool(&self) -> bool {
+        true
+    }
 }
 
 impl<T: Real> CpuBackend<T> {
@@ -261,6 +266,13 @@ impl<T: Real> CpuBackend<T> {
     ) -> Result<()> {
         super::check_jobs("cpu backend", &self.plan, jobs)?;
         self.calls += 1;
+        // One slot per thread of the pool this call runs in (it may be larger than the
+        // one the backend was built in).
+        let threads = rayon::current_num_threads();
+        if self.scratch.len() < threads {
+            let more = threads - self.scratch.len();
+            self.scratch.extend(scratch_slots(more));
+        }
         let plan = self.plan.clone();
         let plan = &*plan;
         let (m, nb, d) = (plan.num_mics, plan.num_bins(), plan.num_dirs);

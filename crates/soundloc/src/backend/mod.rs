@@ -364,4 +364,11 @@ pub trait Backend<T: Real>: Send {
     fn forget(&mut self, stream: StreamId) {
         let _ = stream;
     }
+    /// Whether a stream's whole push should run on rayon's pool (one hand-off per push
+    /// instead of one per parallel stage): true for a backend whose stages are rayon
+    /// loops. Not for device backends: a push on the pool could then run inside another
+    /// push's wait on the pool and change the thread's current device context.
+    fn runs_on_pool(&self) -> bool {
+        false
+    }
 }

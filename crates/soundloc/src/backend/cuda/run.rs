@@ -200,6 +200,10 @@ impl<T: Real> CudaBackend<T> {
                 let lf = job.local(f);
                 let part = as_bytes(&job.spectra.data[lf * nb * m..(lf + n) * nb * m]);
                 copy_to_pinned(part, stage);
+                // The copy may wait on rayon's pool, and a thread waiting there can run
+                // other jobs (another stream's work on another device): this thread's
+                // context is made current again (a thread-local write).
+                self.gpu.make_current()?;
                 let at = u.at + (f - u.frames.start);
                 // SAFETY: the staging buffer holds `bytes`; it is not rewritten before `ev`
                 // (recorded next) completes; the arena holds frame `at + n`.
