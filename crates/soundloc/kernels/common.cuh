@@ -110,6 +110,15 @@ __device__ __forceinline__ void cmacc_fma(cplx<T>& acc, cplx<T> a, cplx<T> b) {
     acc.im = sl_fma(-a.im, b.re, acc.im);
 }
 
+// acc += a * b as four fused multiply-adds (see cmacc_fma).
+template <typename T>
+__device__ __forceinline__ void cmac_fma(cplx<T>& acc, cplx<T> a, cplx<T> b) {
+    acc.re = sl_fma(a.re, b.re, acc.re);
+    acc.re = sl_fma(-a.im, b.im, acc.re);
+    acc.im = sl_fma(a.re, b.im, acc.im);
+    acc.im = sl_fma(a.im, b.re, acc.im);
+}
+
 // acc += a * conj(b)
 template <typename T>
 __device__ __forceinline__ void cmac_cb(cplx<T>& acc, cplx<T> a, cplx<T> b) {

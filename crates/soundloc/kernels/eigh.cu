@@ -88,7 +88,8 @@ __device__ int sturm_count(const double* d, const double* e2, int n, double x, d
 }
 
 // C = X · Y for the register tile of this thread (rows ty + EH_TY·a, columns tx + 16·b).
-// xat(i, k) and yat(k, j) read the operands; C goes to acc.
+// xat(i, k) and yat(k, j) read the operands; C goes to acc (fused multiply-adds:
+// form_h was bound by the double-precision pipe, 2026-11-27).
 template <typename XA, typename YA>
 __device__ __forceinline__ void tile_product(int n, XA xat, YA yat, zd (&acc)[EH_RT][4]) {
     const int tx = threadIdx.x & 15, ty = threadIdx.x >> 4;
@@ -111,7 +112,7 @@ __device__ __forceinline__ void tile_product(int n, XA xat, YA yat, zd (&acc)[EH
 #pragma unroll
         for (int a = 0; a < EH_RT; ++a)
 #pragma unroll
-            for (int b = 0; b < 4; ++b) cmac(acc[a][b], x[a], y[b]);
+            for (int b = 0; b < 4; ++b) cmac_fma(acc[a][b], x[a], y[b]);
     }
 }
 
@@ -133,9 +134,17 @@ __device__ __forceinline__ zd w_of(zd p, zd g, zd v) {
 }
 
 // a ← a − v_r conj(w_c) − w_r conj(v_c) (one entry of the Hermitian rank-2 update).
+// As fused multiply-adds (four per component instead of a multiply, three fused
+// multiply-adds and a subtraction).
 __device__ __forceinline__ void rank2(zd& a, zd vr, zd wr, zd vc, zd wc) {
-    a.re -= vr.re * wc.re + vr.im * wc.im + wr.re * vc.re + wr.im * vc.im;
-    a.im -= vr.im * wc.re - vr.re * wc.im + wr.im * vc.re - wr.re * vc.im;
+    a.re = fma(-vr.re, wc.re, a.re);
+    a.re = fma(-vr.im, wc.im, a.re);
+    a.re = fma(-wr.re, vc.re, a.re);
+    a.re = fma(-wr.im, vc.im, a.re);
+    a.im = fma(-vr.im, wc.re, a.im);
+    a.im = fma(vr.re, wc.im, a.im);
+    a.im = fma(-wr.im, vc.re, a.im);
+    a.im = fma(wr.re, vc.im, a.im);
 }
 
 // Reflector k (LAPACK zlarfg) from x = A(k+1:n, k), by one warp: H_kᴴ x = β e_1 with β
