@@ -351,34 +351,27 @@ impl<T: Real> CpuBackend<T> {
                 .step_by(DIR_BLOCK)
                 .map(move |d0| d0..(d0 + DIR_BLOCK).min(d))
         };
-        if srp {
-            let slots = &self.scratch;
-            self.contrib
-                .par_chunks_mut(nw * d)
-                .enumerate()
-                .for_each(|(b, cb)| {
-                    let mut slot = thread_scratch(slots);
+        let slots = &self.scratch;
+        self.contrib
+            .par_chunks_mut(nw * d)
+            .enumerate()
+            .for_each(|(b, cb)| {
+                let mut slot = thread_scratch(slots);
+                if srp {
                     let sc = slot.srp.get_or_insert_with(|| SrpScratch::new(plan));
                     for (w, acc) in cb.chunks_mut(d).enumerate() {
                         srp::accumulate_bin(plan, b, r_of(w, b), sc, acc);
                     }
-                });
-        } else {
-            let slots = &self.scratch;
-            self.contrib
-                .par_chunks_mut(nw * d)
-                .enumerate()
-                .for_each(|(b, cb)| {
-                    let mut slot = thread_scratch(slots);
-                    let sc = slot.spectrum.get_or_insert_with(|| SpectrumScratch::new(plan));
-                    let bin_decs: Vec<&Decomposition<T>> = (0..nw).map(|w| &decs[w * nb + b]).collect();
-                    for dirs in blocks() {
-                        let mut accs: Vec<&mut [T]> =
-                            cb.chunks_mut(d).map(|acc| &mut acc[dirs.clone()]).collect();
-                        accumulate_bin(plan, b, dirs.clone(), &bin_decs, sc, &mut accs);
-                    }
-                });
-        }
+                    return;
+                }
+                let sc = slot.spectrum.get_or_insert_with(|| SpectrumScratch::new(plan));
+                let bin_decs: Vec<&Decomposition<T>> = (0..nw).map(|w| &decs[w * nb + b]).collect();
+                for dirs in blocks() {
+                    let mut accs: Vec<&mut [T]> =
+                        cb.chunks_mut(d).map(|acc| &mut acc[dirs.clone()]).collect();
+                    accumulate_bin(plan, b, dirs.clone(), &bin_decs, sc, &mut accs);
+                }
+            });
         if normalize {
             self.contrib.par_chunks_mut(d).enumerate().for_each(|(i, acc)| {
                 normalize_bin(acc, plan.weights[i / nw]);
