@@ -25,6 +25,9 @@ def frames(L, seconds, seed):
         p = 3.0 * np.array([np.cos(a), np.sin(a)] + ([0.3] if dim == 3 else []))
         room.add_source(p, signal=rng.standard_normal(int(FS * seconds)))
     room.add_microphone_array(pra.MicrophoneArray(L, fs=FS))
+    if hasattr(pra, "random") and hasattr(pra.random, "seed"):
+        pra.random.seed(seed)  # the sensor noise of simulate(): the same scene every run
+    np.random.seed(seed)
     room.simulate()
     return np.array([pra.transform.stft.analysis(s, NFFT, HOP).T for s in room.mic_array.signals])
 

@@ -11,6 +11,14 @@ import pyroomacoustics as pra  # installed by scripts/test.sh (the reference imp
 FS, NFFT, C = 16000, 256, 343.0
 
 
+def seed_simulation(seed):
+    """room.simulate() adds its sensor noise from pyroomacoustics' own generator (older
+    versions: numpy's global one): seed both, so a scene is the same on every run."""
+    if hasattr(pra, "random") and hasattr(pra.random, "seed"):
+        pra.random.seed(seed)
+    np.random.seed(seed)
+
+
 def scene(seed, azimuths_deg, mics=6, radius=0.05, snr_db=10.0):
     """Anechoic pyroomacoustics room, a circular array, white-noise sources 3 m away."""
     rng = np.random.default_rng(seed)
@@ -21,6 +29,7 @@ def scene(seed, azimuths_deg, mics=6, radius=0.05, snr_db=10.0):
         room.add_source(center + 3.0 * np.array([np.cos(a), np.sin(a)]), signal=rng.standard_normal(FS // 2))
     L = pra.circular_2D_array(center=center, M=mics, phi0=0.3, radius=radius)
     room.add_microphone_array(pra.MicrophoneArray(L, fs=FS))
+    seed_simulation(seed)
     room.simulate()
     x = room.mic_array.signals
     X = np.array([pra.transform.stft.analysis(s, NFFT, NFFT // 2).T for s in x])  # (M, F, S)
@@ -64,6 +73,7 @@ def test_finds_known_directions_in_3d():
     L = np.vstack([pra.circular_2D_array([0, 0], 6, 0.0, 0.05), np.zeros(6)])
     L = np.hstack([L, [[0.0], [0.0], [0.05]], [[0.0], [0.0], [-0.05]]])
     room.add_microphone_array(pra.MicrophoneArray(L, fs=FS))
+    seed_simulation(4)
     room.simulate()
     X = np.array([pra.transform.stft.analysis(s, NFFT, NFFT // 2).T for s in room.mic_array.signals])
     for name in ["MUSIC", "NormMUSIC", "SRP"]:
