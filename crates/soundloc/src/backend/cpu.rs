@@ -20,7 +20,7 @@ use crate::plan::Plan;
 use crate::real::{Real, C};
 use crate::srp::{self, SrpScratch};
 use crate::subspace::tracking::{self, BinTrack, Tracker};
-use crate::subspace::{count, decompose, decompose_pair, Decomposition, Workspace};
+use crate::subspace::{count, decompose, decompose_many, Decomposition, Workspace};
 use crate::Result;
 use rayon::prelude::*;
 use std::collections::HashMap;
@@ -313,7 +313,8 @@ impl<T: Real> CpuBackend<T> {
         let r = &self.r;
         let r_of = |w: usize, b: usize| r_at(r, mm, nw, w, b);
         if !srp && !plan.config.subspace_tracking {
-            // In pairs: two problems' eigenvalue iterations run side by side (same results).
+            // In pairs: two problems' eigenvalue iterations run side by side (same
+            // results as one at a time).
             let w_of = |i: usize| plan.whitening_matrix64(i % nb);
             let slots = &self.scratch;
             self.decs
@@ -323,14 +324,11 @@ impl<T: Real> CpuBackend<T> {
                     let mut slot = thread_scratch(slots);
                     let ws = slot.decompose.get_or_insert_with(|| Workspace::new(m));
                     let (i0, i1) = (2 * c, 2 * c + 1);
-                    let r0 = r_of(i0 / nb, i0 % nb);
-                    match pair.split_first_mut() {
-                        Some((d0, [d1])) => {
-                            let r = [r0, r_of(i1 / nb, i1 % nb)];
-                            decompose_pair(alg, r, [w_of(i0), w_of(i1)], ws, [d0, d1])
-                        }
-                        Some((d0, _)) => decompose(alg, r0, w_of(i0), ws, d0),
-                        None => Ok(()),
+                    let r = |i: usize| r_of(i / nb, i % nb);
+                    match pair {
+                        [d0, d1] => decompose_many(alg, [r(i0), r(i1)], [w_of(i0), w_of(i1)], ws, [d0, d1]),
+                        [d0] => decompose(alg, r(i0), w_of(i0), ws, d0),
+                        _ => Ok(()),
                     }
                 })?;
         }

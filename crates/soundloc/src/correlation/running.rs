@@ -100,6 +100,29 @@ impl RunningCorrelation {
     }
 }
 
+/// Up to this many microphones the outer products run as plain loops ([`add_small`]):
+/// for an 8-microphone array faer's set-up per call costs more than the 2 × 36 complex
+/// multiply-adds of a one-frame slide.
+const SMALL_M: usize = 16;
+
+/// S (column-major M × M, upper triangle) += sign · Σ_f y_f y_fᴴ over the rows y_f of `y`
+/// (row-major, M per row), frame by frame in order; `replace`: S = 0 first.
+fn add_small(sum: &mut [C<f64>], y: &[C<f64>], m: usize, replace: bool, sign: f64) {
+    if replace {
+        for j in 0..m {
+            sum[j * m..j * m + j + 1].fill(C::new(0.0, 0.0));
+        }
+    }
+    for row in y.chunks_exact(m) {
+        for (j, &yj) in row.iter().enumerate() {
+            let c = yj.conj() * sign;
+            for (s, &yi) in sum[j * m..j * m + j + 1].iter_mut().zip(&row[..=j]) {
+                *s += yi * c;
+            }
+        }
+    }
+}
+
 /// Carry bin `bin`'s sum (`sum`: M × M column-major) through `step` to window `w` of
 /// `job`, then write R (row-major M × M, exactly Hermitian, real diagonal) into `out`;
 /// `phat` applies the phase transform to the frames and skips HARK's scaling. `y` is
@@ -138,6 +161,9 @@ pub fn run_bin<T: Real, U: Real>(
     // triangle only (column-major: rows i ≤ j of column j), the half R is read from.
     let add = |sum: &mut [C<f64>], y: &[C<f64>], accum: faer::Accum, sign: f64| {
         use faer::linalg::matmul::triangular::{matmul, BlockStructure as B};
+        if m <= SMALL_M {
+            return add_small(sum, y, m, accum == faer::Accum::Replace, sign);
+        }
         let rows = y.len() / m.max(1);
         let ym = faer::MatRef::from_row_major_slice(y, rows, m);
         let s = faer::MatMut::from_column_major_slice_mut(sum, m, m);

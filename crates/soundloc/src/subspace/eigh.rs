@@ -14,8 +14,8 @@
 //!    memory traffic of full storage.
 //! 2. **Eigenvalues of T** by the rational (square-root free) implicit QL method
 //!    (EISPACK `tqlrat`), no vectors: O(n²), but a chain of dependent divisions (≈ 35 µs of
-//!    a ≈ 110 µs solve at n = 60); [`Eigh::solve_pair`] runs two problems' chains side by
-//!    side (≈ 23 µs each, same results).
+//!    a ≈ 110 µs solve at n = 60); [`Eigh::solve_many`] runs several problems' chains side by
+//!    side (two at n = 60: ≈ 23 µs each, same results).
 //! 3. **The k largest eigenvectors of T** by inverse iteration, re-orthogonalised within
 //!    clusters of close eigenvalues (LAPACK `dstein`'s rules: clusters closer than
 //!    10⁻³‖T‖₁, equal eigenvalues perturbed apart by 10ε|λ|): O(n·k) plus the
@@ -116,24 +116,31 @@ impl Eigh {
         Ok(())
     }
 
-    /// [`Eigh::solve`] for two matrices of one size at once (`a` and `b` each hold one),
-    /// with the same results as two calls: the two eigenvalue iterations, chains of
+    /// [`Eigh::solve`] for N matrices of one size at once (each problem: solver, k,
+    /// vectors), with the same results as N calls: the N eigenvalue iterations, chains of
     /// dependent divisions, run side by side (`tridiag::ql_values_many`).
-    pub fn solve_pair(
-        a: (&mut Eigh, usize, &mut [C<f64>]),
-        b: (&mut Eigh, usize, &mut [C<f64>]),
-    ) -> Result<()> {
-        let ((ea, ka, va), (eb, kb, vb)) = (a, b);
-        if ea.n != eb.n || ea.n == 0 {
-            ea.solve(ka, va)?;
-            return eb.solve(kb, vb);
+    pub fn solve_many<const N: usize>(problems: [(&mut Eigh, usize, &mut [C<f64>]); N]) -> Result<()> {
+        let n = problems.first().map_or(0, |p| p.0.n);
+        if n == 0 || problems.iter().any(|p| p.0.n != n) {
+            for (e, k, v) in problems {
+                e.solve(k, v)?;
+            }
+            return Ok(());
         }
-        assert!(ka <= ea.n && va.len() >= ea.n * ka && kb <= eb.n && vb.len() >= eb.n * kb);
-        ea.reduce()?;
-        eb.reduce()?;
-        ql_values_many([(&mut ea.values, &mut ea.e2), (&mut eb.values, &mut eb.e2)])?;
-        ea.finish(ka, va);
-        eb.finish(kb, vb);
+        for (_, k, v) in &problems {
+            assert!(*k <= n && v.len() >= n * k);
+        }
+        let mut problems = problems;
+        for p in problems.iter_mut() {
+            p.0.reduce()?;
+        }
+        ql_values_many(problems.each_mut().map(|p| {
+            let e: &mut Eigh = p.0;
+            (&mut e.values[..], &mut e.e2[..])
+        }))?;
+        for (e, k, v) in problems {
+            e.finish(k, v);
+        }
         Ok(())
     }
 
