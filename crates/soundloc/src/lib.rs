@@ -50,6 +50,7 @@ pub mod error;
 pub mod formats;
 pub mod frames;
 pub mod input;
+pub(crate) mod lanes;
 pub mod localizer;
 pub mod music;
 pub mod noise;

@@ -25,6 +25,7 @@
 //! the complement) while the numerator keeps the raw ‖a‖².
 
 use crate::config::Denominator;
+use crate::lanes;
 use crate::plan::Plan;
 use crate::real::{Real, C};
 use crate::subspace::Decomposition;
@@ -115,6 +116,27 @@ pub fn accumulate_bin<T: Real>(
         Denominator::Squared => (0, ns),
         Denominator::Unsquared => (ns, m - ns),
     };
+    let floor = T::of_f64(T::EPS);
+    if let (Some(planar), Denominator::Squared) = (&plan.planar, plan.config.denominator) {
+        // Small arrays: each window's signal sums straight from the planar steering.
+        let block = planar.block(b, dirs.clone());
+        for (dec, acc) in decs.iter().zip(accs.iter_mut()) {
+            let gain = plan.weights[b] * bin_gain(plan, dec);
+            if gain == T::zero() {
+                continue;
+            }
+            scratch.sig.resize(d, T::zero());
+            lanes::signal_power(&block, &dec.vectors, ns, &mut scratch.sig);
+            let den = DenRefs {
+                st,
+                n2_den,
+                n2_num,
+                floor,
+            };
+            quotients(&den, dec, ns, gain, &scratch.sig, acc);
+        }
+        return;
+    }
     // Windows go through the product in groups of a fixed size, the last group padded
     // with zero columns: every product has the same shape (this block's directions × G·nc
     // columns × M) whatever the batch, so the library takes the same path (and summation
@@ -128,7 +150,6 @@ pub fn accumulate_bin<T: Real>(
     // directions), which reads the steering block in place (measured: faster than AᴴE,
     // which packs the block, both alone and batched).
     let a = MatRef::from_row_major_slice(st, d, m);
-    let floor = T::of_f64(T::EPS);
     for (gdecs, gaccs) in decs.chunks(g).zip(accs.chunks_mut(g)) {
         scratch.cols.clear();
         for dec in gdecs {
@@ -193,7 +214,7 @@ fn accumulate_window<T: Real>(
     sig: &mut Vec<T>,
     acc: &mut [T],
 ) {
-    let (m, d) = (plan.num_mics, acc.len());
+    let d = acc.len();
     let ns = plan.config.signal_dim();
     let nc = proj.ncols();
     let gain = plan.weights[b] * bin_gain(plan, dec);
@@ -202,7 +223,6 @@ fn accumulate_window<T: Real>(
     }
     match plan.config.denominator {
         Denominator::Squared => {
-            let tau = T::of_f64(REFINE_RATIO);
             sig.clear();
             sig.resize(d, T::zero());
             for s in 0..ns {
@@ -210,26 +230,13 @@ fn accumulate_window<T: Real>(
                     *x += z.norm_sqr();
                 }
             }
-            let mut any_small = false;
-            for (((a, &x), &n2), &num) in acc.iter_mut().zip(sig.iter()).zip(n2_den).zip(n2_num) {
-                let den = n2 - x;
-                let small = den < tau * n2;
-                any_small |= small;
-                let den = den.max(floor * n2);
-                let add = gain * num / den;
-                *a += if !small && den > T::zero() { add } else { T::zero() };
-            }
-            if any_small {
-                for (dir, (a, &x)) in acc.iter_mut().zip(sig.iter()).enumerate() {
-                    let n2 = n2_den[dir];
-                    if n2 - x < tau * n2 {
-                        let den = T::of_f64(complement64(&st[dir * m..(dir + 1) * m], dec, ns));
-                        if den > T::zero() {
-                            *a += gain * n2_num[dir] / den;
-                        }
-                    }
-                }
-            }
+            let den = DenRefs {
+                st,
+                n2_den,
+                n2_num,
+                floor,
+            };
+            quotients(&den, dec, ns, gain, sig, acc);
         }
         Denominator::Unsquared => {
             for dir in 0..d {
@@ -240,6 +247,50 @@ fn accumulate_window<T: Real>(
                 let den = den.max(floor * n2_den[dir].sqrt());
                 if den > T::zero() {
                     acc[dir] += gain * n2_num[dir] / den;
+                }
+            }
+        }
+    }
+}
+
+/// What the squared denominator's quotients read for a block of directions: the
+/// denominator's steering vectors and norms, the numerator's norms, the floor's factor.
+struct DenRefs<'a, T: Real> {
+    st: &'a [C<T>],
+    n2_den: &'a [T],
+    n2_num: &'a [T],
+    floor: T,
+}
+
+/// acc(d) += gain·‖a‖²/(‖a_den‖² − sig(d)) for the block's directions, sig(d) = Σ_s
+/// |aᴴe_s|²: branch-free over contiguous arrays (it vectorises), then the few directions
+/// whose complement fell below [`REFINE_RATIO`]·‖a‖² recomputed in f64.
+fn quotients<T: Real>(
+    den: &DenRefs<'_, T>,
+    dec: &Decomposition<T>,
+    ns: usize,
+    gain: T,
+    sig: &[T],
+    acc: &mut [T],
+) {
+    let m = dec.m;
+    let tau = T::of_f64(REFINE_RATIO);
+    let mut any_small = false;
+    for (((a, &x), &n2), &num) in acc.iter_mut().zip(sig).zip(den.n2_den).zip(den.n2_num) {
+        let d = n2 - x;
+        let small = d < tau * n2;
+        any_small |= small;
+        let d = d.max(den.floor * n2);
+        let add = gain * num / d;
+        *a += if !small && d > T::zero() { add } else { T::zero() };
+    }
+    if any_small {
+        for (dir, (a, &x)) in acc.iter_mut().zip(sig).enumerate() {
+            let n2 = den.n2_den[dir];
+            if n2 - x < tau * n2 {
+                let d = T::of_f64(complement64(&den.st[dir * m..(dir + 1) * m], dec, ns));
+                if d > T::zero() {
+                    *a += gain * den.n2_num[dir] / d;
                 }
             }
         }

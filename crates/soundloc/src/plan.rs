@@ -16,6 +16,7 @@
 
 use crate::array::{Grid, TransferFunctions};
 use crate::config::{Algorithm, LocalizeConfig, SpectrumWeight};
+use crate::lanes::{self, Planar};
 use crate::noise::NoiseMatrices;
 use crate::peaks::PeakTable;
 use crate::real::{Real, C};
@@ -64,6 +65,9 @@ pub struct Plan<T: Real> {
     pub whitening: Option<Whitening<T>>,
     /// Peak search table.
     pub peak_table: PeakTable,
+    /// Small arrays (M ≤ [`lanes::MAX_MICS`]): the denominator's steering vectors
+    /// ([`Plan::denominator_steering`]) in planar form for the CPU's spectrum kernels.
+    pub(crate) planar: Option<Arc<Planar<T>>>,
 }
 
 impl<T: Real> Plan<T> {
@@ -182,6 +186,7 @@ impl<T: Real> Plan<T> {
             None
         };
         let peak_table = PeakTable::new(&tf.grid, config)?;
+        let planar = planar(config, whitening.as_ref(), &steering, d, m);
         Ok(Plan {
             config: config.clone(),
             num_mics: m,
@@ -194,6 +199,7 @@ impl<T: Real> Plan<T> {
             weights,
             whitening,
             peak_table,
+            planar,
         })
     }
 
@@ -211,6 +217,15 @@ impl<T: Real> Plan<T> {
                 self.num_dirs,
                 &self.steering,
             )?);
+            if self.config.algorithm == Algorithm::Gevd {
+                p.planar = planar(
+                    &p.config,
+                    p.whitening.as_ref(),
+                    &p.steering,
+                    p.num_dirs,
+                    p.num_mics,
+                );
+            }
         }
         Ok(p)
     }
@@ -325,6 +340,25 @@ fn spectrum_weights<T: Real>(c: &LocalizeConfig, bins: &Range<usize>) -> Result<
             w.iter().map(|&x| T::of_f64(x)).collect()
         }
     })
+}
+
+/// The planar copy of the denominator's steering vectors for small arrays (the whitened
+/// ones for the textbook GEVD, else the plan's own), None above [`lanes::MAX_MICS`].
+fn planar<T: Real>(
+    config: &LocalizeConfig,
+    whitening: Option<&Whitening<T>>,
+    steering: &[C<T>],
+    d: usize,
+    m: usize,
+) -> Option<Arc<Planar<T>>> {
+    if m > lanes::MAX_MICS {
+        return None;
+    }
+    let st = match (whitening, config.algorithm) {
+        (Some(w), Algorithm::Gevd) => &w.steering[..],
+        _ => steering,
+    };
+    Some(Arc::new(Planar::new(st, d, m)))
 }
 
 /// A-weighting (IEC 61672) as a linear amplitude gain at `f` Hz: 10^(A(f)/20) with

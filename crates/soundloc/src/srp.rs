@@ -19,6 +19,7 @@
 //! magnitudes) and no subspace dimension.
 
 use crate::backend::{Spectra, WindowSpec};
+use crate::lanes;
 use crate::plan::Plan;
 use crate::real::{Real, C};
 use faer::{Accum, MatRef, Par};
@@ -27,6 +28,9 @@ use faer::{Accum, MatRef, Par};
 pub struct SrpScratch<T: Real> {
     z: faer::Mat<C<T>>,
     r: faer::Mat<C<T>>,
+    /// Small arrays: R̃ row-major in T, the values.
+    r_small: Vec<C<T>>,
+    quad: Vec<T>,
 }
 
 impl<T: Real> SrpScratch<T> {
@@ -35,6 +39,8 @@ impl<T: Real> SrpScratch<T> {
         SrpScratch {
             z: faer::Mat::zeros(plan.num_dirs, plan.num_mics),
             r: faer::Mat::zeros(plan.num_mics, plan.num_mics),
+            r_small: Vec::new(),
+            quad: Vec::new(),
         }
     }
 }
@@ -125,6 +131,23 @@ pub fn accumulate_bin<T: Real>(
         return;
     }
     let st = &plan.steering[b * d * m..(b + 1) * d * m];
+    let scale = gain / T::of_f64((m * m) as f64);
+    if let Some(planar) = &plan.planar {
+        // Small arrays: the Hermitian form's pairs, directions in lanes.
+        let block = planar.block(b, 0..d);
+        scratch.r_small.clear();
+        scratch.r_small.extend(
+            r[..m * m]
+                .iter()
+                .map(|z| C::new(T::of_f64(z.re), T::of_f64(z.im))),
+        );
+        scratch.quad.resize(d, T::zero());
+        lanes::quadratic_form(&block, &scratch.r_small, &mut scratch.quad);
+        for (out, &s) in acc.iter_mut().zip(&scratch.quad) {
+            *out += scale * s.max(T::zero());
+        }
+        return;
+    }
     let a = MatRef::from_row_major_slice(st, d, m);
     for i in 0..m {
         for j in 0..m {
@@ -143,7 +166,6 @@ pub fn accumulate_bin<T: Real>(
         Par::Seq,
     );
     crate::avx::clear_upper();
-    let scale = gain / T::of_f64((m * m) as f64);
     for (dir, out) in acc.iter_mut().enumerate().take(d) {
         let row = &st[dir * m..(dir + 1) * m];
         let mut s = T::zero();

@@ -193,7 +193,10 @@ pub fn decompose_many<T: Real, const N: usize>(
     let mut eighs = ws.eigh.iter_mut();
     let mut outs = out.iter_mut();
     Eigh::solve_many::<N>(std::array::from_fn(|_| {
-        let (e, o) = (eighs.next().expect("N ≤ 4 solvers"), outs.next().expect("N outputs"));
+        let (e, o) = (
+            eighs.next().expect("N ≤ 4 solvers"),
+            outs.next().expect("N outputs"),
+        );
         (e, o.dim, &mut o.vectors64[..])
     }))?;
     for (i, o) in out.into_iter().enumerate() {
@@ -395,7 +398,9 @@ mod tests {
                 let [p0, p1] = &mut p[..] else { unreachable!() };
                 decompose_many(alg, [&rs[0], &rs[1]], [Some(&w); 2], &mut ws, [p0, p1]).unwrap();
                 let mut q: Vec<Decomposition<f64>> = (0..4).map(|_| Decomposition::new(m, k)).collect();
-                let [q0, q1, q2, q3] = &mut q[..] else { unreachable!() };
+                let [q0, q1, q2, q3] = &mut q[..] else {
+                    unreachable!()
+                };
                 let r4 = [&rs[0][..], &rs[1], &rs[2], &rs[3]];
                 decompose_many(alg, r4, [Some(&w); 4], &mut ws, [q0, q1, q2, q3]).unwrap();
                 for (i, a) in single.iter().enumerate() {
