@@ -10,7 +10,7 @@
 //! ([`crate::correlation::running`]): at PERIOD 1 a window costs two outer products per
 //! bin instead of W.
 
-use super::{Backend, BatchOutput, Job, StageTimes, StreamId};
+use super::{Backend, BatchOutput, Job, StageTimes, StreamId, WindowSpec};
 use crate::correlation::running::{run_bin, RunningCorrelation, Step};
 use crate::music::{
     accumulate_bin, bin_gain, normalize_bin, to_db, vectors_needed, SpectrumScratch, DIR_BLOCK,
@@ -24,6 +24,7 @@ use crate::subspace::{count, decompose, decompose_many, Decomposition, Workspace
 use crate::Result;
 use rayon::prelude::*;
 use std::collections::HashMap;
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::Instant;
 
@@ -52,7 +53,10 @@ pub struct CpuBackend<T: Real> {
 
 /// One pool thread's scratch, built on first use, dropped with a new plan.
 struct ThreadScratch<T: Real> {
+    /// Frames gathered for the correlation.
+    y: Vec<C<f64>>,
     decompose: Option<Workspace>,
+    tracker: Option<Tracker>,
     spectrum: Option<SpectrumScratch<T>>,
     srp: Option<SrpScratch<T>>,
 }
@@ -71,7 +75,9 @@ fn scratch_slots<T: Real>(n: usize) -> Vec<Mutex<ThreadScratch<T>>> {
     (0..n.max(1))
         .map(|_| {
             Mutex::new(ThreadScratch {
+                y: Vec::new(),
                 decompose: None,
+                tracker: None,
                 spectrum: None,
                 srp: None,
             })
@@ -94,119 +100,6 @@ impl<T: Real> CpuBackend<T> {
             scratch: scratch_slots(rayon::current_num_threads()),
         }
     }
-
-    /// R of every window of `job` into `self.r` as windows `w0 …` of `nw` in all.
-    fn correlate_job(&mut self, job: &Job<'_, T>, w0: usize, nw: usize, phat: bool) {
-        let (m, nb) = (self.plan.num_mics, self.plan.num_bins());
-        let mm = m * m;
-        let mut rc = match self.running.remove(&job.stream) {
-            Some((rc, _)) => rc,
-            None => RunningCorrelation::new(m, nb),
-        };
-        let steps: Vec<Step> = job.windows.iter().map(|w| rc.step(w, job.first)).collect();
-        let bins: Vec<&mut [C<f64>]> = rc.bins_mut().collect();
-        bins.into_par_iter()
-            .zip(self.r.par_chunks_mut(nw * mm))
-            .enumerate()
-            .for_each_init(Vec::new, |y, (b, (sum, rb))| {
-                for (wi, (w, st)) in job.windows.iter().zip(&steps).enumerate() {
-                    let o = (w0 + wi) * mm;
-                    run_bin(sum, *st, job, w, b, phat, y, &mut rb[o..o + mm]);
-                }
-            });
-        if job.stream.is_kept() {
-            self.running.insert(job.stream, (rc, self.calls));
-            // Drop the least recently used streams' sums beyond the budget.
-            let per = self.running.values().next().map_or(0, |(rc, _)| rc.bytes());
-            while self.running.len() * per > KEEP_BYTES {
-                let Some(oldest) = self.running.iter().min_by_key(|(_, (_, t))| *t).map(|(k, _)| *k) else {
-                    break;
-                };
-                self.running.remove(&oldest);
-            }
-            let running = &self.running;
-            self.tracks.retain(|id, _| running.contains_key(id));
-        }
-    }
-
-    /// The approximate mode's decompositions ([`tracking`]): each job's windows in order
-    /// per bin, (job, bin) pairs in parallel, every stream's state carried between calls.
-    fn track_jobs(&mut self, jobs: &[Job<'_, T>], nw: usize) -> Result<()> {
-        let plan = &*self.plan;
-        let (m, nb) = (plan.num_mics, plan.num_bins());
-        let mm = m * m;
-        let alg = plan.config.algorithm;
-        let c = &plan.config;
-        let refresh = c.window.div_ceil(c.period).max(1);
-        let mut states: Vec<Vec<BinTrack>> = jobs
-            .iter()
-            .map(|j| {
-                let kept = j
-                    .stream
-                    .is_kept()
-                    .then(|| self.tracks.remove(&j.stream))
-                    .flatten();
-                kept.unwrap_or_else(|| vec![BinTrack::default(); nb])
-            })
-            .collect();
-        // (job, bin) → that bin's decompositions of the job's windows, in window order.
-        let mut job_of = Vec::with_capacity(nw);
-        let mut first_window = Vec::with_capacity(jobs.len());
-        for (j, job) in jobs.iter().enumerate() {
-            first_window.push(job_of.len());
-            job_of.extend(std::iter::repeat_n(j, job.windows.len()));
-        }
-        let mut tasks: Vec<Vec<&mut Decomposition<T>>> = (0..jobs.len() * nb).map(|_| Vec::new()).collect();
-        for (i, dec) in self.decs.iter_mut().enumerate() {
-            tasks[job_of[i / nb] * nb + i % nb].push(dec);
-        }
-        let bins: Vec<&mut BinTrack> = states.iter_mut().flat_map(|s| s.iter_mut()).collect();
-        let r = &self.r;
-        tasks.into_par_iter().zip(bins).enumerate().try_for_each_init(
-            || (Workspace::new(m), Tracker::new(m)),
-            |(ws, tr), (t, (decs, state))| -> Result<()> {
-                let (j, b) = (t / nb, t % nb);
-                let job = &jobs[j];
-                for (wi, dec) in decs.into_iter().enumerate() {
-                    let w = &job.windows[wi];
-                    let g = first_window[j] + wi;
-                    // Frames that entered and left since the previous window (PERIOD of
-                    // each, at most CHANGED_FRAMES). The engine keeps the frames that left
-                    // only while 2·PERIOD < W: decided from the config alone, so the search
-                    // space never depends on how the input was cut (the clip at `first`
-                    // matters only at a stream's start, which is decomposed exactly).
-                    let n = c.period.min(w.len).min(tracking::CHANGED_FRAMES);
-                    let n_left = if 2 * c.period < c.window { n } else { 0 };
-                    let end = w.start + w.len;
-                    let left = w.start.saturating_sub(n_left).max(job.first)..w.start;
-                    let changed: Vec<&[C<T>]> = (end - n..end)
-                        .chain(left)
-                        .map(|f| job.spectra.frame_bin(job.local(f), b))
-                        .collect();
-                    let win = tracking::Window {
-                        algorithm: alg,
-                        r: r_at(r, mm, nw, g, b),
-                        w: plan.whitening_matrix64(b),
-                        changed: &changed,
-                        refresh,
-                    };
-                    tracking::decompose_tracked(&win, state, ws, tr, dec)?;
-                }
-                Ok(())
-            },
-        )?;
-        for (job, st) in jobs.iter().zip(states) {
-            if job.stream.is_kept() && self.running.contains_key(&job.stream) {
-                self.tracks.insert(job.stream, st);
-            }
-        }
-        Ok(())
-    }
-}
-
-/// R of window `w`, bin `b` in the backend's `[bin][window][M×M]` layout of `nw` windows.
-fn r_at(r: &[C<f64>], mm: usize, nw: usize, w: usize, b: usize) -> &[C<f64>] {
-    &r[(b * nw + w) * mm..(b * nw + w + 1) * mm]
 }
 
 fn ms(t: Instant) -> f64 {
@@ -256,8 +149,48 @@ impl<T: Real> Backend<T> for CpuBackend<T> {
     }
 }
 
+/// One task of a call: a pair of used bins (the last may be one), with every window of
+/// every job at those bins.
+struct BinTask<'a, T: Real> {
+    /// The first bin.
+    b0: usize,
+    /// Per bin of the task, per stream of the call: the running sums.
+    sums: &'a mut [Vec<&'a mut [C<f64>]>],
+    /// R, `[bin][window][M×M]` (the task's bins).
+    r: &'a mut [C<f64>],
+    /// Decompositions, `[bin][window]` (empty for SRP-PHAT).
+    decs: &'a mut [Decomposition<T>],
+    /// w_k g_k P_k(d), `[bin][window][dir]`.
+    contrib: &'a mut [T],
+    /// Source count per bin and window, `[bin][window]`.
+    counts: &'a mut [usize],
+    /// The approximate mode: per bin, per job, the tracking state.
+    tracks: &'a mut [Vec<&'a mut BinTrack>],
+}
+
+/// CPU time per stage summed over a call's tasks, ns.
+#[derive(Default)]
+struct StageNanos([AtomicU64; 4]);
+
+impl StageNanos {
+    fn add(&self, stage: usize, t: Instant) -> Instant {
+        let now = Instant::now();
+        self.0[stage].fetch_add((now - t).as_nanos() as u64, Ordering::Relaxed);
+        now
+    }
+}
+
 impl<T: Real> CpuBackend<T> {
     /// [`Backend::process`], run on a rayon thread.
+    ///
+    /// One parallel pass over pairs of bins runs the per-bin stages back to back —
+    /// correlation (each stream's running sums), decomposition (exact, the pair's two
+    /// problems side by side, or tracked), the spectrum's contributions and the source
+    /// count — then one pass over the windows sums the bins (in bin order: the result
+    /// depends neither on how rayon splits the work nor on the batch), converts to dB and
+    /// finds the peaks. A small array's window is tens of µs of work, about what each
+    /// extra hand-off between the pool's threads costs. The stage times split the
+    /// pass's wall time by the CPU time each stage took in it.
     fn process_on_pool(
         &mut self,
         jobs: &[Job<'_, T>],
@@ -277,27 +210,73 @@ impl<T: Real> CpuBackend<T> {
         let plan = &*plan;
         let (m, nb, d) = (plan.num_mics, plan.num_bins(), plan.num_dirs);
         let nw = super::count_windows(jobs);
-        let lens: Vec<usize> = jobs
-            .iter()
-            .flat_map(|j| j.windows.iter().map(|w| w.len))
-            .collect();
         let mm = m * m;
-        let alg = plan.config.algorithm;
+        let c = &plan.config;
+        let alg = c.algorithm;
         let srp = !alg.is_music();
-        // 1. Correlation matrices, [window][bin] (phase-transformed for SRP-PHAT), from
-        // each stream's running sums.
-        let t = Instant::now();
-        self.r.resize(nw * nb * mm, C::new(0.0, 0.0));
-        let mut w0 = 0;
-        for job in jobs {
-            self.correlate_job(job, w0, nw, srp);
-            w0 += job.windows.len();
+        let tracking = !srp && c.subspace_tracking;
+        if nw == 0 {
+            out.source_count.clear();
+            out.peaks.clear();
+            out.spectrum_db.clear();
+            out.bin_weight.clear();
+            return Ok(());
         }
-        self.times.correlation_ms += ms(t);
+        let t_pass = Instant::now();
 
-        // 2. Decompositions, [window][bin] (none for SRP-PHAT): the leading vectors the
-        // spectrum needs, in f64.
-        let t = Instant::now();
+        // Each stream's running sums (jobs of one stream share them, in job order) and
+        // the step that carries them to each window.
+        let mut streams: Vec<StreamId> = Vec::new();
+        let mut rcs: Vec<RunningCorrelation> = Vec::new();
+        let mut rc_of = Vec::with_capacity(jobs.len());
+        for job in jobs {
+            let i = match streams.iter().position(|&s| s == job.stream && s.is_kept()) {
+                Some(i) => i,
+                None => {
+                    streams.push(job.stream);
+                    rcs.push(match self.running.remove(&job.stream) {
+                        Some((rc, _)) => rc,
+                        None => RunningCorrelation::new(m, nb),
+                    });
+                    rcs.len() - 1
+                }
+            };
+            rc_of.push(i);
+        }
+        let steps: Vec<Vec<Step>> = jobs
+            .iter()
+            .zip(&rc_of)
+            .map(|(job, &i)| job.windows.iter().map(|w| rcs[i].step(w, job.first)).collect())
+            .collect();
+        // The approximate mode's states, per job (kept or fresh).
+        let mut states: Vec<Vec<BinTrack>> = jobs
+            .iter()
+            .map(|j| {
+                let kept = (tracking && j.stream.is_kept())
+                    .then(|| self.tracks.remove(&j.stream))
+                    .flatten();
+                kept.unwrap_or_else(|| {
+                    if tracking {
+                        vec![BinTrack::default(); nb]
+                    } else {
+                        Vec::new()
+                    }
+                })
+            })
+            .collect();
+        let mut sums_by_bin: Vec<Vec<&mut [C<f64>]>> = (0..nb).map(|_| Vec::new()).collect();
+        for rc in rcs.iter_mut() {
+            for (b, sum) in rc.bins_mut().enumerate() {
+                sums_by_bin[b].push(sum);
+            }
+        }
+        let mut tracks_by_bin: Vec<Vec<&mut BinTrack>> = (0..nb).map(|_| Vec::new()).collect();
+        for st in states.iter_mut() {
+            for (b, t) in st.iter_mut().enumerate() {
+                tracks_by_bin[b].push(t);
+            }
+        }
+        self.r.resize(nw * nb * mm, C::new(0.0, 0.0));
         if srp {
             self.decs.clear();
         } else {
@@ -307,76 +286,84 @@ impl<T: Real> CpuBackend<T> {
             }
             self.decs.resize_with(nw * nb, || Decomposition::new(m, k));
         }
-        if !srp && plan.config.subspace_tracking {
-            self.track_jobs(jobs, nw)?;
-        }
-        let r = &self.r;
-        let r_of = |w: usize, b: usize| r_at(r, mm, nw, w, b);
-        if !srp && !plan.config.subspace_tracking {
-            // In pairs: two problems' eigenvalue iterations run side by side (same
-            // results as one at a time).
-            let w_of = |i: usize| plan.whitening_matrix64(i % nb);
-            let slots = &self.scratch;
-            self.decs
-                .par_chunks_mut(2)
-                .enumerate()
-                .try_for_each(|(c, pair)| {
-                    let mut slot = thread_scratch(slots);
-                    let ws = slot.decompose.get_or_insert_with(|| Workspace::new(m));
-                    let (i0, i1) = (2 * c, 2 * c + 1);
-                    let r = |i: usize| r_of(i / nb, i % nb);
-                    match pair {
-                        [d0, d1] => decompose_many(alg, [r(i0), r(i1)], [w_of(i0), w_of(i1)], ws, [d0, d1]),
-                        [d0] => decompose(alg, r(i0), w_of(i0), ws, d0),
-                        _ => Ok(()),
-                    }
-                })?;
-        }
-        self.times.decomposition_ms += ms(t);
-
-        // 3. Broadband spectrum per window: Σ_k w_k g_k P_k(d), then dB. Per-bin
-        // contributions `[bin][window][dir]` with the bins in parallel; within a bin the
-        // directions run in fixed blocks and every window passes through each block (its
-        // steering vectors stay in cache). The sum over bins runs in bin order: the result
-        // depends neither on how rayon splits the work nor on the batch (bit-reproducible).
-        let t = Instant::now();
-        let decs = &self.decs;
         self.contrib.clear();
         self.contrib.resize(nw * nb * d, T::zero());
-        let normalize = plan.config.normalize_bins;
-        let blocks = || {
-            (0..d)
-                .step_by(DIR_BLOCK)
-                .map(move |d0| d0..(d0 + DIR_BLOCK).min(d))
-        };
-        let slots = &self.scratch;
-        self.contrib
-            .par_chunks_mut(nw * d)
+        let mut counts = vec![0usize; nw * nb];
+
+        // The tasks: pairs of bins.
+        const PAIR: usize = 2;
+        let mut decs = self.decs.chunks_mut(PAIR * nw);
+        let mut tracks = tracks_by_bin.chunks_mut(PAIR);
+        let tasks: Vec<BinTask<'_, T>> = sums_by_bin
+            .chunks_mut(PAIR)
+            .zip(self.r.chunks_mut(PAIR * nw * mm))
+            .zip(self.contrib.chunks_mut(PAIR * nw * d))
+            .zip(counts.chunks_mut(PAIR * nw))
             .enumerate()
-            .for_each(|(b, cb)| {
-                let mut slot = thread_scratch(slots);
-                if srp {
-                    let sc = slot.srp.get_or_insert_with(|| SrpScratch::new(plan));
-                    for (w, acc) in cb.chunks_mut(d).enumerate() {
-                        srp::accumulate_bin(plan, b, r_of(w, b), sc, acc);
-                    }
-                    return;
-                }
-                let sc = slot.spectrum.get_or_insert_with(|| SpectrumScratch::new(plan));
-                let bin_decs: Vec<&Decomposition<T>> = (0..nw).map(|w| &decs[w * nb + b]).collect();
-                for dirs in blocks() {
-                    let mut accs: Vec<&mut [T]> =
-                        cb.chunks_mut(d).map(|acc| &mut acc[dirs.clone()]).collect();
-                    accumulate_bin(plan, b, dirs.clone(), &bin_decs, sc, &mut accs);
-                }
-            });
-        if normalize {
-            self.contrib.par_chunks_mut(d).enumerate().for_each(|(i, acc)| {
-                normalize_bin(acc, plan.weights[i / nw]);
-            });
+            .map(|(i, (((sums, r), contrib), counts))| BinTask {
+                b0: PAIR * i,
+                sums,
+                r,
+                decs: decs.next().unwrap_or_default(),
+                contrib,
+                counts,
+                tracks: tracks.next().unwrap_or_default(),
+            })
+            .collect();
+        let nanos = StageNanos::default();
+        let slots = &self.scratch;
+        let lens: Vec<usize> = jobs
+            .iter()
+            .flat_map(|j| j.windows.iter().map(|w| w.len))
+            .collect();
+        let ctx = Ctx {
+            plan,
+            jobs,
+            steps: &steps,
+            rc_of: &rc_of,
+            lens: &lens,
+            nw,
+        };
+        tasks.into_par_iter().try_for_each(|task| -> Result<()> {
+            let mut slot = thread_scratch(slots);
+            ctx.run(task, &mut slot, &nanos)
+        })?;
+        let pass_ms = ms(t_pass);
+        let cpu: Vec<f64> = nanos.0.iter().map(|n| n.load(Ordering::Relaxed) as f64).collect();
+        let total: f64 = cpu.iter().sum::<f64>().max(1.0);
+        self.times.correlation_ms += pass_ms * cpu[0] / total;
+        self.times.decomposition_ms += pass_ms * cpu[1] / total;
+        self.times.spectrum_ms += pass_ms * cpu[2] / total;
+        self.times.peaks_ms += pass_ms * cpu[3] / total;
+
+        // Keep the streams' running sums and tracking states; drop the least recently
+        // used streams' sums beyond the budget.
+        for (id, rc) in streams.into_iter().zip(rcs) {
+            if id.is_kept() {
+                self.running.insert(id, (rc, self.calls));
+            }
         }
+        let per = self.running.values().next().map_or(0, |(rc, _)| rc.bytes());
+        while self.running.len() * per > KEEP_BYTES {
+            let Some(oldest) = self.running.iter().min_by_key(|(_, (_, t))| *t).map(|(k, _)| *k) else {
+                break;
+            };
+            self.running.remove(&oldest);
+        }
+        if tracking {
+            for (job, st) in jobs.iter().zip(states) {
+                if job.stream.is_kept() && self.running.contains_key(&job.stream) {
+                    self.tracks.insert(job.stream, st);
+                }
+            }
+        }
+        let running = &self.running;
+        self.tracks.retain(|id, _| running.contains_key(id));
+
+        // Per window: Σ_k over the bins in bin order, dB.
+        let t = Instant::now();
         let contrib = &self.contrib;
-        let spectra_lin: Vec<Vec<T>> = (0..nw)
+        let db: Vec<Vec<f64>> = (0..nw)
             .into_par_iter()
             .map(|w| {
                 let mut acc = vec![T::zero(); d];
@@ -388,40 +375,20 @@ impl<T: Real> CpuBackend<T> {
                         *x += *y;
                     }
                 }
-                acc
+                acc.iter().map(|&v| to_db(v)).collect()
             })
-            .collect();
-        let db: Vec<Vec<f64>> = spectra_lin
-            .par_iter()
-            .map(|p| p.iter().map(|&v| to_db(v)).collect())
             .collect();
         self.times.spectrum_ms += ms(t);
 
-        // 4. Peaks, and the number of active sources (MDL per bin, median over bins).
+        // Peaks, and the number of active sources (median over the bins that carry
+        // weight; none in the approximate mode, which keeps only the tracked values).
         let t = Instant::now();
         out.source_count.clear();
-        // (The approximate mode keeps only the tracked values: no count.)
-        if !srp && !plan.config.subspace_tracking {
-            // Overlapping frames are not independent snapshots: N = W·hop/N_fft of them.
-            // k̂ per (window, bin) in parallel (a few µs each, ≈ 10³ per batch), then the
-            // median per window over the bins that carry weight.
-            let c = &plan.config;
-            let overlap = c.hop.min(c.nfft) as f64 / c.nfft as f64;
-            let snapshots = |w: usize| ((lens[w] as f64 * overlap).round() as usize).max(1);
-            let per_bin: Vec<usize> = (0..nw * nb)
-                .into_par_iter()
-                .map(|i| {
-                    if plan.weights[i % nb] == T::zero() {
-                        0 // not used: the median skips bins without weight
-                    } else {
-                        count::mdl(&decs[i].values, snapshots(i / nb))
-                    }
-                })
-                .collect();
+        if !srp && !tracking {
             for w in 0..nw {
                 let used = (0..nb)
                     .filter(|&b| plan.weights[b] != T::zero())
-                    .map(|b| per_bin[w * nb + b]);
+                    .map(|b| counts[b * nw + w]);
                 out.source_count.push(count::median(used.collect()) as u32);
             }
         }
@@ -435,12 +402,167 @@ impl<T: Real> CpuBackend<T> {
             if srp {
                 out.bin_weight.resize(nw * nb, 1.0);
             } else {
-                for dec in decs.iter().take(nw * nb) {
-                    out.bin_weight.push(bin_gain(plan, dec).to_f64() as f32);
+                for w in 0..nw {
+                    for b in 0..nb {
+                        out.bin_weight
+                            .push(bin_gain(plan, &self.decs[b * nw + w]).to_f64() as f32);
+                    }
                 }
             }
         }
         self.times.peaks_ms += ms(t);
         Ok(())
     }
+}
+
+/// What every task of a call reads.
+struct Ctx<'a, 'j, T: Real> {
+    plan: &'a Plan<T>,
+    jobs: &'a [Job<'j, T>],
+    /// Per job, per window: the running sums' step.
+    steps: &'a [Vec<Step>],
+    /// Per job: its stream's index among the task's sums.
+    rc_of: &'a [usize],
+    /// Per window of the call: its length in frames.
+    lens: &'a [usize],
+    nw: usize,
+}
+
+impl<T: Real> Ctx<'_, '_, T> {
+    /// Run one task's stages: correlation, decomposition, spectrum, source count.
+    fn run(&self, task: BinTask<'_, T>, slot: &mut ThreadScratch<T>, nanos: &StageNanos) -> Result<()> {
+        let plan = self.plan;
+        let (m, nb, d, nw) = (plan.num_mics, plan.num_bins(), plan.num_dirs, self.nw);
+        let mm = m * m;
+        let c = &plan.config;
+        let alg = c.algorithm;
+        let srp = !alg.is_music();
+        let bins = task.b0..(task.b0 + task.sums.len()).min(nb);
+        let mut t = Instant::now();
+
+        // 1. R of every window at the task's bins (phase-transformed for SRP-PHAT).
+        let y = &mut slot.y;
+        for (i, b) in bins.clone().enumerate() {
+            let mut wi = 0;
+            for (j, job) in self.jobs.iter().enumerate() {
+                let sum = &mut *task.sums[i][self.rc_of[j]];
+                for (w, st) in job.windows.iter().zip(&self.steps[j]) {
+                    let o = (i * nw + wi) * mm;
+                    run_bin(sum, *st, job, w, b, srp, y, &mut task.r[o..o + mm]);
+                    wi += 1;
+                }
+            }
+        }
+        t = nanos.add(0, t);
+
+        // 2. Decompositions (none for SRP-PHAT): the leading vectors the spectrum needs.
+        let r = &*task.r;
+        let r_of = |i: usize, w: usize| &r[(i * nw + w) * mm..(i * nw + w + 1) * mm];
+        if !srp {
+            let ws = slot.decompose.get_or_insert_with(|| Workspace::new(m));
+            if c.subspace_tracking {
+                let tr = slot.tracker.get_or_insert_with(|| Tracker::new(m));
+                let refresh = c.window.div_ceil(c.period).max(1);
+                for (i, b) in bins.clone().enumerate() {
+                    let mut wi = 0;
+                    for (j, job) in self.jobs.iter().enumerate() {
+                        for w in job.windows {
+                            let changed = changed_frames(c, job, w, b);
+                            let win = tracking::Window {
+                                algorithm: alg,
+                                r: r_of(i, wi),
+                                w: plan.whitening_matrix64(b),
+                                changed: &changed,
+                                refresh,
+                            };
+                            let dec = &mut task.decs[i * nw + wi];
+                            tracking::decompose_tracked(&win, &mut *task.tracks[i][j], ws, tr, dec)?;
+                            wi += 1;
+                        }
+                    }
+                }
+            } else {
+                // The pair's two bins side by side (same results as one at a time).
+                let wm = |b: usize| plan.whitening_matrix64(b);
+                let (d0, d1) = task.decs.split_at_mut(nw.min(task.decs.len()));
+                for (w, e0) in d0.iter_mut().enumerate() {
+                    match d1.get_mut(w) {
+                        Some(e1) => decompose_many(
+                            alg,
+                            [r_of(0, w), r_of(1, w)],
+                            [wm(bins.start), wm(bins.start + 1)],
+                            ws,
+                            [e0, e1],
+                        )?,
+                        None => decompose(alg, r_of(0, w), wm(bins.start), ws, e0)?,
+                    }
+                }
+            }
+        }
+        t = nanos.add(1, t);
+
+        // 3. w_k g_k P_k(d) per window; within a bin the directions run in fixed blocks
+        // and every window passes through each block (its steering stays in cache).
+        for (i, b) in bins.clone().enumerate() {
+            let cb = &mut task.contrib[i * nw * d..(i + 1) * nw * d];
+            if srp {
+                let sc = slot.srp.get_or_insert_with(|| SrpScratch::new(plan));
+                for (w, acc) in cb.chunks_mut(d).enumerate() {
+                    srp::accumulate_bin(plan, b, r_of(i, w), sc, acc);
+                }
+                continue;
+            }
+            let sc = slot.spectrum.get_or_insert_with(|| SpectrumScratch::new(plan));
+            let bin_decs: Vec<&Decomposition<T>> = task.decs[i * nw..(i + 1) * nw].iter().collect();
+            for d0 in (0..d).step_by(DIR_BLOCK) {
+                let dirs = d0..(d0 + DIR_BLOCK).min(d);
+                let mut accs: Vec<&mut [T]> = cb.chunks_mut(d).map(|acc| &mut acc[dirs.clone()]).collect();
+                accumulate_bin(plan, b, dirs, &bin_decs, sc, &mut accs);
+            }
+            if c.normalize_bins {
+                for acc in cb.chunks_mut(d) {
+                    normalize_bin(acc, plan.weights[b]);
+                }
+            }
+        }
+        t = nanos.add(2, t);
+
+        // 4. k̂ per window and bin (MDL; overlapping frames are not independent
+        // snapshots: N = W·hop/N_fft of them).
+        if !srp && !c.subspace_tracking {
+            let overlap = c.hop.min(c.nfft) as f64 / c.nfft as f64;
+            for (i, b) in bins.enumerate() {
+                if plan.weights[b] == T::zero() {
+                    continue; // not used: the median skips bins without weight
+                }
+                for w in 0..nw {
+                    let snapshots = ((self.lens[w] as f64 * overlap).round() as usize).max(1);
+                    task.counts[i * nw + w] = count::mdl(&task.decs[i * nw + w].values, snapshots);
+                }
+            }
+        }
+        nanos.add(3, t);
+        Ok(())
+    }
+}
+
+/// The frames at bin `b` that entered and left since the stream's previous window (PERIOD
+/// of each, at most [`tracking::CHANGED_FRAMES`]). The engine keeps the frames that left
+/// only while 2·PERIOD < W: decided from the config alone, so the search space never
+/// depends on how the input was cut (the clip at `first` matters only at a stream's start,
+/// which is decomposed exactly).
+fn changed_frames<'a, T: Real>(
+    c: &crate::config::LocalizeConfig,
+    job: &'a Job<'_, T>,
+    w: &WindowSpec,
+    b: usize,
+) -> Vec<&'a [C<T>]> {
+    let n = c.period.min(w.len).min(tracking::CHANGED_FRAMES);
+    let n_left = if 2 * c.period < c.window { n } else { 0 };
+    let end = w.start + w.len;
+    let left = w.start.saturating_sub(n_left).max(job.first)..w.start;
+    (end - n..end)
+        .chain(left)
+        .map(|f| job.spectra.frame_bin(job.local(f), b))
+        .collect()
 }

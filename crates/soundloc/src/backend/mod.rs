@@ -328,6 +328,8 @@ pub struct BatchOutput {
 }
 
 /// Wall time spent per stage, in milliseconds, summed over calls since the last reset.
+/// (The CPU backend runs the per-bin stages in one parallel pass and splits that pass's
+/// wall time by the CPU time each stage took in it.)
 #[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize)]
 pub struct StageTimes {
     /// Correlation matrices and scaling.
