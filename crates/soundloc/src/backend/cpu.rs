@@ -510,14 +510,15 @@ impl<T: Real> Ctx<'_, '_, T> {
                 for (w, acc) in cb.chunks_mut(d).enumerate() {
                     srp::accumulate_bin(plan, b, r_of(i, w), sc, acc);
                 }
-                continue;
-            }
-            let sc = slot.spectrum.get_or_insert_with(|| SpectrumScratch::new(plan));
-            let bin_decs: Vec<&Decomposition<T>> = task.decs[i * nw..(i + 1) * nw].iter().collect();
-            for d0 in (0..d).step_by(DIR_BLOCK) {
-                let dirs = d0..(d0 + DIR_BLOCK).min(d);
-                let mut accs: Vec<&mut [T]> = cb.chunks_mut(d).map(|acc| &mut acc[dirs.clone()]).collect();
-                accumulate_bin(plan, b, dirs, &bin_decs, sc, &mut accs);
+            } else {
+                let sc = slot.spectrum.get_or_insert_with(|| SpectrumScratch::new(plan));
+                let bin_decs: Vec<&Decomposition<T>> = task.decs[i * nw..(i + 1) * nw].iter().collect();
+                for d0 in (0..d).step_by(DIR_BLOCK) {
+                    let dirs = d0..(d0 + DIR_BLOCK).min(d);
+                    let mut accs: Vec<&mut [T]> =
+                        cb.chunks_mut(d).map(|acc| &mut acc[dirs.clone()]).collect();
+                    accumulate_bin(plan, b, dirs, &bin_decs, sc, &mut accs);
+                }
             }
             if c.normalize_bins {
                 for acc in cb.chunks_mut(d) {
