@@ -182,7 +182,6 @@ mod tests {
     use super::*;
     use crate::backend::Spectra;
 
-    /// ãᴴR̃ã against the explicit pairwise GCC-PHAT sum in f64 on random frames.
     /// With per-bin normalisation the backend's SRP-PHAT spectrum is the sum of each
     /// bin's contributions scaled to a maximum of w_k (and differs from the plain sum).
     #[test]
@@ -230,6 +229,7 @@ mod tests {
         assert!(plain_gap > 0.1, "normalisation changed nothing ({plain_gap} dB)");
     }
 
+    /// ãᴴR̃ã against the explicit pairwise GCC-PHAT sum in f64 on random frames.
     #[test]
     fn quadratic_form_equals_the_pairwise_phat_sum() {
         use rand::{Rng, SeedableRng};

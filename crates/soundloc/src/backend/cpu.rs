@@ -1,14 +1,17 @@
-//! The CPU backend: rayon across (window, bin) pairs for the correlation and the
-//! decompositions (which run in f64: [`crate::subspace`]), across bins for the spectrum
-//! (faer products over fixed blocks of directions, every window of the batch through each
-//! block) — never inside faer (`Par::Seq`), so small problems do not pay for nested
-//! threading.
+//! The CPU backend: one rayon pass over pairs of used bins runs the per-bin stages back to
+//! back — the correlation (each stream's running sums between calls,
+//! [`crate::correlation::running`]: at PERIOD 1 a window costs two outer products per bin
+//! instead of W), the decompositions (in f64, [`crate::subspace`]; the pair's two problems
+//! side by side), the spectrum's contributions (fixed blocks of directions, every window of
+//! the batch through each block; [`crate::lanes`] for arrays up to 16 mics, faer products
+//! above) and the source count — then one pass over the windows sums the bins, converts to
+//! dB and finds the peaks. Never parallel inside faer (`Par::Seq`), so small problems do
+//! not pay for nested threading; a small array's window costs tens of µs, about what each
+//! hand-off between the pool's threads costs, hence one pass.
 //!
-//! Each batch runs the stages one after another, which keeps every core busy even for a
-//! single window (73 bins) and gives exact stage times. The
-//! correlation keeps each stream's running sums between calls
-//! ([`crate::correlation::running`]): at PERIOD 1 a window costs two outer products per
-//! bin instead of W.
+//! Parallelism is per pair of bins (37 tasks at the 73 bins of HARK's defaults), each task
+//! running every window of the batch: enough for a few dozen cores; more cores than that
+//! (or very narrow bands) would need the tasks split by windows as well.
 
 use super::{Backend, BatchOutput, Job, StageTimes, StreamId, WindowSpec};
 use crate::correlation::running::{run_bin, RunningCorrelation, Step};

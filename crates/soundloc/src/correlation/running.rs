@@ -30,7 +30,8 @@ pub enum Step {
     /// S = Σ over the window's frames.
     Direct,
     /// S += y yᴴ for the frames `prev_start + W ..` that enter, S −= y yᴴ for the frames
-    /// `prev_start ..` that leave, `delta` of each, interleaved frame by frame.
+    /// `prev_start ..` that leave, `delta` of each (all entering frames added, then all
+    /// leaving ones subtracted).
     Slide {
         /// Start of the previous window.
         prev_start: usize,
