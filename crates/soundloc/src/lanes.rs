@@ -32,7 +32,7 @@ const LANES: usize = 8;
 /// The steering vectors of every used bin in planar form, `[bin][mic][direction]`
 /// (real and imaginary parts apart), the directions padded to a multiple of [`LANES`]
 /// with zeros. Built once per plan (`Plan::planar`).
-#[derive(Debug, Clone, Default)]
+#[derive(Debug, Clone, Default, PartialEq)]
 pub struct Planar<T> {
     re: Vec<T>,
     im: Vec<T>,

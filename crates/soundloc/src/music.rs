@@ -447,6 +447,62 @@ mod tests {
         }
     }
 
+    /// The CPU backend's results are the same bits whatever the size of the pool it runs
+    /// in (one thread: one task after another; many: bins in parallel and, with few
+    /// tasks per thread, windows split into parts), for MUSIC, the approximate mode's
+    /// exact start and SRP-PHAT, on small and larger arrays.
+    #[test]
+    fn results_do_not_depend_on_the_pool_size() {
+        for (alg, mics, dirs) in [
+            (Algorithm::Gevd, 8, 72),
+            (Algorithm::Gsvd, 24, 300),
+            (Algorithm::SrpPhat, 8, 72),
+            (Algorithm::Sevd, 20, 100),
+        ] {
+            let cfg = BenchConfig {
+                algorithm: alg,
+                num_mics: mics,
+                num_dirs: dirs,
+                batch: 9,
+                ..Default::default()
+            };
+            let inp = inputs::<f32>(&cfg).unwrap();
+            let run = |threads: usize| {
+                let pool = rayon::ThreadPoolBuilder::new()
+                    .num_threads(threads)
+                    .build()
+                    .unwrap();
+                pool.install(|| {
+                    let mut be = CpuBackend::new(inp.plan.clone());
+                    let mut out = BatchOutput::default();
+                    be.process(&[Job::once(&inp.spectra, &inp.windows)], true, &mut out)
+                        .unwrap();
+                    out
+                })
+            };
+            let one = run(1);
+            assert!(
+                one.spectrum_db.iter().any(|&v| v > 0.0),
+                "{alg:?}: an empty spectrum"
+            );
+            for threads in [3, 16] {
+                let many = run(threads);
+                let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+                assert_eq!(
+                    bits(&one.spectrum_db),
+                    bits(&many.spectrum_db),
+                    "{alg:?} {threads} threads"
+                );
+                assert_eq!(
+                    bits(&one.bin_weight),
+                    bits(&many.bin_weight),
+                    "{alg:?} {threads} threads"
+                );
+                assert_eq!(one.source_count, many.source_count, "{alg:?} {threads} threads");
+            }
+        }
+    }
+
     #[test]
     fn complement_with_refinement_equals_the_full_noise_sum() {
         for alg in Algorithm::MUSIC {

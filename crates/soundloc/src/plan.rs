@@ -66,7 +66,9 @@ pub struct Plan<T: Real> {
     /// Peak search table.
     pub peak_table: PeakTable,
     /// Small arrays (M ≤ [`lanes::MAX_MICS`]): the denominator's steering vectors
-    /// ([`Plan::denominator_steering`]) in planar form for the CPU's spectrum kernels.
+    /// ([`Plan::denominator_steering`]) in planar form for the CPU's spectrum kernels,
+    /// derived at construction and by [`Plan::with_noise`] (a plan's steering, whitening
+    /// and algorithm are not changed after construction).
     pub(crate) planar: Option<Arc<Planar<T>>>,
 }
 
@@ -594,5 +596,43 @@ mod tests {
             &w[..6]
         );
         assert_eq!(p.whitening_matrix64(0).unwrap()[5].re, 1.0);
+    }
+
+    /// Small arrays' planar steering follows the denominator's steering: for the textbook
+    /// GEVD the whitened one, rebuilt by a K update (equal to a plan built with that K);
+    /// otherwise the raw one, shared.
+    #[test]
+    fn the_planar_steering_follows_a_k_update() {
+        let bins = LocalizeConfig::default().bin_range();
+        let tf = free_field(
+            &Geometry::circle(4, 0.05, 0.0),
+            &Grid::ring(10.0, 0.0, 1.0),
+            512,
+            16000,
+            bins.clone(),
+            343.0,
+        )
+        .unwrap();
+        let mut k = NoiseMatrices::identity(4, bins);
+        for b in 0..k.num_bins {
+            k.data[b * 16].re = 4.0;
+        }
+        for alg in [Algorithm::Gevd, Algorithm::Gsvd] {
+            let config = LocalizeConfig {
+                algorithm: alg,
+                ..LocalizeConfig::default()
+            };
+            let p = Plan::<f32>::new(&config, &tf, None).unwrap();
+            let q = p.with_noise(&k).unwrap();
+            let fresh = Plan::<f32>::new(&config, &tf, Some(&k)).unwrap();
+            assert!(q.planar.is_some(), "{alg:?}: no planar copy for 4 mics");
+            assert_eq!(q.planar, fresh.planar, "{alg:?}");
+            let (old, new) = (p.planar.as_ref().unwrap(), q.planar.as_ref().unwrap());
+            if alg == Algorithm::Gevd {
+                assert_ne!(old, new, "the whitened steering did not change");
+            } else {
+                assert!(Arc::ptr_eq(old, new));
+            }
+        }
     }
 }

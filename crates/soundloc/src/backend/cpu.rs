@@ -9,25 +9,27 @@
 //! not pay for nested threading; a small array's window costs tens of µs, about what each
 //! hand-off between the pool's threads costs, hence one pass.
 //!
-//! Parallelism is per pair of bins (37 tasks at the 73 bins of HARK's defaults), each task
-//! running every window of the batch: enough for a few dozen cores; more cores than that
-//! (or very narrow bands) would need the tasks split by windows as well.
+//! Parallelism is per pair of bins (37 tasks at the 73 bins of HARK's defaults); where the
+//! pool has more threads than that keeps busy (about four tasks per thread), each task's
+//! windows are split into parts after their correlation ([`pass`]), so a batch still
+//! spreads over many cores. Results are the same bits for any pool size (`music::tests`).
 
-use super::{Backend, BatchOutput, Job, StageTimes, StreamId, WindowSpec};
-use crate::correlation::running::{run_bin, RunningCorrelation, Step};
-use crate::music::{
-    accumulate_bin, bin_gain, normalize_bin, to_db, vectors_needed, SpectrumScratch, DIR_BLOCK,
-};
+mod pass;
+
+use super::{Backend, BatchOutput, Job, StageTimes, StreamId};
+use crate::correlation::running::{RunningCorrelation, Step};
+use crate::music::{bin_gain, to_db, vectors_needed, SpectrumScratch};
 use crate::peaks::find_peaks;
 use crate::plan::Plan;
 use crate::real::{Real, C};
-use crate::srp::{self, SrpScratch};
-use crate::subspace::tracking::{self, BinTrack, Tracker};
-use crate::subspace::{count, decompose, decompose_many, Decomposition, Workspace};
+use crate::srp::SrpScratch;
+use crate::subspace::tracking::{BinTrack, Tracker};
+use crate::subspace::{count, Decomposition, Workspace};
 use crate::Result;
+use pass::{BinTask, Ctx, StageNanos};
 use rayon::prelude::*;
 use std::collections::HashMap;
-use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::atomic::Ordering;
 use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::Instant;
 
@@ -152,37 +154,6 @@ impl<T: Real> Backend<T> for CpuBackend<T> {
     }
 }
 
-/// One task of a call: a pair of used bins (the last may be one), with every window of
-/// every job at those bins.
-struct BinTask<'a, T: Real> {
-    /// The first bin.
-    b0: usize,
-    /// Per bin of the task, per stream of the call: the running sums.
-    sums: &'a mut [Vec<&'a mut [C<f64>]>],
-    /// R, `[bin][window][M×M]` (the task's bins).
-    r: &'a mut [C<f64>],
-    /// Decompositions, `[bin][window]` (empty for SRP-PHAT).
-    decs: &'a mut [Decomposition<T>],
-    /// w_k g_k P_k(d), `[bin][window][dir]`.
-    contrib: &'a mut [T],
-    /// Source count per bin and window, `[bin][window]`.
-    counts: &'a mut [usize],
-    /// The approximate mode: per bin, per job, the tracking state.
-    tracks: &'a mut [Vec<&'a mut BinTrack>],
-}
-
-/// CPU time per stage summed over a call's tasks, ns.
-#[derive(Default)]
-struct StageNanos([AtomicU64; 4]);
-
-impl StageNanos {
-    fn add(&self, stage: usize, t: Instant) -> Instant {
-        let now = Instant::now();
-        self.0[stage].fetch_add((now - t).as_nanos() as u64, Ordering::Relaxed);
-        now
-    }
-}
-
 impl<T: Real> CpuBackend<T> {
     /// [`Backend::process`], run on a rayon thread.
     ///
@@ -251,12 +222,12 @@ impl<T: Real> CpuBackend<T> {
             .zip(&rc_of)
             .map(|(job, &i)| job.windows.iter().map(|w| rcs[i].step(w, job.first)).collect())
             .collect();
-        // The approximate mode's states, per job (kept or fresh).
-        let mut states: Vec<Vec<BinTrack>> = jobs
+        // The approximate mode's states, per stream (kept or fresh).
+        let mut states: Vec<Vec<BinTrack>> = streams
             .iter()
-            .map(|j| {
-                let kept = (tracking && j.stream.is_kept())
-                    .then(|| self.tracks.remove(&j.stream))
+            .map(|&id| {
+                let kept = (tracking && id.is_kept())
+                    .then(|| self.tracks.remove(&id))
                     .flatten();
                 kept.unwrap_or_else(|| {
                     if tracking {
@@ -326,11 +297,13 @@ impl<T: Real> CpuBackend<T> {
             rc_of: &rc_of,
             lens: &lens,
             nw,
+            // Parts of windows when the call's tasks are few for the pool: about four
+            // tasks' worth of work per thread (one part, all windows, on small pools).
+            part_windows: nw.div_ceil((4 * threads).div_ceil(nb.div_ceil(PAIR)).max(1)),
         };
-        tasks.into_par_iter().try_for_each(|task| -> Result<()> {
-            let mut slot = thread_scratch(slots);
-            ctx.run(task, &mut slot, &nanos)
-        })?;
+        tasks
+            .into_par_iter()
+            .try_for_each(|task| ctx.run(task, slots, &nanos))?;
         let pass_ms = ms(t_pass);
         let cpu: Vec<f64> = nanos.0.iter().map(|n| n.load(Ordering::Relaxed) as f64).collect();
         let total: f64 = cpu.iter().sum::<f64>().max(1.0);
@@ -341,7 +314,7 @@ impl<T: Real> CpuBackend<T> {
 
         // Keep the streams' running sums and tracking states; drop the least recently
         // used streams' sums beyond the budget.
-        for (id, rc) in streams.into_iter().zip(rcs) {
+        for (&id, rc) in streams.iter().zip(rcs) {
             if id.is_kept() {
                 self.running.insert(id, (rc, self.calls));
             }
@@ -354,9 +327,9 @@ impl<T: Real> CpuBackend<T> {
             self.running.remove(&oldest);
         }
         if tracking {
-            for (job, st) in jobs.iter().zip(states) {
-                if job.stream.is_kept() && self.running.contains_key(&job.stream) {
-                    self.tracks.insert(job.stream, st);
+            for (&id, st) in streams.iter().zip(states) {
+                if id.is_kept() && self.running.contains_key(&id) {
+                    self.tracks.insert(id, st);
                 }
             }
         }
@@ -416,157 +389,4 @@ impl<T: Real> CpuBackend<T> {
         self.times.peaks_ms += ms(t);
         Ok(())
     }
-}
-
-/// What every task of a call reads.
-struct Ctx<'a, 'j, T: Real> {
-    plan: &'a Plan<T>,
-    jobs: &'a [Job<'j, T>],
-    /// Per job, per window: the running sums' step.
-    steps: &'a [Vec<Step>],
-    /// Per job: its stream's index among the task's sums.
-    rc_of: &'a [usize],
-    /// Per window of the call: its length in frames.
-    lens: &'a [usize],
-    nw: usize,
-}
-
-impl<T: Real> Ctx<'_, '_, T> {
-    /// Run one task's stages: correlation, decomposition, spectrum, source count.
-    fn run(&self, task: BinTask<'_, T>, slot: &mut ThreadScratch<T>, nanos: &StageNanos) -> Result<()> {
-        let plan = self.plan;
-        let (m, nb, d, nw) = (plan.num_mics, plan.num_bins(), plan.num_dirs, self.nw);
-        let mm = m * m;
-        let c = &plan.config;
-        let alg = c.algorithm;
-        let srp = !alg.is_music();
-        let bins = task.b0..(task.b0 + task.sums.len()).min(nb);
-        let mut t = Instant::now();
-
-        // 1. R of every window at the task's bins (phase-transformed for SRP-PHAT).
-        let y = &mut slot.y;
-        for (i, b) in bins.clone().enumerate() {
-            let mut wi = 0;
-            for (j, job) in self.jobs.iter().enumerate() {
-                let sum = &mut *task.sums[i][self.rc_of[j]];
-                for (w, st) in job.windows.iter().zip(&self.steps[j]) {
-                    let o = (i * nw + wi) * mm;
-                    run_bin(sum, *st, job, w, b, srp, y, &mut task.r[o..o + mm]);
-                    wi += 1;
-                }
-            }
-        }
-        t = nanos.add(0, t);
-
-        // 2. Decompositions (none for SRP-PHAT): the leading vectors the spectrum needs.
-        let r = &*task.r;
-        let r_of = |i: usize, w: usize| &r[(i * nw + w) * mm..(i * nw + w + 1) * mm];
-        if !srp {
-            let ws = slot.decompose.get_or_insert_with(|| Workspace::new(m));
-            if c.subspace_tracking {
-                let tr = slot.tracker.get_or_insert_with(|| Tracker::new(m));
-                let refresh = c.window.div_ceil(c.period).max(1);
-                for (i, b) in bins.clone().enumerate() {
-                    let mut wi = 0;
-                    for (j, job) in self.jobs.iter().enumerate() {
-                        for w in job.windows {
-                            let changed = changed_frames(c, job, w, b);
-                            let win = tracking::Window {
-                                algorithm: alg,
-                                r: r_of(i, wi),
-                                w: plan.whitening_matrix64(b),
-                                changed: &changed,
-                                refresh,
-                            };
-                            let dec = &mut task.decs[i * nw + wi];
-                            tracking::decompose_tracked(&win, &mut *task.tracks[i][j], ws, tr, dec)?;
-                            wi += 1;
-                        }
-                    }
-                }
-            } else {
-                // The pair's two bins side by side (same results as one at a time).
-                let wm = |b: usize| plan.whitening_matrix64(b);
-                let (d0, d1) = task.decs.split_at_mut(nw.min(task.decs.len()));
-                for (w, e0) in d0.iter_mut().enumerate() {
-                    match d1.get_mut(w) {
-                        Some(e1) => decompose_many(
-                            alg,
-                            [r_of(0, w), r_of(1, w)],
-                            [wm(bins.start), wm(bins.start + 1)],
-                            ws,
-                            [e0, e1],
-                        )?,
-                        None => decompose(alg, r_of(0, w), wm(bins.start), ws, e0)?,
-                    }
-                }
-            }
-        }
-        t = nanos.add(1, t);
-
-        // 3. w_k g_k P_k(d) per window; within a bin the directions run in fixed blocks
-        // and every window passes through each block (its steering stays in cache).
-        for (i, b) in bins.clone().enumerate() {
-            let cb = &mut task.contrib[i * nw * d..(i + 1) * nw * d];
-            if srp {
-                let sc = slot.srp.get_or_insert_with(|| SrpScratch::new(plan));
-                for (w, acc) in cb.chunks_mut(d).enumerate() {
-                    srp::accumulate_bin(plan, b, r_of(i, w), sc, acc);
-                }
-            } else {
-                let sc = slot.spectrum.get_or_insert_with(|| SpectrumScratch::new(plan));
-                let bin_decs: Vec<&Decomposition<T>> = task.decs[i * nw..(i + 1) * nw].iter().collect();
-                for d0 in (0..d).step_by(DIR_BLOCK) {
-                    let dirs = d0..(d0 + DIR_BLOCK).min(d);
-                    let mut accs: Vec<&mut [T]> =
-                        cb.chunks_mut(d).map(|acc| &mut acc[dirs.clone()]).collect();
-                    accumulate_bin(plan, b, dirs, &bin_decs, sc, &mut accs);
-                }
-            }
-            if c.normalize_bins {
-                for acc in cb.chunks_mut(d) {
-                    normalize_bin(acc, plan.weights[b]);
-                }
-            }
-        }
-        t = nanos.add(2, t);
-
-        // 4. k̂ per window and bin (MDL; overlapping frames are not independent
-        // snapshots: N = W·hop/N_fft of them).
-        if !srp && !c.subspace_tracking {
-            let overlap = c.hop.min(c.nfft) as f64 / c.nfft as f64;
-            for (i, b) in bins.enumerate() {
-                if plan.weights[b] == T::zero() {
-                    continue; // not used: the median skips bins without weight
-                }
-                for w in 0..nw {
-                    let snapshots = ((self.lens[w] as f64 * overlap).round() as usize).max(1);
-                    task.counts[i * nw + w] = count::mdl(&task.decs[i * nw + w].values, snapshots);
-                }
-            }
-        }
-        nanos.add(3, t);
-        Ok(())
-    }
-}
-
-/// The frames at bin `b` that entered and left since the stream's previous window (PERIOD
-/// of each, at most [`tracking::CHANGED_FRAMES`]). The engine keeps the frames that left
-/// only while 2·PERIOD < W: decided from the config alone, so the search space never
-/// depends on how the input was cut (the clip at `first` matters only at a stream's start,
-/// which is decomposed exactly).
-fn changed_frames<'a, T: Real>(
-    c: &crate::config::LocalizeConfig,
-    job: &'a Job<'_, T>,
-    w: &WindowSpec,
-    b: usize,
-) -> Vec<&'a [C<T>]> {
-    let n = c.period.min(w.len).min(tracking::CHANGED_FRAMES);
-    let n_left = if 2 * c.period < c.window { n } else { 0 };
-    let end = w.start + w.len;
-    let left = w.start.saturating_sub(n_left).max(job.first)..w.start;
-    (end - n..end)
-        .chain(left)
-        .map(|f| job.spectra.frame_bin(job.local(f), b))
-        .collect()
 }

@@ -1,0 +1,298 @@
+//! One task of the CPU backend's pass ([`super::CpuBackend`]): a pair of used bins, every
+//! window of the call — the correlation, then decomposition, spectrum contributions and
+//! source count, in parts of windows where the pool has more threads than the call has
+//! tasks.
+
+use super::{thread_scratch, ThreadScratch};
+use crate::backend::{Job, WindowSpec};
+use crate::correlation::running::{run_bin, Step};
+use crate::music::{accumulate_bin, normalize_bin, SpectrumScratch, DIR_BLOCK};
+use crate::plan::Plan;
+use crate::real::{Real, C};
+use crate::srp::{self, SrpScratch};
+use crate::subspace::tracking::{self, BinTrack, Tracker};
+use crate::subspace::{count, decompose, decompose_many, Decomposition, Workspace};
+use crate::Result;
+use rayon::prelude::*;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::Mutex;
+use std::time::Instant;
+
+/// One task of a call: a pair of used bins (the last may be one), with every window of
+/// every job at those bins.
+pub(super) struct BinTask<'a, T: Real> {
+    /// The first bin.
+    pub(super) b0: usize,
+    /// Per bin of the task, per stream of the call: the running sums.
+    pub(super) sums: &'a mut [Vec<&'a mut [C<f64>]>],
+    /// R, `[bin][window][M×M]` (the task's bins).
+    pub(super) r: &'a mut [C<f64>],
+    /// Decompositions, `[bin][window]` (empty for SRP-PHAT).
+    pub(super) decs: &'a mut [Decomposition<T>],
+    /// w_k g_k P_k(d), `[bin][window][dir]`.
+    pub(super) contrib: &'a mut [T],
+    /// Source count per bin and window, `[bin][window]`.
+    pub(super) counts: &'a mut [usize],
+    /// The approximate mode: per bin, per stream of the call, the tracking state.
+    pub(super) tracks: &'a mut [Vec<&'a mut BinTrack>],
+}
+
+/// CPU time per stage summed over a call's tasks, ns.
+#[derive(Default)]
+pub(super) struct StageNanos(pub(super) [AtomicU64; 4]);
+
+impl StageNanos {
+    pub(super) fn add(&self, stage: usize, t: Instant) -> Instant {
+        let now = Instant::now();
+        self.0[stage].fetch_add((now - t).as_nanos() as u64, Ordering::Relaxed);
+        now
+    }
+}
+
+/// What every task of a call reads.
+pub(super) struct Ctx<'a, 'j, T: Real> {
+    pub(super) plan: &'a Plan<T>,
+    pub(super) jobs: &'a [Job<'j, T>],
+    /// Per job, per window: the running sums' step.
+    pub(super) steps: &'a [Vec<Step>],
+    /// Per job: its stream's index among the task's sums (and tracking states).
+    pub(super) rc_of: &'a [usize],
+    /// Per window of the call: its length in frames.
+    pub(super) lens: &'a [usize],
+    pub(super) nw: usize,
+    /// Windows per part of a task after its correlation (see [`Ctx::run`]).
+    pub(super) part_windows: usize,
+}
+
+/// A task's windows `w0 …` after the correlation: per bin of the task, their
+/// decompositions (empty for SRP-PHAT), contributions and source counts.
+struct Part<'a, T: Real> {
+    w0: usize,
+    decs: Vec<&'a mut [Decomposition<T>]>,
+    contrib: Vec<&'a mut [T]>,
+    counts: Vec<&'a mut [usize]>,
+}
+
+impl<T: Real> Ctx<'_, '_, T> {
+    /// Run one task: the correlation of every window (each stream's windows in order),
+    /// then decomposition, spectrum and source count — over all its windows at once, or,
+    /// when the call has few tasks for the pool's threads, in parts of `part_windows`
+    /// windows run in parallel (a window's results do not depend on its part). The
+    /// approximate mode carries state from window to window: one part.
+    pub(super) fn run(
+        &self,
+        task: BinTask<'_, T>,
+        slots: &[Mutex<ThreadScratch<T>>],
+        nanos: &StageNanos,
+    ) -> Result<()> {
+        let plan = self.plan;
+        let (m, nb, d, nw) = (plan.num_mics, plan.num_bins(), plan.num_dirs, self.nw);
+        let mm = m * m;
+        let srp = !plan.config.algorithm.is_music();
+        let bins = task.b0..(task.b0 + task.sums.len()).min(nb);
+        let BinTask {
+            sums,
+            r,
+            decs,
+            contrib,
+            counts,
+            tracks,
+            ..
+        } = task;
+
+        // 1. R of every window at the task's bins (phase-transformed for SRP-PHAT).
+        let t = Instant::now();
+        {
+            let mut slot = thread_scratch(slots);
+            let y = &mut slot.y;
+            for (i, b) in bins.clone().enumerate() {
+                let mut wi = 0;
+                for (j, job) in self.jobs.iter().enumerate() {
+                    let sum = &mut *sums[i][self.rc_of[j]];
+                    for (w, st) in job.windows.iter().zip(&self.steps[j]) {
+                        let o = (i * nw + wi) * mm;
+                        run_bin(sum, *st, job, w, b, srp, y, &mut r[o..o + mm]);
+                        wi += 1;
+                    }
+                }
+            }
+        }
+        nanos.add(0, t);
+
+        // 2–4 in parts of windows.
+        let r = &*r;
+        let pw = if plan.config.subspace_tracking {
+            nw
+        } else {
+            self.part_windows.clamp(1, nw)
+        };
+        let nparts = nw.div_ceil(pw);
+        let mut parts: Vec<Part<'_, T>> = (0..nparts)
+            .map(|k| Part {
+                w0: k * pw,
+                decs: Vec::new(),
+                contrib: Vec::new(),
+                counts: Vec::new(),
+            })
+            .collect();
+        let mut dec_bins = decs.chunks_mut(nw);
+        for (cb, nb_) in contrib.chunks_mut(nw * d).zip(counts.chunks_mut(nw)) {
+            for (p, (c, n)) in parts
+                .iter_mut()
+                .zip(cb.chunks_mut(pw * d).zip(nb_.chunks_mut(pw)))
+            {
+                p.contrib.push(c);
+                p.counts.push(n);
+            }
+            // (SRP-PHAT has no decompositions: empty slices.)
+            let mut chunks = dec_bins.next().unwrap_or_default().chunks_mut(pw);
+            for p in parts.iter_mut() {
+                p.decs.push(chunks.next().unwrap_or_default());
+            }
+        }
+        if nparts == 1 {
+            let part = parts.pop().expect("one part");
+            let mut slot = thread_scratch(slots);
+            self.stages(&bins, r, part, tracks, &mut slot, nanos)
+        } else {
+            parts.into_par_iter().try_for_each(|part| {
+                let mut slot = thread_scratch(slots);
+                self.stages(&bins, r, part, &mut [], &mut slot, nanos)
+            })
+        }
+    }
+
+    /// Decomposition, spectrum contributions and source count of one part of a task
+    /// (`r`: the task's R, `[bin][window][M×M]`; `tracks`: per bin, per stream, the
+    /// approximate mode's states).
+    fn stages(
+        &self,
+        bins: &std::ops::Range<usize>,
+        r: &[C<f64>],
+        mut part: Part<'_, T>,
+        tracks: &mut [Vec<&mut BinTrack>],
+        slot: &mut ThreadScratch<T>,
+        nanos: &StageNanos,
+    ) -> Result<()> {
+        let plan = self.plan;
+        let (m, d, nw) = (plan.num_mics, plan.num_dirs, self.nw);
+        let mm = m * m;
+        let c = &plan.config;
+        let alg = c.algorithm;
+        let srp = !alg.is_music();
+        let w0 = part.w0;
+        let np = part.counts.first().map_or(0, |n| n.len());
+        let r_of = |i: usize, w: usize| &r[(i * nw + w) * mm..(i * nw + w + 1) * mm];
+        let mut t = Instant::now();
+
+        // 2. Decompositions (none for SRP-PHAT): the leading vectors the spectrum needs.
+        if !srp {
+            let ws = slot.decompose.get_or_insert_with(|| Workspace::new(m));
+            if c.subspace_tracking {
+                let tr = slot.tracker.get_or_insert_with(|| Tracker::new(m));
+                let refresh = c.window.div_ceil(c.period).max(1);
+                for (i, b) in bins.clone().enumerate() {
+                    let mut wi = 0;
+                    for (j, job) in self.jobs.iter().enumerate() {
+                        for w in job.windows {
+                            let changed = changed_frames(c, job, w, b);
+                            let win = tracking::Window {
+                                algorithm: alg,
+                                r: r_of(i, wi),
+                                w: plan.whitening_matrix64(b),
+                                changed: &changed,
+                                refresh,
+                            };
+                            let state = &mut *tracks[i][self.rc_of[j]];
+                            tracking::decompose_tracked(&win, state, ws, tr, &mut part.decs[i][wi])?;
+                            wi += 1;
+                        }
+                    }
+                }
+            } else {
+                // The pair's two bins side by side (same results as one at a time).
+                let wm = |b: usize| plan.whitening_matrix64(b);
+                let (d0, d1) = part.decs.split_at_mut(1);
+                for (k, e0) in d0[0].iter_mut().enumerate() {
+                    let w = w0 + k;
+                    match d1.first_mut().and_then(|d1| d1.get_mut(k)) {
+                        Some(e1) => decompose_many(
+                            alg,
+                            [r_of(0, w), r_of(1, w)],
+                            [wm(bins.start), wm(bins.start + 1)],
+                            ws,
+                            [e0, e1],
+                        )?,
+                        None => decompose(alg, r_of(0, w), wm(bins.start), ws, e0)?,
+                    }
+                }
+            }
+        }
+        t = nanos.add(1, t);
+
+        // 3. w_k g_k P_k(d) per window; within a bin the directions run in fixed blocks
+        // and every window passes through each block (its steering stays in cache).
+        for (i, b) in bins.clone().enumerate() {
+            let cb = &mut *part.contrib[i];
+            if srp {
+                let sc = slot.srp.get_or_insert_with(|| SrpScratch::new(plan));
+                for (k, acc) in cb.chunks_mut(d).enumerate() {
+                    srp::accumulate_bin(plan, b, r_of(i, w0 + k), sc, acc);
+                }
+            } else {
+                let sc = slot.spectrum.get_or_insert_with(|| SpectrumScratch::new(plan));
+                let bin_decs: Vec<&Decomposition<T>> = part.decs[i].iter().collect();
+                for d0 in (0..d).step_by(DIR_BLOCK) {
+                    let dirs = d0..(d0 + DIR_BLOCK).min(d);
+                    let mut accs: Vec<&mut [T]> =
+                        cb.chunks_mut(d).map(|acc| &mut acc[dirs.clone()]).collect();
+                    accumulate_bin(plan, b, dirs, &bin_decs, sc, &mut accs);
+                }
+            }
+            if c.normalize_bins {
+                for acc in cb.chunks_mut(d) {
+                    normalize_bin(acc, plan.weights[b]);
+                }
+            }
+        }
+        t = nanos.add(2, t);
+
+        // 4. k̂ per window and bin (MDL; overlapping frames are not independent
+        // snapshots: N = W·hop/N_fft of them).
+        if !srp && !c.subspace_tracking {
+            let overlap = c.hop.min(c.nfft) as f64 / c.nfft as f64;
+            for (i, b) in bins.clone().enumerate() {
+                if plan.weights[b] == T::zero() {
+                    continue; // not used: the median skips bins without weight
+                }
+                for k in 0..np {
+                    let snapshots = ((self.lens[w0 + k] as f64 * overlap).round() as usize).max(1);
+                    part.counts[i][k] = count::mdl(&part.decs[i][k].values, snapshots);
+                }
+            }
+        }
+        nanos.add(3, t);
+        Ok(())
+    }
+}
+
+/// The frames at bin `b` that entered and left since the stream's previous window (PERIOD
+/// of each, at most [`tracking::CHANGED_FRAMES`]). The engine keeps the frames that left
+/// only while 2·PERIOD < W: decided from the config alone, so the search space never
+/// depends on how the input was cut (the clip at `first` matters only at a stream's start,
+/// which is decomposed exactly).
+fn changed_frames<'a, T: Real>(
+    c: &crate::config::LocalizeConfig,
+    job: &'a Job<'_, T>,
+    w: &WindowSpec,
+    b: usize,
+) -> Vec<&'a [C<T>]> {
+    let n = c.period.min(w.len).min(tracking::CHANGED_FRAMES);
+    let n_left = if 2 * c.period < c.window { n } else { 0 };
+    let end = w.start + w.len;
+    let left = w.start.saturating_sub(n_left).max(job.first)..w.start;
+    (end - n..end)
+        .chain(left)
+        .map(|f| job.spectra.frame_bin(job.local(f), b))
+        .collect()
+}
