@@ -9,10 +9,12 @@
 //! not pay for nested threading; a small array's window costs tens of µs, about what each
 //! hand-off between the pool's threads costs, hence one pass.
 //!
-//! Parallelism is per pair of bins (37 tasks at the 73 bins of HARK's defaults); where the
-//! pool has more threads than that keeps busy (about four tasks per thread), each task's
-//! windows are split into parts after their correlation ([`pass`]), so a batch still
-//! spreads over many cores. Results are the same bits for any pool size (`music::tests`).
+//! Parallelism is per pair of bins (37 tasks at the 73 bins of HARK's defaults) while
+//! that gives four or more tasks per thread, per bin on larger pools; where the tasks are
+//! still few for the pool (about eight parts per thread), each task's decompositions —
+//! most of a large array's work — run in parts of windows ([`pass`]), while the spectrum of
+//! a task's windows stays together (each bin's steering read once per call). Results are
+//! the same bits for any pool size (`music::tests`).
 
 mod pass;
 
@@ -264,18 +266,21 @@ impl<T: Real> CpuBackend<T> {
         self.contrib.resize(nw * nb * d, T::zero());
         let mut counts = vec![0usize; nw * nb];
 
-        // The tasks: pairs of bins.
-        const PAIR: usize = 2;
-        let mut decs = self.decs.chunks_mut(PAIR * nw);
-        let mut tracks = tracks_by_bin.chunks_mut(PAIR);
+        // The tasks.
+        // Pairs of bins (their decompositions side by side) while they keep the pool
+        // busy (four or more per thread); single bins on larger pools, where twice the
+        // tasks for the correlation and the spectrum are worth more.
+        let pair = if nb.div_ceil(2) >= 4 * threads { 2 } else { 1 };
+        let mut decs = self.decs.chunks_mut(pair * nw);
+        let mut tracks = tracks_by_bin.chunks_mut(pair);
         let tasks: Vec<BinTask<'_, T>> = sums_by_bin
-            .chunks_mut(PAIR)
-            .zip(self.r.chunks_mut(PAIR * nw * mm))
-            .zip(self.contrib.chunks_mut(PAIR * nw * d))
-            .zip(counts.chunks_mut(PAIR * nw))
+            .chunks_mut(pair)
+            .zip(self.r.chunks_mut(pair * nw * mm))
+            .zip(self.contrib.chunks_mut(pair * nw * d))
+            .zip(counts.chunks_mut(pair * nw))
             .enumerate()
             .map(|(i, (((sums, r), contrib), counts))| BinTask {
-                b0: PAIR * i,
+                b0: pair * i,
                 sums,
                 r,
                 decs: decs.next().unwrap_or_default(),
@@ -297,9 +302,9 @@ impl<T: Real> CpuBackend<T> {
             rc_of: &rc_of,
             lens: &lens,
             nw,
-            // Parts of windows when the call's tasks are few for the pool: about four
-            // tasks' worth of work per thread (one part, all windows, on small pools).
-            part_windows: nw.div_ceil((4 * threads).div_ceil(nb.div_ceil(PAIR)).max(1)),
+            // Decompositions in parts of windows when the call's tasks are few for the
+            // pool: about eight parts per thread (one part, all windows, on small pools).
+            part_windows: nw.div_ceil((8 * threads).div_ceil(nb.div_ceil(pair)).max(1)),
         };
         tasks
             .into_par_iter()

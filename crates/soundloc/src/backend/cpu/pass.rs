@@ -1,7 +1,7 @@
 //! One task of the CPU backend's pass ([`super::CpuBackend`]): a pair of used bins, every
-//! window of the call — the correlation, then decomposition, spectrum contributions and
-//! source count, in parts of windows where the pool has more threads than the call has
-//! tasks.
+//! window of the call — the correlation, the decompositions (in parts of windows where the
+//! pool has more threads than the call has tasks), then the spectrum contributions and
+//! source counts.
 
 use super::{thread_scratch, ThreadScratch};
 use crate::backend::{Job, WindowSpec};
@@ -64,21 +64,19 @@ pub(super) struct Ctx<'a, 'j, T: Real> {
     pub(super) part_windows: usize,
 }
 
-/// A task's windows `w0 …` after the correlation: per bin of the task, their
-/// decompositions (empty for SRP-PHAT), contributions and source counts.
+/// A task's windows `w0 …`: per bin of the task, their decompositions.
 struct Part<'a, T: Real> {
     w0: usize,
     decs: Vec<&'a mut [Decomposition<T>]>,
-    contrib: Vec<&'a mut [T]>,
-    counts: Vec<&'a mut [usize]>,
 }
 
 impl<T: Real> Ctx<'_, '_, T> {
-    /// Run one task: the correlation of every window (each stream's windows in order),
-    /// then decomposition, spectrum and source count — over all its windows at once, or,
-    /// when the call has few tasks for the pool's threads, in parts of `part_windows`
-    /// windows run in parallel (a window's results do not depend on its part). The
-    /// approximate mode carries state from window to window: one part.
+    /// Run one task: the correlation of every window (each stream's windows in order);
+    /// the decompositions — all at once, or, when the call has few tasks for the pool's
+    /// threads, in parts of `part_windows` windows run in parallel (a window's
+    /// decomposition does not depend on its part; the approximate mode carries state from
+    /// window to window: one part); then the spectrum contributions and source counts of
+    /// all its windows (each bin's steering read once per call).
     pub(super) fn run(
         &self,
         task: BinTask<'_, T>,
@@ -86,7 +84,7 @@ impl<T: Real> Ctx<'_, '_, T> {
         nanos: &StageNanos,
     ) -> Result<()> {
         let plan = self.plan;
-        let (m, nb, d, nw) = (plan.num_mics, plan.num_bins(), plan.num_dirs, self.nw);
+        let (m, nb, nw) = (plan.num_mics, plan.num_bins(), self.nw);
         let mm = m * m;
         let srp = !plan.config.algorithm.is_music();
         let bins = task.b0..(task.b0 + task.sums.len()).min(nb);
@@ -119,53 +117,43 @@ impl<T: Real> Ctx<'_, '_, T> {
         }
         nanos.add(0, t);
 
-        // 2–4 in parts of windows.
+        // 2. Decompositions (none for SRP-PHAT).
         let r = &*r;
-        let pw = if plan.config.subspace_tracking {
-            nw
-        } else {
-            self.part_windows.clamp(1, nw)
-        };
-        let nparts = nw.div_ceil(pw);
-        let mut parts: Vec<Part<'_, T>> = (0..nparts)
-            .map(|k| Part {
-                w0: k * pw,
-                decs: Vec::new(),
-                contrib: Vec::new(),
-                counts: Vec::new(),
-            })
-            .collect();
-        let mut dec_bins = decs.chunks_mut(nw);
-        for (cb, nb_) in contrib.chunks_mut(nw * d).zip(counts.chunks_mut(nw)) {
-            for (p, (c, n)) in parts
-                .iter_mut()
-                .zip(cb.chunks_mut(pw * d).zip(nb_.chunks_mut(pw)))
-            {
-                p.contrib.push(c);
-                p.counts.push(n);
+        if !srp {
+            let pw = if plan.config.subspace_tracking {
+                nw
+            } else {
+                self.part_windows.clamp(1, nw)
+            };
+            let mut parts: Vec<Part<'_, T>> = (0..nw.div_ceil(pw))
+                .map(|k| Part {
+                    w0: k * pw,
+                    decs: Vec::new(),
+                })
+                .collect();
+            for db in decs.chunks_mut(nw) {
+                for (p, chunk) in parts.iter_mut().zip(db.chunks_mut(pw)) {
+                    p.decs.push(chunk);
+                }
             }
-            // (SRP-PHAT has no decompositions: empty slices.)
-            let mut chunks = dec_bins.next().unwrap_or_default().chunks_mut(pw);
-            for p in parts.iter_mut() {
-                p.decs.push(chunks.next().unwrap_or_default());
+            if parts.len() == 1 {
+                let part = parts.pop().expect("one part");
+                self.decompose(&bins, r, part, tracks, &mut thread_scratch(slots), nanos)?;
+            } else {
+                parts.into_par_iter().try_for_each(|part| {
+                    self.decompose(&bins, r, part, &mut [], &mut thread_scratch(slots), nanos)
+                })?;
             }
         }
-        if nparts == 1 {
-            let part = parts.pop().expect("one part");
-            let mut slot = thread_scratch(slots);
-            self.stages(&bins, r, part, tracks, &mut slot, nanos)
-        } else {
-            parts.into_par_iter().try_for_each(|part| {
-                let mut slot = thread_scratch(slots);
-                self.stages(&bins, r, part, &mut [], &mut slot, nanos)
-            })
-        }
+
+        // 3–4 over all the task's windows.
+        self.spectrum_and_count(&bins, r, decs, contrib, counts, &mut thread_scratch(slots), nanos);
+        Ok(())
     }
 
-    /// Decomposition, spectrum contributions and source count of one part of a task
-    /// (`r`: the task's R, `[bin][window][M×M]`; `tracks`: per bin, per stream, the
-    /// approximate mode's states).
-    fn stages(
+    /// The decompositions of one part of a task (`r`: the task's R, `[bin][window][M×M]`;
+    /// `tracks`: per bin, per stream, the approximate mode's states).
+    fn decompose(
         &self,
         bins: &std::ops::Range<usize>,
         r: &[C<f64>],
@@ -175,73 +163,89 @@ impl<T: Real> Ctx<'_, '_, T> {
         nanos: &StageNanos,
     ) -> Result<()> {
         let plan = self.plan;
-        let (m, d, nw) = (plan.num_mics, plan.num_dirs, self.nw);
+        let (m, nw) = (plan.num_mics, self.nw);
         let mm = m * m;
         let c = &plan.config;
         let alg = c.algorithm;
-        let srp = !alg.is_music();
         let w0 = part.w0;
-        let np = part.counts.first().map_or(0, |n| n.len());
         let r_of = |i: usize, w: usize| &r[(i * nw + w) * mm..(i * nw + w + 1) * mm];
-        let mut t = Instant::now();
-
-        // 2. Decompositions (none for SRP-PHAT): the leading vectors the spectrum needs.
-        if !srp {
-            let ws = slot.decompose.get_or_insert_with(|| Workspace::new(m));
-            if c.subspace_tracking {
-                let tr = slot.tracker.get_or_insert_with(|| Tracker::new(m));
-                let refresh = c.window.div_ceil(c.period).max(1);
-                for (i, b) in bins.clone().enumerate() {
-                    let mut wi = 0;
-                    for (j, job) in self.jobs.iter().enumerate() {
-                        for w in job.windows {
-                            let changed = changed_frames(c, job, w, b);
-                            let win = tracking::Window {
-                                algorithm: alg,
-                                r: r_of(i, wi),
-                                w: plan.whitening_matrix64(b),
-                                changed: &changed,
-                                refresh,
-                            };
-                            let state = &mut *tracks[i][self.rc_of[j]];
-                            tracking::decompose_tracked(&win, state, ws, tr, &mut part.decs[i][wi])?;
-                            wi += 1;
-                        }
-                    }
-                }
-            } else {
-                // The pair's two bins side by side (same results as one at a time).
-                let wm = |b: usize| plan.whitening_matrix64(b);
-                let (d0, d1) = part.decs.split_at_mut(1);
-                for (k, e0) in d0[0].iter_mut().enumerate() {
-                    let w = w0 + k;
-                    match d1.first_mut().and_then(|d1| d1.get_mut(k)) {
-                        Some(e1) => decompose_many(
-                            alg,
-                            [r_of(0, w), r_of(1, w)],
-                            [wm(bins.start), wm(bins.start + 1)],
-                            ws,
-                            [e0, e1],
-                        )?,
-                        None => decompose(alg, r_of(0, w), wm(bins.start), ws, e0)?,
+        let t = Instant::now();
+        let ws = slot.decompose.get_or_insert_with(|| Workspace::new(m));
+        if c.subspace_tracking {
+            let tr = slot.tracker.get_or_insert_with(|| Tracker::new(m));
+            let refresh = c.window.div_ceil(c.period).max(1);
+            for (i, b) in bins.clone().enumerate() {
+                let mut wi = 0;
+                for (j, job) in self.jobs.iter().enumerate() {
+                    for w in job.windows {
+                        let changed = changed_frames(c, job, w, b);
+                        let win = tracking::Window {
+                            algorithm: alg,
+                            r: r_of(i, wi),
+                            w: plan.whitening_matrix64(b),
+                            changed: &changed,
+                            refresh,
+                        };
+                        let state = &mut *tracks[i][self.rc_of[j]];
+                        tracking::decompose_tracked(&win, state, ws, tr, &mut part.decs[i][wi])?;
+                        wi += 1;
                     }
                 }
             }
+        } else {
+            // The pair's two bins side by side (same results as one at a time).
+            let wm = |b: usize| plan.whitening_matrix64(b);
+            let (d0, d1) = part.decs.split_at_mut(1);
+            for (k, e0) in d0[0].iter_mut().enumerate() {
+                let w = w0 + k;
+                match d1.first_mut().and_then(|d1| d1.get_mut(k)) {
+                    Some(e1) => decompose_many(
+                        alg,
+                        [r_of(0, w), r_of(1, w)],
+                        [wm(bins.start), wm(bins.start + 1)],
+                        ws,
+                        [e0, e1],
+                    )?,
+                    None => decompose(alg, r_of(0, w), wm(bins.start), ws, e0)?,
+                }
+            }
         }
-        t = nanos.add(1, t);
+        nanos.add(1, t);
+        Ok(())
+    }
 
-        // 3. w_k g_k P_k(d) per window; within a bin the directions run in fixed blocks
-        // and every window passes through each block (its steering stays in cache).
+    /// The spectrum contributions w_k g_k P_k(d) and source counts of every window of a
+    /// task (`decs`, `contrib`, `counts`: `[bin][window]` over the task's bins).
+    #[allow(clippy::too_many_arguments)]
+    fn spectrum_and_count(
+        &self,
+        bins: &std::ops::Range<usize>,
+        r: &[C<f64>],
+        decs: &[Decomposition<T>],
+        contrib: &mut [T],
+        counts: &mut [usize],
+        slot: &mut ThreadScratch<T>,
+        nanos: &StageNanos,
+    ) {
+        let plan = self.plan;
+        let (m, d, nw) = (plan.num_mics, plan.num_dirs, self.nw);
+        let mm = m * m;
+        let c = &plan.config;
+        let srp = !c.algorithm.is_music();
+        let r_of = |i: usize, w: usize| &r[(i * nw + w) * mm..(i * nw + w + 1) * mm];
+        let t = Instant::now();
+        // 3. Within a bin the directions run in fixed blocks and every window passes
+        // through each block (its steering stays in cache).
         for (i, b) in bins.clone().enumerate() {
-            let cb = &mut *part.contrib[i];
+            let cb = &mut contrib[i * nw * d..(i + 1) * nw * d];
             if srp {
                 let sc = slot.srp.get_or_insert_with(|| SrpScratch::new(plan));
-                for (k, acc) in cb.chunks_mut(d).enumerate() {
-                    srp::accumulate_bin(plan, b, r_of(i, w0 + k), sc, acc);
+                for (w, acc) in cb.chunks_mut(d).enumerate() {
+                    srp::accumulate_bin(plan, b, r_of(i, w), sc, acc);
                 }
             } else {
                 let sc = slot.spectrum.get_or_insert_with(|| SpectrumScratch::new(plan));
-                let bin_decs: Vec<&Decomposition<T>> = part.decs[i].iter().collect();
+                let bin_decs: Vec<&Decomposition<T>> = decs[i * nw..(i + 1) * nw].iter().collect();
                 for d0 in (0..d).step_by(DIR_BLOCK) {
                     let dirs = d0..(d0 + DIR_BLOCK).min(d);
                     let mut accs: Vec<&mut [T]> =
@@ -255,7 +259,7 @@ impl<T: Real> Ctx<'_, '_, T> {
                 }
             }
         }
-        t = nanos.add(2, t);
+        let t = nanos.add(2, t);
 
         // 4. k̂ per window and bin (MDL; overlapping frames are not independent
         // snapshots: N = W·hop/N_fft of them).
@@ -265,14 +269,13 @@ impl<T: Real> Ctx<'_, '_, T> {
                 if plan.weights[b] == T::zero() {
                     continue; // not used: the median skips bins without weight
                 }
-                for k in 0..np {
-                    let snapshots = ((self.lens[w0 + k] as f64 * overlap).round() as usize).max(1);
-                    part.counts[i][k] = count::mdl(&part.decs[i][k].values, snapshots);
+                for w in 0..nw {
+                    let snapshots = ((self.lens[w] as f64 * overlap).round() as usize).max(1);
+                    counts[i * nw + w] = count::mdl(&decs[i * nw + w].values, snapshots);
                 }
             }
         }
         nanos.add(3, t);
-        Ok(())
     }
 }
 
