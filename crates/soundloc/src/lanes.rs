@@ -22,6 +22,7 @@
 #![allow(clippy::needless_range_loop)]
 
 use crate::real::{Real, C};
+use crate::subspace::simd::dispatch;
 
 /// Largest array these kernels serve; larger ones take the library products.
 pub const MAX_MICS: usize = 16;
@@ -103,30 +104,12 @@ impl<T: Real> Block<'_, T> {
     }
 }
 
-/// Compile `$imp` for AVX2 where the CPU has it (checked at run time), else as it is.
-macro_rules! avx2_or_baseline {
-    ($imp:ident::<$t:ty>($($a:expr),*)) => {{
-        #[cfg(target_arch = "x86_64")]
-        {
-            if std::arch::is_x86_feature_detected!("avx2") {
-                // SAFETY: the CPU supports AVX2 (checked just above).
-                return unsafe { avx2::<$t>($($a),*) };
-            }
-        }
-        $imp::<$t>($($a),*)
-    }};
-}
-
-/// Σ_s |aᴴe_s|² for every direction of `p` into `out` (at least one value per direction), the `ns`
-/// vectors e_s being the columns of `vectors` (M × ns column-major).
-pub fn signal_power<T: Real>(p: &Block<'_, T>, vectors: &[C<T>], ns: usize, out: &mut [T]) {
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2")]
-    unsafe fn avx2<T: Real>(p: &Block<'_, T>, vectors: &[C<T>], ns: usize, out: &mut [T]) {
-        signal_power_imp::<T>(p, vectors, ns, out)
-    }
-    avx2_or_baseline!(signal_power_imp::<T>(p, vectors, ns, out))
-}
+dispatch!(
+    /// Σ_s |aᴴe_s|² for every direction of `p` into `out` (at least one value per
+    /// direction), the `ns` vectors e_s being the columns of `vectors` (M × ns
+    /// column-major).
+    pub fn signal_power<T: Real>(p: &Block<'_, T>, vectors: &[C<T>], ns: usize, out: &mut [T]) => signal_power_imp
+);
 
 #[inline(always)]
 fn signal_power_imp<T: Real>(p: &Block<'_, T>, vectors: &[C<T>], ns: usize, out: &mut [T]) {
@@ -194,16 +177,12 @@ impl<T: Real> Proj<T> {
     }
 }
 
-/// Re(aᴴ R a) for every direction of `p` into `out` (at least one value per direction); `r` is R
-/// row-major M × M, Hermitian (its upper triangle and real diagonal are read).
-pub fn quadratic_form<T: Real>(p: &Block<'_, T>, r: &[C<T>], out: &mut [T]) {
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2")]
-    unsafe fn avx2<T: Real>(p: &Block<'_, T>, r: &[C<T>], out: &mut [T]) {
-        quadratic_form_imp::<T>(p, r, out)
-    }
-    avx2_or_baseline!(quadratic_form_imp::<T>(p, r, out))
-}
+dispatch!(
+    /// Re(aᴴ R a) for every direction of `p` into `out` (at least one value per
+    /// direction); `r` is R row-major M × M, Hermitian (its upper triangle and real
+    /// diagonal are read).
+    pub fn quadratic_form<T: Real>(p: &Block<'_, T>, r: &[C<T>], out: &mut [T]) => quadratic_form_imp
+);
 
 #[inline(always)]
 fn quadratic_form_imp<T: Real>(p: &Block<'_, T>, r: &[C<T>], out: &mut [T]) {

@@ -116,7 +116,12 @@ pub fn accumulate_bin<T: Real>(
         Denominator::Squared => (0, ns),
         Denominator::Unsquared => (ns, m - ns),
     };
-    let floor = T::of_f64(T::EPS);
+    let den = DenRefs {
+        st,
+        n2_den,
+        n2_num,
+        floor: T::of_f64(T::EPS),
+    };
     if let (Some(planar), Denominator::Squared) = (&plan.planar, plan.config.denominator) {
         // Small arrays: each window's signal sums straight from the planar steering.
         let block = planar.block(b, dirs.clone());
@@ -127,12 +132,6 @@ pub fn accumulate_bin<T: Real>(
             }
             scratch.sig.resize(d, T::zero());
             lanes::signal_power(&block, &dec.vectors, ns, &mut scratch.sig);
-            let den = DenRefs {
-                st,
-                n2_den,
-                n2_num,
-                floor,
-            };
             quotients(&den, dec, ns, gain, &scratch.sig, acc);
         }
         return;
@@ -172,12 +171,9 @@ pub fn accumulate_bin<T: Real>(
             accumulate_window(
                 plan,
                 b,
-                st,
-                n2_den,
-                n2_num,
+                &den,
                 dec,
                 scratch.proj.as_ref().submatrix(i * nc, 0, nc, d).transpose(),
-                floor,
                 &mut scratch.sig,
                 acc,
             );
@@ -201,16 +197,12 @@ const MIN_PRODUCT_COLS: usize = 8;
 /// arrays, so it vectorises — and a last pass recomputes the few directions whose
 /// complement fell below [`REFINE_RATIO`]·‖a‖². The same operations in the same order per
 /// direction as a direction-by-direction loop, so the same bits.
-#[allow(clippy::too_many_arguments)]
 fn accumulate_window<T: Real>(
     plan: &Plan<T>,
     b: usize,
-    st: &[C<T>],
-    n2_den: &[T],
-    n2_num: &[T],
+    den: &DenRefs<'_, T>,
     dec: &Decomposition<T>,
     proj: MatRef<'_, C<T>>,
-    floor: T,
     sig: &mut Vec<T>,
     acc: &mut [T],
 ) {
@@ -230,23 +222,17 @@ fn accumulate_window<T: Real>(
                     *x += z.norm_sqr();
                 }
             }
-            let den = DenRefs {
-                st,
-                n2_den,
-                n2_num,
-                floor,
-            };
-            quotients(&den, dec, ns, gain, sig, acc);
+            quotients(den, dec, ns, gain, sig, acc);
         }
         Denominator::Unsquared => {
             for dir in 0..d {
-                let mut den = T::zero();
+                let mut sum = T::zero();
                 for s in 0..nc {
-                    den += proj[(dir, s)].norm();
+                    sum += proj[(dir, s)].norm();
                 }
-                let den = den.max(floor * n2_den[dir].sqrt());
-                if den > T::zero() {
-                    acc[dir] += gain * n2_num[dir] / den;
+                let sum = sum.max(den.floor * den.n2_den[dir].sqrt());
+                if sum > T::zero() {
+                    acc[dir] += gain * den.n2_num[dir] / sum;
                 }
             }
         }

@@ -188,8 +188,7 @@ impl<T: Real> Plan<T> {
             None
         };
         let peak_table = PeakTable::new(&tf.grid, config)?;
-        let planar = planar(config, whitening.as_ref(), &steering, d, m);
-        Ok(Plan {
+        let mut plan = Plan {
             config: config.clone(),
             num_mics: m,
             num_dirs: d,
@@ -201,8 +200,10 @@ impl<T: Real> Plan<T> {
             weights,
             whitening,
             peak_table,
-            planar,
-        })
+            planar: None,
+        };
+        plan.planar = plan.planar_steering();
+        Ok(plan)
     }
 
     /// The same plan with a new noise matrix K (online K updates: iGSVD / iGEVD). Only the
@@ -220,13 +221,8 @@ impl<T: Real> Plan<T> {
                 &self.steering,
             )?);
             if self.config.algorithm == Algorithm::Gevd {
-                p.planar = planar(
-                    &p.config,
-                    p.whitening.as_ref(),
-                    &p.steering,
-                    p.num_dirs,
-                    p.num_mics,
-                );
+                // Its denominator reads the whitened steering.
+                p.planar = p.planar_steering();
             }
         }
         Ok(p)
@@ -244,6 +240,18 @@ impl<T: Real> Plan<T> {
             (Some(w), Algorithm::Gevd) => (&w.steering, &w.steering_norm2),
             _ => (&self.steering, &self.steering_norm2),
         }
+    }
+
+    /// The planar copy of [`Plan::denominator_steering`] for small arrays, None above
+    /// [`lanes::MAX_MICS`].
+    fn planar_steering(&self) -> Option<Arc<Planar<T>>> {
+        (self.num_mics <= lanes::MAX_MICS).then(|| {
+            Arc::new(Planar::new(
+                self.denominator_steering().0,
+                self.num_dirs,
+                self.num_mics,
+            ))
+        })
     }
 
     /// W_k of used bin `b` in f64 (row-major M × M), as the decompositions use it (CPU and
@@ -342,25 +350,6 @@ fn spectrum_weights<T: Real>(c: &LocalizeConfig, bins: &Range<usize>) -> Result<
             w.iter().map(|&x| T::of_f64(x)).collect()
         }
     })
-}
-
-/// The planar copy of the denominator's steering vectors for small arrays (the whitened
-/// ones for the textbook GEVD, else the plan's own), None above [`lanes::MAX_MICS`].
-fn planar<T: Real>(
-    config: &LocalizeConfig,
-    whitening: Option<&Whitening<T>>,
-    steering: &[C<T>],
-    d: usize,
-    m: usize,
-) -> Option<Arc<Planar<T>>> {
-    if m > lanes::MAX_MICS {
-        return None;
-    }
-    let st = match (whitening, config.algorithm) {
-        (Some(w), Algorithm::Gevd) => &w.steering[..],
-        _ => steering,
-    };
-    Some(Arc::new(Planar::new(st, d, m)))
 }
 
 /// A-weighting (IEC 61672) as a linear amplitude gain at `f` Hz: 10^(A(f)/20) with

@@ -22,6 +22,7 @@ use crate::backend::{Spectra, WindowSpec};
 use crate::lanes;
 use crate::plan::Plan;
 use crate::real::{Real, C};
+use crate::subspace::simd::dispatch;
 use faer::{Accum, MatRef, Par};
 
 /// Per-thread scratch for [`accumulate_bin`].
@@ -65,25 +66,14 @@ pub fn phase<T: Real>(z: C<T>) -> C<T> {
     }
 }
 
-/// [`phase`] of every value of `y` (values of `T` widened to f64), in place, rounded to
-/// `T` as [`phase`] rounds. When every |z|² is finite and normal — all but hostile input
-/// — one branch-free pass the compiler vectorises (AVX2 where the CPU has it); else value
-/// by value. (libm's
-/// `hypot` per coefficient, then a scalar chain, was half of an SRP call on 8 mics.)
-pub fn phase_in_place<T: Real>(y: &mut [C<f64>]) {
-    #[cfg(target_arch = "x86_64")]
-    {
-        #[target_feature(enable = "avx2")]
-        unsafe fn avx2<T: Real>(y: &mut [C<f64>]) {
-            phase_in_place_imp::<T>(y)
-        }
-        if std::arch::is_x86_feature_detected!("avx2") {
-            // SAFETY: the CPU supports AVX2 (checked just above).
-            return unsafe { avx2::<T>(y) };
-        }
-    }
-    phase_in_place_imp::<T>(y)
-}
+dispatch!(
+    /// [`phase`] of every value of `y` (values of `T` widened to f64), in place, rounded
+    /// to `T` as [`phase`] rounds. When every |z|² is finite and normal — all but hostile
+    /// input — one branch-free pass the compiler vectorises (AVX2 where the CPU has it);
+    /// else value by value. (libm's `hypot` per coefficient, then a scalar chain, was half
+    /// of an SRP call on 8 mics.)
+    pub fn phase_in_place<T: Real>(y: &mut [C<f64>]) => phase_in_place_imp
+);
 
 /// [`phase_in_place`]'s body, compiled for AVX2 (the same IEEE operations, four lanes)
 /// and as it is.

@@ -8,25 +8,25 @@
 
 use crate::real::C;
 
-/// `dispatch!(pub fn name(args) => imp)` defines `name`, which calls the
-/// `#[inline(always)]` function `imp` compiled for AVX2 where the CPU has it (checked at
-/// run time), else as it is. The kernels below are `#[inline(always)]`, so they are
-/// compiled into each variant.
+/// `dispatch!(pub fn name(args) => imp)` (or `fn name<T: Bound>(args) => imp`, generic
+/// over one type) defines `name`, which calls the `#[inline(always)]` function `imp`
+/// compiled for AVX2 where the CPU has it (checked at run time), else as it is. The
+/// kernels below are `#[inline(always)]`, so they are compiled into each variant.
 macro_rules! dispatch {
-    ($(#[$m:meta])* $vis:vis fn $name:ident($($a:ident: $t:ty),* $(,)?) => $imp:ident) => {
-        $(#[$m])* $vis fn $name($($a: $t),*) {
+    ($(#[$m:meta])* $vis:vis fn $name:ident $(<$g:ident: $b:path>)? ($($a:ident: $t:ty),* $(,)?) => $imp:ident) => {
+        $(#[$m])* $vis fn $name $(<$g: $b>)? ($($a: $t),*) {
             #[cfg(target_arch = "x86_64")]
             {
                 #[target_feature(enable = "avx2")]
-                unsafe fn avx2($($a: $t),*) {
-                    $imp($($a),*)
+                unsafe fn avx2 $(<$g: $b>)? ($($a: $t),*) {
+                    $imp $(::<$g>)? ($($a),*)
                 }
                 if std::arch::is_x86_feature_detected!("avx2") {
                     // SAFETY: the CPU supports AVX2 (checked just above).
-                    return unsafe { avx2($($a),*) };
+                    return unsafe { avx2 $(::<$g>)? ($($a),*) };
                 }
             }
-            $imp($($a),*)
+            $imp $(::<$g>)? ($($a),*)
         }
     };
 }
