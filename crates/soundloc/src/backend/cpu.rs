@@ -1,8 +1,8 @@
-//! The CPU backend: one rayon pass over pairs of used bins runs the per-bin stages back to
-//! back — the correlation (each stream's running sums between calls,
+//! The CPU backend: one rayon pass over groups of used bins runs the per-bin stages back
+//! to back — the correlation (each stream's running sums between calls,
 //! [`crate::correlation::running`]: at PERIOD 1 a window costs two outer products per bin
-//! instead of W), the decompositions (in f64, [`crate::subspace`]; the pair's two problems
-//! side by side), the spectrum's contributions (fixed blocks of directions, every window of
+//! instead of W), the decompositions (in f64, [`crate::subspace::decompose_group`]: a
+//! pair's two problems side by side, eight at once in vector lanes up to 16 mics), the spectrum's contributions (fixed blocks of directions, every window of
 //! the batch through each block; [`crate::lanes`] for arrays up to 16 mics, faer products
 //! above) and the source count — then one pass over the windows sums the bins, converts to
 //! dB and finds the peaks. Never parallel inside faer (`Par::Seq`), so small problems do
@@ -10,7 +10,8 @@
 //! hand-off between the pool's threads costs, hence one pass.
 //!
 //! Parallelism is per pair of bins (37 tasks at the 73 bins of HARK's defaults) while
-//! that gives four or more tasks per thread, per bin on larger pools; where the tasks are
+//! that gives four or more tasks per thread, per bin on larger pools, up to eight bins
+//! for small arrays ([`bins_per_task`]); where the tasks are
 //! still few for the pool (about eight parts per thread), each task's decompositions —
 //! most of a large array's work — run in parts of windows ([`pass`]), while the spectrum of
 //! a task's windows stays together (each bin's steering read once per call). Results are
@@ -109,6 +110,28 @@ impl<T: Real> CpuBackend<T> {
     }
 }
 
+/// Used bins per task. Pairs of bins (their decompositions side by side) while they keep
+/// the pool busy (four or more per thread); single bins on larger pools, where twice the
+/// tasks for the correlation and the spectrum are worth more. Arrays of up to 16 mics
+/// decompose eight problems at once ([`crate::subspace::eigh_lanes`]): a task then holds
+/// up to eight bins, enough for a full group when the call has few windows, while that
+/// leaves two or more tasks per thread.
+fn bins_per_task<T: Real>(plan: &Plan<T>, nb: usize, nw: usize, threads: usize) -> usize {
+    use crate::subspace::eigh_lanes::{LANES, MAX_N};
+    let lanes = plan.config.algorithm.is_music() && !plan.config.subspace_tracking && plan.num_mics <= MAX_N;
+    if lanes {
+        let mut b = LANES.div_ceil(nw.max(1)).clamp(1, LANES);
+        while b > 1 && nb.div_ceil(b) < 2 * threads {
+            b /= 2;
+        }
+        b
+    } else if nb.div_ceil(2) >= 4 * threads {
+        2
+    } else {
+        1
+    }
+}
+
 fn ms(t: Instant) -> f64 {
     t.elapsed().as_secs_f64() * 1e3
 }
@@ -159,8 +182,8 @@ impl<T: Real> Backend<T> for CpuBackend<T> {
 impl<T: Real> CpuBackend<T> {
     /// [`Backend::process`], run on a rayon thread.
     ///
-    /// One parallel pass over pairs of bins runs the per-bin stages back to back —
-    /// correlation (each stream's running sums), decomposition (exact, the pair's two
+    /// One parallel pass over groups of bins runs the per-bin stages back to back —
+    /// correlation (each stream's running sums), decomposition (exact, in groups:
     /// problems side by side, or tracked), the spectrum's contributions and the source
     /// count — then one pass over the windows sums the bins (in bin order: the result
     /// depends neither on how rayon splits the work nor on the batch), converts to dB and
@@ -267,20 +290,17 @@ impl<T: Real> CpuBackend<T> {
         let mut counts = vec![0usize; nw * nb];
 
         // The tasks.
-        // Pairs of bins (their decompositions side by side) while they keep the pool
-        // busy (four or more per thread); single bins on larger pools, where twice the
-        // tasks for the correlation and the spectrum are worth more.
-        let pair = if nb.div_ceil(2) >= 4 * threads { 2 } else { 1 };
-        let mut decs = self.decs.chunks_mut(pair * nw);
-        let mut tracks = tracks_by_bin.chunks_mut(pair);
+        let per_task = bins_per_task(plan, nb, nw, threads);
+        let mut decs = self.decs.chunks_mut(per_task * nw);
+        let mut tracks = tracks_by_bin.chunks_mut(per_task);
         let tasks: Vec<BinTask<'_, T>> = sums_by_bin
-            .chunks_mut(pair)
-            .zip(self.r.chunks_mut(pair * nw * mm))
-            .zip(self.contrib.chunks_mut(pair * nw * d))
-            .zip(counts.chunks_mut(pair * nw))
+            .chunks_mut(per_task)
+            .zip(self.r.chunks_mut(per_task * nw * mm))
+            .zip(self.contrib.chunks_mut(per_task * nw * d))
+            .zip(counts.chunks_mut(per_task * nw))
             .enumerate()
             .map(|(i, (((sums, r), contrib), counts))| BinTask {
-                b0: pair * i,
+                b0: per_task * i,
                 sums,
                 r,
                 decs: decs.next().unwrap_or_default(),
@@ -304,7 +324,7 @@ impl<T: Real> CpuBackend<T> {
             nw,
             // Decompositions in parts of windows when the call's tasks are few for the
             // pool: about eight parts per thread (one part, all windows, on small pools).
-            part_windows: nw.div_ceil((8 * threads).div_ceil(nb.div_ceil(pair)).max(1)),
+            part_windows: nw.div_ceil((8 * threads).div_ceil(nb.div_ceil(per_task)).max(1)),
         };
         tasks
             .into_par_iter()

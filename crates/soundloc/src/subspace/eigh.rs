@@ -1,6 +1,8 @@
 //! Partial Hermitian eigendecomposition in f64: every eigenvalue, and the eigenvectors of
 //! the k largest only — what the MUSIC spectrum (signal-subspace complement) and the
-//! source count need, at a fraction of a full decomposition's cost.
+//! source count need, at a fraction of a full decomposition's cost. Used for arrays of
+//! more than 16 microphones (smaller ones: [`super::eigh_lanes`]) and for the approximate
+//! mode's projected problems.
 //!
 //! 1. **Householder tridiagonalisation** (LAPACK `zhetd2`, lower): A = Q T Qᴴ with T real
 //!    symmetric tridiagonal and Q = H₀ H₁ ⋯ H_{n−2}, H_j = I − τ_j v_j v_jᴴ. Per step j,

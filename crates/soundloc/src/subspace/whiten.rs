@@ -1,7 +1,7 @@
 //! The products that turn R into the Hermitian matrix each algorithm decomposes, in f64
 //! (faer's complex products, which skip the zero half of a triangular factor and compute
-//! only the lower triangle of A; up to 16 microphones plain loops over split parts,
-//! [`form_small`], where faer's set-up per call would cost more than the arithmetic):
+//! only the lower triangle of A), for arrays of more than 16 microphones; smaller ones
+//! form the same products in vector lanes inside [`super::eigh_lanes`]:
 //!
 //! | algorithm | A | work (complex multiply-adds) |
 //! |---|---|---|
@@ -22,10 +22,6 @@ use faer::c64;
 use faer::linalg::matmul::triangular::{matmul, BlockStructure as B};
 use faer::{Accum, MatRef, Par};
 
-/// Up to this size the products run as plain loops over split parts ([`form_small`]):
-/// for an 8-microphone array faer's set-up per call costs more than the arithmetic.
-const SMALL_M: usize = 16;
-
 /// What multiplies T = W R from the right.
 #[derive(Clone, Copy, PartialEq, Eq)]
 pub enum Right {
@@ -35,23 +31,11 @@ pub enum Right {
     TAdjoint,
 }
 
-/// Scratch: T and A (faer), or split parts of R, W and T ([`form_small`]).
+/// Scratch: T and A.
 pub struct Products {
     m: usize,
     t: faer::Mat<c64>,
     a: faer::Mat<c64>,
-    small: Small,
-}
-
-/// [`form_small`]'s scratch, split real and imaginary parts, M × M each.
-#[derive(Default)]
-struct Small {
-    rr: Vec<f64>,
-    ri: Vec<f64>,
-    wr: Vec<f64>,
-    wi: Vec<f64>,
-    tr: Vec<f64>,
-    ti: Vec<f64>,
 }
 
 impl Products {
@@ -61,19 +45,6 @@ impl Products {
             m,
             t: faer::Mat::zeros(m, m),
             a: faer::Mat::zeros(m, m),
-            small: if m <= SMALL_M {
-                let z = || vec![0.0; m * m];
-                Small {
-                    rr: z(),
-                    ri: z(),
-                    wr: z(),
-                    wi: z(),
-                    tr: z(),
-                    ti: z(),
-                }
-            } else {
-                Small::default()
-            },
         }
     }
 
@@ -81,9 +52,6 @@ impl Products {
     /// lower triangular (its strictly upper part is zero and is skipped).
     pub fn form(&mut self, r: &[c64], w: &[c64], lower: bool, right: Right, ar: &mut [f64], ai: &mut [f64]) {
         let m = self.m;
-        if m <= SMALL_M {
-            return form_small(m, r, w, lower, right, &mut self.small, ar, ai);
-        }
         let one = c64::new(1.0, 0.0);
         let rm = MatRef::from_row_major_slice(r, m, m);
         let wm = MatRef::from_row_major_slice(w, m, m);
@@ -129,77 +97,6 @@ impl Products {
     }
 }
 
-/// [`Products::form`] for M ≤ [`SMALL_M`]: T = W R row by row (row i of T is Σ_k w_ik ·
-/// row k of R, k ≤ i when W is lower triangular), then the lower triangle of A = T Xᴴ as
-/// dot products of rows (a_ij = Σ_k t_ik conj(x_jk)), mirrored; the same products in a
-/// fixed order, so a bin's A does not depend on the batch.
-#[allow(clippy::too_many_arguments)]
-fn form_small(
-    m: usize,
-    r: &[c64],
-    w: &[c64],
-    lower: bool,
-    right: Right,
-    s: &mut Small,
-    ar: &mut [f64],
-    ai: &mut [f64],
-) {
-    let mm = m * m;
-    let Small {
-        rr,
-        ri,
-        wr,
-        wi,
-        tr,
-        ti,
-    } = s;
-    for (i, (z, y)) in r[..mm].iter().zip(&w[..mm]).enumerate() {
-        (rr[i], ri[i], wr[i], wi[i]) = (z.re, z.im, y.re, y.im);
-    }
-    tr.fill(0.0);
-    ti.fill(0.0);
-    for i in 0..m {
-        let (t_r, t_i) = (&mut tr[i * m..(i + 1) * m], &mut ti[i * m..(i + 1) * m]);
-        let ks = if lower { i + 1 } else { m };
-        for k in 0..ks {
-            let (a, b) = (wr[i * m + k], wi[i * m + k]);
-            let (x_r, x_i) = (&rr[k * m..(k + 1) * m], &ri[k * m..(k + 1) * m]);
-            for j in 0..m {
-                t_r[j] += a * x_r[j] - b * x_i[j];
-                t_i[j] += a * x_i[j] + b * x_r[j];
-            }
-        }
-    }
-    let (xr, xi) = match right {
-        Right::WAdjoint => (&*wr, &*wi),
-        Right::TAdjoint => (&*tr, &*ti),
-    };
-    for i in 0..m {
-        for j in 0..=i {
-            // a_ij = Σ_k t_ik conj(x_jk); x_jk = 0 for k > j when X = W is lower triangular.
-            let ks = if lower && right == Right::WAdjoint {
-                j + 1
-            } else {
-                m
-            };
-            let (mut sr, mut si) = (0.0, 0.0);
-            for k in 0..ks {
-                let (a, b, c, d) = (tr[i * m + k], ti[i * m + k], xr[j * m + k], xi[j * m + k]);
-                sr += a * c + b * d;
-                si += b * c - a * d;
-            }
-            ar[i * m + j] = sr;
-            ar[j * m + i] = sr;
-            if i == j {
-                ai[i * m + i] = 0.0;
-            } else {
-                ai[i * m + j] = si;
-                ai[j * m + i] = -si;
-            }
-        }
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -224,7 +121,7 @@ mod tests {
         }
     }
 
-    /// Both paths (plain loops up to 16 microphones, faer above) against the definition:
+    /// Against the definition:
     /// GEVD (lower-triangular W, A = T Wᴴ), GEVD-HARK (full W, A = T Wᴴ), GSVD (A = T Tᴴ).
     #[test]
     fn products_match_the_definition() {

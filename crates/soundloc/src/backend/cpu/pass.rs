@@ -1,5 +1,5 @@
-//! One task of the CPU backend's pass ([`super::CpuBackend`]): a pair of used bins, every
-//! window of the call — the correlation, the decompositions (in parts of windows where the
+//! One task of the CPU backend's pass ([`super::CpuBackend`]): a few used bins
+//! ([`super::bins_per_task`]), every window of the call — the correlation, the decompositions (in parts of windows where the
 //! pool has more threads than the call has tasks), then the spectrum contributions and
 //! source counts.
 
@@ -11,15 +11,15 @@ use crate::plan::Plan;
 use crate::real::{Real, C};
 use crate::srp::{self, SrpScratch};
 use crate::subspace::tracking::{self, BinTrack, Tracker};
-use crate::subspace::{count, decompose, decompose_many, Decomposition, Workspace};
+use crate::subspace::{count, decompose_group, Decomposition, Item, Workspace};
 use crate::Result;
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Mutex;
 use std::time::Instant;
 
-/// One task of a call: a pair of used bins (the last may be one), with every window of
-/// every job at those bins.
+/// One task of a call: a few consecutive used bins, with every window of every job at
+/// those bins.
 pub(super) struct BinTask<'a, T: Real> {
     /// The first bin.
     pub(super) b0: usize,
@@ -193,22 +193,28 @@ impl<T: Real> Ctx<'_, '_, T> {
                 }
             }
         } else {
-            // The pair's two bins side by side (same results as one at a time).
+            // The task's problems, window by window (a window's bins together): in
+            // groups ([`decompose_group`]; each result is the same in any group).
             let wm = |b: usize| plan.whitening_matrix64(b);
-            let (d0, d1) = part.decs.split_at_mut(1);
-            for (k, e0) in d0[0].iter_mut().enumerate() {
-                let w = w0 + k;
-                match d1.first_mut().and_then(|d1| d1.get_mut(k)) {
-                    Some(e1) => decompose_many(
-                        alg,
-                        [r_of(0, w), r_of(1, w)],
-                        [wm(bins.start), wm(bins.start + 1)],
-                        ws,
-                        [e0, e1],
-                    )?,
-                    None => decompose(alg, r_of(0, w), wm(bins.start), ws, e0)?,
+            let mut per_bin: Vec<std::slice::IterMut<'_, Decomposition<T>>> =
+                part.decs.iter_mut().map(|d| d.iter_mut()).collect();
+            let mut items = Vec::with_capacity(per_bin.len() * per_bin.first().map_or(0, |d| d.len()));
+            for k in 0.. {
+                let before = items.len();
+                for (i, it) in per_bin.iter_mut().enumerate() {
+                    if let Some(out) = it.next() {
+                        items.push(Item {
+                            r: r_of(i, w0 + k),
+                            w: wm(bins.start + i),
+                            out,
+                        });
+                    }
+                }
+                if items.len() == before {
+                    break;
                 }
             }
+            decompose_group(alg, &mut items, ws)?;
         }
         nanos.add(1, t);
         Ok(())

@@ -1,0 +1,219 @@
+//! Eight f64 lanes, one type per instruction set: [`Avx2`] (two 256-bit registers) and
+//! [`Scalar`] (a plain array, the baseline build). Both do the same IEEE operations
+//! (add, subtract, multiply, divide, square root, compare, select; no fused
+//! multiply-add), so code written once over [`F8`] gives the same bits on either.
+
+use std::ops::{Add, Div, Mul, Neg, Sub};
+
+/// Eight f64 lanes and their operations; `Mask` is a per-lane condition.
+pub(crate) trait F8:
+    Copy + Add<Output = Self> + Sub<Output = Self> + Mul<Output = Self> + Div<Output = Self> + Neg<Output = Self>
+{
+    type Mask: Copy;
+    fn splat(x: f64) -> Self;
+    fn load(a: &[f64; 8]) -> Self;
+    fn store(self, a: &mut [f64; 8]);
+    fn sqrt(self) -> Self;
+    fn abs(self) -> Self;
+    /// `self < o` per lane (false where either is NaN).
+    fn lt(self, o: Self) -> Self::Mask;
+    /// `self == o` per lane.
+    fn eq(self, o: Self) -> Self::Mask;
+    fn and(a: Self::Mask, b: Self::Mask) -> Self::Mask;
+    /// `m ? a : b` per lane.
+    fn select(m: Self::Mask, a: Self, b: Self) -> Self;
+    /// Whether any lane is set.
+    fn any(m: Self::Mask) -> bool;
+    /// The mask as booleans.
+    fn lanes(m: Self::Mask) -> [bool; 8];
+    /// `max(self, o)` as `self < o ? o : self`.
+    #[inline(always)]
+    fn max(self, o: Self) -> Self {
+        Self::select(self.lt(o), o, self)
+    }
+}
+
+/// The baseline: eight f64 in an array.
+#[derive(Clone, Copy)]
+pub(crate) struct Scalar([f64; 8]);
+
+macro_rules! scalar_op {
+    ($tr:ident, $f:ident, $op:tt) => {
+        impl $tr for Scalar {
+            type Output = Scalar;
+            #[inline(always)]
+            fn $f(self, o: Scalar) -> Scalar {
+                Scalar(std::array::from_fn(|l| self.0[l] $op o.0[l]))
+            }
+        }
+    };
+}
+scalar_op!(Add, add, +);
+scalar_op!(Sub, sub, -);
+scalar_op!(Mul, mul, *);
+scalar_op!(Div, div, /);
+
+impl Neg for Scalar {
+    type Output = Scalar;
+    #[inline(always)]
+    fn neg(self) -> Scalar {
+        Scalar(self.0.map(|x| -x))
+    }
+}
+
+impl F8 for Scalar {
+    type Mask = [bool; 8];
+    #[inline(always)]
+    fn splat(x: f64) -> Self {
+        Scalar([x; 8])
+    }
+    #[inline(always)]
+    fn load(a: &[f64; 8]) -> Self {
+        Scalar(*a)
+    }
+    #[inline(always)]
+    fn store(self, a: &mut [f64; 8]) {
+        *a = self.0;
+    }
+    #[inline(always)]
+    fn sqrt(self) -> Self {
+        Scalar(self.0.map(f64::sqrt))
+    }
+    #[inline(always)]
+    fn abs(self) -> Self {
+        Scalar(self.0.map(f64::abs))
+    }
+    #[inline(always)]
+    fn lt(self, o: Self) -> [bool; 8] {
+        std::array::from_fn(|l| self.0[l] < o.0[l])
+    }
+    #[inline(always)]
+    fn eq(self, o: Self) -> [bool; 8] {
+        std::array::from_fn(|l| self.0[l] == o.0[l])
+    }
+    #[inline(always)]
+    fn and(a: [bool; 8], b: [bool; 8]) -> [bool; 8] {
+        std::array::from_fn(|l| a[l] & b[l])
+    }
+    #[inline(always)]
+    fn select(m: [bool; 8], a: Self, b: Self) -> Self {
+        Scalar(std::array::from_fn(|l| if m[l] { a.0[l] } else { b.0[l] }))
+    }
+    #[inline(always)]
+    fn any(m: [bool; 8]) -> bool {
+        m.iter().any(|&x| x)
+    }
+    #[inline(always)]
+    fn lanes(m: [bool; 8]) -> [bool; 8] {
+        m
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+pub(crate) use avx2::Avx2;
+
+#[cfg(target_arch = "x86_64")]
+mod avx2 {
+    //! SAFETY (every `unsafe` block below): an [`Avx2`] value exists only in code the
+    //! caller runs after checking that the CPU has AVX2 (`is_x86_feature_detected!`),
+    //! and the loads and stores go through references to whole `[f64; 8]` arrays.
+    use super::F8;
+    use std::arch::x86_64::*;
+    use std::ops::{Add, Div, Mul, Neg, Sub};
+
+    /// Eight f64 lanes in two AVX2 registers (use only where the CPU has AVX2).
+    #[derive(Clone, Copy)]
+    pub(crate) struct Avx2(__m256d, __m256d);
+
+    macro_rules! avx_op {
+        ($tr:ident, $f:ident, $intr:ident) => {
+            impl $tr for Avx2 {
+                type Output = Avx2;
+                #[inline(always)]
+                fn $f(self, o: Avx2) -> Avx2 {
+                    unsafe { Avx2($intr(self.0, o.0), $intr(self.1, o.1)) }
+                }
+            }
+        };
+    }
+    avx_op!(Add, add, _mm256_add_pd);
+    avx_op!(Sub, sub, _mm256_sub_pd);
+    avx_op!(Mul, mul, _mm256_mul_pd);
+    avx_op!(Div, div, _mm256_div_pd);
+
+    impl Neg for Avx2 {
+        type Output = Avx2;
+        #[inline(always)]
+        fn neg(self) -> Avx2 {
+            unsafe {
+                let s = _mm256_set1_pd(-0.0);
+                Avx2(_mm256_xor_pd(self.0, s), _mm256_xor_pd(self.1, s))
+            }
+        }
+    }
+
+    impl F8 for Avx2 {
+        type Mask = (__m256d, __m256d);
+        #[inline(always)]
+        fn splat(x: f64) -> Self {
+            unsafe { Avx2(_mm256_set1_pd(x), _mm256_set1_pd(x)) }
+        }
+        #[inline(always)]
+        fn load(a: &[f64; 8]) -> Self {
+            unsafe { Avx2(_mm256_loadu_pd(a.as_ptr()), _mm256_loadu_pd(a.as_ptr().add(4))) }
+        }
+        #[inline(always)]
+        fn store(self, a: &mut [f64; 8]) {
+            unsafe {
+                _mm256_storeu_pd(a.as_mut_ptr(), self.0);
+                _mm256_storeu_pd(a.as_mut_ptr().add(4), self.1);
+            }
+        }
+        #[inline(always)]
+        fn sqrt(self) -> Self {
+            unsafe { Avx2(_mm256_sqrt_pd(self.0), _mm256_sqrt_pd(self.1)) }
+        }
+        #[inline(always)]
+        fn abs(self) -> Self {
+            unsafe {
+                let s = _mm256_set1_pd(-0.0);
+                Avx2(_mm256_andnot_pd(s, self.0), _mm256_andnot_pd(s, self.1))
+            }
+        }
+        #[inline(always)]
+        fn lt(self, o: Self) -> Self::Mask {
+            unsafe {
+                (
+                    _mm256_cmp_pd::<_CMP_LT_OQ>(self.0, o.0),
+                    _mm256_cmp_pd::<_CMP_LT_OQ>(self.1, o.1),
+                )
+            }
+        }
+        #[inline(always)]
+        fn eq(self, o: Self) -> Self::Mask {
+            unsafe {
+                (
+                    _mm256_cmp_pd::<_CMP_EQ_OQ>(self.0, o.0),
+                    _mm256_cmp_pd::<_CMP_EQ_OQ>(self.1, o.1),
+                )
+            }
+        }
+        #[inline(always)]
+        fn and(a: Self::Mask, b: Self::Mask) -> Self::Mask {
+            unsafe { (_mm256_and_pd(a.0, b.0), _mm256_and_pd(a.1, b.1)) }
+        }
+        #[inline(always)]
+        fn select(m: Self::Mask, a: Self, b: Self) -> Self {
+            unsafe { Avx2(_mm256_blendv_pd(b.0, a.0, m.0), _mm256_blendv_pd(b.1, a.1, m.1)) }
+        }
+        #[inline(always)]
+        fn any(m: Self::Mask) -> bool {
+            unsafe { (_mm256_movemask_pd(m.0) | _mm256_movemask_pd(m.1)) != 0 }
+        }
+        #[inline(always)]
+        fn lanes(m: Self::Mask) -> [bool; 8] {
+            let bits = unsafe { _mm256_movemask_pd(m.0) | (_mm256_movemask_pd(m.1) << 4) };
+            std::array::from_fn(|l| (bits >> l) & 1 == 1)
+        }
+    }
+}
