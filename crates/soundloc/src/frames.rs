@@ -12,6 +12,7 @@ use crate::engine::make_backend;
 use crate::plan::Plan;
 use crate::real::{Real, C};
 use crate::{Error, Result};
+use rayon::prelude::*;
 use std::sync::Arc;
 
 /// The spectrum and peaks of one window of given frames.
@@ -129,23 +130,55 @@ impl<T: Real> Prepared<T> {
         if self.spectra.num_frames != s || self.spectra.num_bins != nb || self.spectra.num_mics != m {
             self.spectra = Spectra::zeros(s, nb, m);
         }
-        // Only the used bins are read (and must be finite); each destination row of M
-        // values is filled from the M microphones' rows, read in order.
+        // Only the used bins are read (and must be finite), in the order of the source's
+        // memory where the snapshots lie closer together than the microphones (numpy's
+        // (M, F, S) layout: each bin's snapshots are a contiguous run), else microphone
+        // by microphone within each snapshot.
         let [st_mic, st_bin, st_snap] = x.strides;
-        for (b, k) in bins.clone().enumerate() {
-            for snap in 0..s {
-                let src = k * st_bin + snap * st_snap;
-                let dst = &mut self.spectra.data[(snap * nb + b) * m..(snap * nb + b + 1) * m];
+        let conv = |v: num_complex::Complex<f64>| C::new(T::of_f64(v.re), T::of_f64(v.im));
+        // Parts of snapshots in parallel (each part's destination is contiguous): a
+        // window's frames are read once, from memory, at the pool's combined bandwidth.
+        let part = s.div_ceil(rayon::current_num_threads().max(1)).max(8);
+        let finite = self
+            .spectra
+            .data
+            .par_chunks_mut(part * nb * m)
+            .enumerate()
+            .map(|(p, data)| {
+                let snaps = p * part..(p * part + data.len() / (nb * m)).min(s);
                 let mut finite = true;
-                for (mic, out) in dst.iter_mut().enumerate() {
-                    let v = x.data[src + mic * st_mic];
-                    finite &= v.re.is_finite() & v.im.is_finite();
-                    *out = C::new(T::of_f64(v.re), T::of_f64(v.im));
+                if st_snap <= st_mic {
+                    for mic in 0..m {
+                        for (b, k) in bins.clone().enumerate() {
+                            let src = &x.data[mic * st_mic + k * st_bin..];
+                            for (i, snap) in snaps.clone().enumerate() {
+                                let v = src[snap * st_snap];
+                                finite &= v.re.is_finite() & v.im.is_finite();
+                                data[(i * nb + b) * m + mic] = conv(v);
+                            }
+                        }
+                    }
+                } else {
+                    for (b, k) in bins.clone().enumerate() {
+                        for (i, snap) in snaps.clone().enumerate() {
+                            let src = &x.data[k * st_bin + snap * st_snap..];
+                            let dst = &mut data[(i * nb + b) * m..(i * nb + b + 1) * m];
+                            for (mic, out) in dst.iter_mut().enumerate() {
+                                let v = src[mic * st_mic];
+                                finite &= v.re.is_finite() & v.im.is_finite();
+                                *out = conv(v);
+                            }
+                        }
+                    }
                 }
-                if !finite {
-                    let mic = (0..m)
-                        .find(|&i| !x.data[src + i * st_mic].is_finite())
-                        .unwrap_or(0);
+                finite
+            })
+            .reduce(|| true, |a, b| a & b);
+        if !finite {
+            for (k, snap, mic) in
+                bins.flat_map(|k| (0..s).flat_map(move |snap| (0..m).map(move |mic| (k, snap, mic))))
+            {
+                if !x.data[k * st_bin + snap * st_snap + mic * st_mic].is_finite() {
                     return Err(Error::Numerical {
                         stage: "input",
                         message: format!("frames: microphone {mic}, bin {k}, snapshot {snap} is not finite"),
@@ -302,6 +335,22 @@ mod tests {
                 .process(&c, &FramesView::contiguous(&copy, [m, f, b - a]).unwrap())
                 .unwrap();
             assert_eq!(got, want, "{alg:?}");
+            // The microphones closest together in memory (an (S, F, M) array): read in
+            // the other order, the same bits; a bad value is named the same way.
+            let (n, mut t) = (b - a, vec![Complex::new(0.0, 0.0); m * f * (b - a)]);
+            for (i, v) in copy.iter().enumerate() {
+                let (mic, k, snap) = (i / (f * n), i / n % f, i % n);
+                t[(snap * f + k) * m + mic] = *v;
+            }
+            let view = FramesView::new(&t, [m, f, n], [1, m, f * m]).unwrap();
+            assert_eq!(fl.process(&c, &view).unwrap(), want, "{alg:?} (S, F, M)");
+            t[(4 * f + 11) * m + 5] = Complex::new(f64::NAN, 1.0);
+            let view = FramesView::new(&t, [m, f, n], [1, m, f * m]).unwrap();
+            let e = fl.process(&c, &view).unwrap_err().to_string();
+            assert!(
+                e.contains("microphone 5, bin 11, snapshot 4 is not finite"),
+                "{e}"
+            );
             let az = fl.grid.azimuth_deg(got.peaks[0].dir);
             assert!((az - 60.0).abs() < 2.6, "{alg:?}: peak at {az}°");
             // Bin 1 (250 Hz) is below the band: never read. Bin 10 (2.5 kHz) is used.

@@ -107,19 +107,75 @@ impl RunningCorrelation {
 const SMALL_M: usize = 16;
 
 /// S (column-major M × M, upper triangle) += sign · Σ_f y_f y_fᴴ over the rows y_f of `y`
-/// (row-major, M per row), frame by frame in order; `replace`: S = 0 first.
+/// (row-major, M per row), frame by frame in order; `replace`: S = 0 first. Column by
+/// column ([`add_columns`]): the frames in split real and imaginary parts, padded to N
+/// rows, and a column's sums held in registers through all frames, S_ij += y_i conj(y_j)
+/// as two fused multiply-adds per part.
 fn add_small(sum: &mut [C<f64>], y: &[C<f64>], m: usize, replace: bool, sign: f64) {
-    if replace {
+    match m {
+        0..=4 => add_columns::<4>(sum, y, m, replace, sign),
+        5..=8 => add_columns::<8>(sum, y, m, replace, sign),
+        _ => add_columns::<16>(sum, y, m, replace, sign),
+    }
+}
+
+crate::subspace::simd::dispatch!(
+    /// [`add_small`] with columns padded to N ≥ M rows.
+    fn add_columns<const N: usize>(sum: &mut [C<f64>], y: &[C<f64>], m: usize, replace: bool, sign: f64) => add_columns_impl
+);
+
+/// Frames per block of [`add_columns`]'s split copy.
+const BLOCK: usize = 32;
+
+#[inline(always)]
+fn add_columns_impl<const N: usize>(sum: &mut [C<f64>], y: &[C<f64>], m: usize, replace: bool, sign: f64) {
+    debug_assert!(m <= N);
+    let (mut sr, mut si) = ([[0.0f64; N]; N], [[0.0f64; N]; N]);
+    if !replace {
         for j in 0..m {
-            sum[j * m..j * m + j + 1].fill(C::new(0.0, 0.0));
+            for i in 0..=j {
+                (sr[j][i], si[j][i]) = (sum[j * m + i].re, sum[j * m + i].im);
+            }
         }
     }
-    for row in y.chunks_exact(m) {
-        for (j, &yj) in row.iter().enumerate() {
-            let c = yj.conj() * sign;
-            for (s, &yi) in sum[j * m..j * m + j + 1].iter_mut().zip(&row[..=j]) {
-                *s += yi * c;
+    let (mut yr, mut yi) = ([[0.0f64; N]; BLOCK], [[0.0f64; N]; BLOCK]);
+    for block in y.chunks(BLOCK * m) {
+        let nf = block.len() / m.max(1);
+        for (f, row) in block.chunks_exact(m).enumerate() {
+            for (i, z) in row.iter().enumerate() {
+                (yr[f][i], yi[f][i]) = (z.re, z.im);
             }
+        }
+        // 16/N columns at a time: eight independent chains of multiply-adds.
+        let cols = (16 / N).max(1);
+        for j0 in (0..m).step_by(cols) {
+            let mut acc: [([f64; N], [f64; N]); 4] = [([0.0; N], [0.0; N]); 4];
+            for (c, a) in acc.iter_mut().enumerate().take(cols) {
+                if j0 + c < N {
+                    *a = (sr[j0 + c], si[j0 + c]);
+                }
+            }
+            for f in 0..nf {
+                for (c, (ar, ai)) in acc.iter_mut().enumerate().take(cols) {
+                    let j = (j0 + c).min(N - 1);
+                    // c = conj(y_j)·sign; S_ij += y_i c.
+                    let (cr, ci) = (yr[f][j] * sign, -yi[f][j] * sign);
+                    for i in 0..N {
+                        ar[i] = yr[f][i].mul_add(cr, (-yi[f][i]).mul_add(ci, ar[i]));
+                        ai[i] = yr[f][i].mul_add(ci, yi[f][i].mul_add(cr, ai[i]));
+                    }
+                }
+            }
+            for (c, a) in acc.iter().enumerate().take(cols) {
+                if j0 + c < m {
+                    (sr[j0 + c], si[j0 + c]) = *a;
+                }
+            }
+        }
+    }
+    for j in 0..m {
+        for i in 0..=j {
+            sum[j * m + i] = C::new(sr[j][i], si[j][i]);
         }
     }
 }

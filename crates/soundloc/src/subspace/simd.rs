@@ -9,24 +9,43 @@
 use crate::real::C;
 
 /// `dispatch!(pub fn name(args) => imp)` (or `fn name<T: Bound>(args) => imp`, generic
-/// over one type) defines `name`, which calls the `#[inline(always)]` function `imp`
-/// compiled for AVX2 where the CPU has it (checked at run time), else as it is. The
-/// kernels below are `#[inline(always)]`, so they are compiled into each variant.
+/// over one type, or `fn name<const N: usize>(args) => imp`) defines `name`, which calls the `#[inline(always)]` function `imp`
+/// compiled for AVX2 and FMA where the CPU has them (checked at run time), else as it is.
+/// The kernels below are `#[inline(always)]`, so they are compiled into each variant.
+/// Compilers never fuse a multiply and an add on their own, so a kernel gives the same
+/// bits in both variants; one that asks for `f64::mul_add` gets the FMA instruction here
+/// and the (slower, equally exact) library call in the other.
 macro_rules! dispatch {
     ($(#[$m:meta])* $vis:vis fn $name:ident $(<$g:ident: $b:path>)? ($($a:ident: $t:ty),* $(,)?) => $imp:ident) => {
         $(#[$m])* $vis fn $name $(<$g: $b>)? ($($a: $t),*) {
             #[cfg(target_arch = "x86_64")]
             {
-                #[target_feature(enable = "avx2")]
+                #[target_feature(enable = "avx2,fma")]
                 unsafe fn avx2 $(<$g: $b>)? ($($a: $t),*) {
                     $imp $(::<$g>)? ($($a),*)
                 }
-                if std::arch::is_x86_feature_detected!("avx2") {
-                    // SAFETY: the CPU supports AVX2 (checked just above).
+                if std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma") {
+                    // SAFETY: the CPU supports AVX2 and FMA (checked just above).
                     return unsafe { avx2 $(::<$g>)? ($($a),*) };
                 }
             }
             $imp $(::<$g>)? ($($a),*)
+        }
+    };
+    ($(#[$m:meta])* $vis:vis fn $name:ident <const $g:ident: $b:ty> ($($a:ident: $t:ty),* $(,)?) => $imp:ident) => {
+        $(#[$m])* $vis fn $name <const $g: $b> ($($a: $t),*) {
+            #[cfg(target_arch = "x86_64")]
+            {
+                #[target_feature(enable = "avx2,fma")]
+                unsafe fn avx2 <const $g: $b> ($($a: $t),*) {
+                    $imp::<$g>($($a),*)
+                }
+                if std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma") {
+                    // SAFETY: the CPU supports AVX2 and FMA (checked just above).
+                    return unsafe { avx2::<$g>($($a),*) };
+                }
+            }
+            $imp::<$g>($($a),*)
         }
     };
 }
