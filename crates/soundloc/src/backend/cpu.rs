@@ -113,18 +113,15 @@ impl<T: Real> CpuBackend<T> {
 /// Used bins per task. Pairs of bins (their decompositions side by side) while they keep
 /// the pool busy (four or more per thread); single bins on larger pools, where twice the
 /// tasks for the correlation and the spectrum are worth more. Arrays of up to 16 mics
-/// decompose eight problems at once ([`crate::subspace::eigh_lanes`]): a task then holds
-/// up to eight bins, enough for a full group when the call has few windows, while that
-/// leaves two or more tasks per thread.
+/// decompose eight problems at once ([`crate::subspace::eigh_lanes`]), and a group costs
+/// the same however few of its lanes are used: a task holds enough bins for full groups
+/// when the call has few windows (eight bins for one window), whatever the pool — on 16
+/// threads, ten full groups beat 37 quarter-full ones (8-mic ring, 2026-11-27).
 fn bins_per_task<T: Real>(plan: &Plan<T>, nb: usize, nw: usize, threads: usize) -> usize {
     use crate::subspace::eigh_lanes::{LANES, MAX_N};
     let lanes = plan.config.algorithm.is_music() && !plan.config.subspace_tracking && plan.num_mics <= MAX_N;
     if lanes {
-        let mut b = LANES.div_ceil(nw.max(1)).clamp(1, LANES);
-        while b > 1 && nb.div_ceil(b) < 2 * threads {
-            b /= 2;
-        }
-        b
+        LANES.div_ceil(nw.max(1))
     } else if nb.div_ceil(2) >= 4 * threads {
         2
     } else {
