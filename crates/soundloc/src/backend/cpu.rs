@@ -10,8 +10,9 @@
 //! hand-off between the pool's threads costs, hence one pass.
 //!
 //! Parallelism is per pair of bins (37 tasks at the 73 bins of HARK's defaults) while
-//! that gives four or more tasks per thread, per bin on larger pools, up to eight bins
-//! for small arrays ([`bins_per_task`]); where the tasks are
+//! that gives four or more tasks per thread, per bin on larger pools; for MUSIC on arrays
+//! of up to 16 mics, per group of bins that fills the eigensolver's eight lanes
+//! ([`bins_per_task`]); where the tasks are
 //! still few for the pool (about eight parts per thread), each task's decompositions —
 //! most of a large array's work — run in parts of windows ([`pass`]), while the spectrum of
 //! a task's windows stays together (each bin's steering read once per call). Results are

@@ -101,14 +101,14 @@ impl RunningCorrelation {
     }
 }
 
-/// Up to this many microphones the outer products run as plain loops ([`add_small`]):
-/// for an 8-microphone array faer's set-up per call costs more than the 2 × 36 complex
-/// multiply-adds of a one-frame slide.
+/// Up to this many microphones the outer products run as this file's own loops
+/// ([`add_small`]): for an 8-microphone array faer's set-up per call costs more than the
+/// 2 × 36 complex multiply-adds of a one-frame slide.
 const SMALL_M: usize = 16;
 
 /// S (column-major M × M, upper triangle) += sign · Σ_f y_f y_fᴴ over the rows y_f of `y`
-/// (row-major, M per row), frame by frame in order; `replace`: S = 0 first. A slide's
-/// frame or two: plain complex loops over the triangle ([`add_rows`]). A window's worth of
+/// (row-major, M per row), frame by frame in order; `replace`: S = 0 first. Fewer than
+/// [`COLUMNS_FROM`] frames (a slide's): plain complex loops over the triangle ([`add_rows`]). A window's worth of
 /// frames: column by column ([`add_columns`]), the frames in split real and imaginary
 /// parts padded to N rows and a column's sums held in registers through all frames,
 /// S_ij += y_i conj(y_j) as two fused multiply-adds per part (≈ 2× the plain loops on
@@ -437,6 +437,45 @@ mod tests {
         let direct = run(&s, &windows[7..8]);
         for (a, b) in whole[7].iter().zip(&direct[0]) {
             assert!((a - b).norm() < 1e-6);
+        }
+    }
+
+    /// Both outer-product kernels (the triangle loops for a slide's frames, the column
+    /// kernel for a window's) against the sum by definition, for every array size they
+    /// serve, replacing and accumulating, with either sign.
+    #[test]
+    fn small_kernels_equal_the_defined_sum() {
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand::rngs::StdRng::seed_from_u64(5);
+        for m in 1..=SMALL_M {
+            for frames in [1, 2, COLUMNS_FROM, 50, 77] {
+                let y: Vec<C<f64>> = (0..frames * m)
+                    .map(|_| C::new(rng.gen_range(-1.0..1.0), rng.gen_range(-1.0..1.0)))
+                    .collect();
+                let start: Vec<C<f64>> = (0..m * m)
+                    .map(|_| C::new(rng.gen_range(-1.0..1.0), rng.gen_range(-1.0..1.0)))
+                    .collect();
+                for (replace, sign) in [(true, 1.0), (false, -1.0)] {
+                    let mut got = start.clone();
+                    add_small(&mut got, &y, m, replace, sign);
+                    for j in 0..m {
+                        for i in 0..=j {
+                            let base = if replace {
+                                C::new(0.0, 0.0)
+                            } else {
+                                start[j * m + i]
+                            };
+                            let want =
+                                base + y.chunks_exact(m).map(|r| r[i] * r[j].conj()).sum::<C<f64>>() * sign;
+                            let e = (got[j * m + i] - want).norm();
+                            assert!(
+                                e < 1e-13 * frames as f64,
+                                "m={m} frames={frames} ({i},{j}): off by {e:e}"
+                            );
+                        }
+                    }
+                }
+            }
         }
     }
 }

@@ -159,6 +159,9 @@ fn needs_full_svd<T: Real>(algorithm: Algorithm, ws: &Workspace, out: &Decomposi
 /// Decompose one bin: `r` is the scaled R_k (row-major M × M, f64), `w` the plan's
 /// whitening matrix W_k (row-major, f64) for the noise-aware algorithms. `out.dim` sets
 /// how many leading vectors are computed.
+/// Up to 16 microphones this is a lane group of one ([`decompose_group`], the same bits
+/// as in any group), which costs as much as a full group of eight: callers with many
+/// problems hand them over together.
 pub fn decompose<T: Real>(
     algorithm: Algorithm,
     r: &[c64],

@@ -14,7 +14,8 @@ use crate::real::C;
 /// The kernels below are `#[inline(always)]`, so they are compiled into each variant.
 /// Compilers never fuse a multiply and an add on their own, so a kernel gives the same
 /// bits in both variants; one that asks for `f64::mul_add` gets the FMA instruction here
-/// and the (slower, equally exact) library call in the other.
+/// and the C library's `fma` in the other (slower; the same bits where that is correctly
+/// rounded, as glibc's is).
 macro_rules! dispatch {
     ($(#[$m:meta])* $vis:vis fn $name:ident $(<$g:ident: $b:path>)? ($($a:ident: $t:ty),* $(,)?) => $imp:ident) => {
         $(#[$m])* $vis fn $name $(<$g: $b>)? ($($a: $t),*) {

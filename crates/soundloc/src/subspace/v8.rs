@@ -121,7 +121,8 @@ mod avx2 {
     use std::arch::x86_64::*;
     use std::ops::{Add, Div, Mul, Neg, Sub};
 
-    /// Eight f64 lanes in two AVX2 registers (use only where the CPU has AVX2).
+    /// Eight f64 lanes in two AVX2 registers (use only where the CPU has AVX2: every
+    /// value starts from `splat` or `load`, which check that in debug builds).
     #[derive(Clone, Copy)]
     pub(crate) struct Avx2(__m256d, __m256d);
 
@@ -156,10 +157,12 @@ mod avx2 {
         type Mask = (__m256d, __m256d);
         #[inline(always)]
         fn splat(x: f64) -> Self {
+            debug_assert!(std::arch::is_x86_feature_detected!("avx2"));
             unsafe { Avx2(_mm256_set1_pd(x), _mm256_set1_pd(x)) }
         }
         #[inline(always)]
         fn load(a: &[f64; 8]) -> Self {
+            debug_assert!(std::arch::is_x86_feature_detected!("avx2"));
             unsafe { Avx2(_mm256_loadu_pd(a.as_ptr()), _mm256_loadu_pd(a.as_ptr().add(4))) }
         }
         #[inline(always)]
