@@ -432,37 +432,20 @@ fn tridiagonalize_impl(s: &mut Eigh) {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::subspace::testing::{self, reference};
     use rand::{Rng, SeedableRng};
 
     type Z = C<f64>;
 
-    /// A random Hermitian matrix Σ_s σ_s u_s u_sᴴ + floor·I with the given spectrum shape.
+    /// [`testing::scene`] from a seed.
     fn scene(n: usize, strong: &[f64], floor: f64, jitter: f64, seed: u64) -> Vec<Z> {
-        let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
-        let mut a = vec![Z::new(0.0, 0.0); n * n];
-        for &sigma in strong {
-            let u: Vec<Z> = (0..n)
-                .map(|_| Z::new(rng.gen_range(-1.0..1.0), rng.gen_range(-1.0..1.0)))
-                .collect();
-            for i in 0..n {
-                for j in 0..n {
-                    a[i * n + j] += u[i] * u[j].conj() * sigma;
-                }
-            }
-        }
-        // Noise: a random Hermitian of small norm around floor·I.
-        for i in 0..n {
-            a[i * n + i] += Z::new(floor, 0.0);
-            for j in 0..=i {
-                let z = Z::new(rng.gen_range(-1.0..1.0), rng.gen_range(-1.0..1.0)) * jitter;
-                let z = if i == j { Z::new(z.re, 0.0) } else { z };
-                a[i * n + j] += z;
-                if i != j {
-                    a[j * n + i] += z.conj();
-                }
-            }
-        }
-        a
+        testing::scene(
+            n,
+            strong,
+            floor,
+            jitter,
+            &mut rand::rngs::StdRng::seed_from_u64(seed),
+        )
     }
 
     /// A solver holding the row-major matrix `a`.
@@ -476,53 +459,12 @@ mod tests {
         s
     }
 
-    fn reference(a: &[Z], n: usize) -> (Vec<f64>, faer::Mat<Z>) {
-        let m = faer::Mat::<Z>::from_fn(n, n, |i, j| a[i * n + j]);
-        let evd = m.self_adjoint_eigen(faer::Side::Lower).unwrap();
-        let mut vals: Vec<f64> = (0..n).map(|i| evd.S()[i].re).collect();
-        vals.reverse();
-        let u = faer::Mat::<Z>::from_fn(n, n, |i, j| evd.U()[(i, n - 1 - j)]);
-        (vals, u)
-    }
-
-    /// Largest value error relative to ‖A‖, residual ‖A x − λ x‖/‖A‖, orthonormality, and
-    /// the distance between the computed k-subspace and faer's (‖P − P_ref‖_max).
+    /// Solve `a` for k vectors; [`testing::errors`] against faer.
     fn check(a: &[Z], n: usize, k: usize) -> (f64, f64, f64, f64) {
         let mut s = loaded(a, n);
         let mut vecs = vec![Z::new(0.0, 0.0); n * k];
         s.solve(k, &mut vecs).unwrap();
-        let (vals, u) = reference(a, n);
-        let norm = vals.iter().fold(0.0f64, |x, v| x.max(v.abs())).max(1e-300);
-        let val_err = vals
-            .iter()
-            .zip(s.values())
-            .map(|(a, b)| (a - b).abs())
-            .fold(0.0, f64::max)
-            / norm;
-        let mut resid = 0.0f64;
-        let mut orth = 0.0f64;
-        for c in 0..k {
-            let x = &vecs[c * n..(c + 1) * n];
-            for i in 0..n {
-                let ax: Z = (0..n).map(|j| a[i * n + j] * x[j]).sum();
-                resid = resid.max((ax - x[i] * s.values()[c]).norm() / norm);
-            }
-            for q in 0..k {
-                let y = &vecs[q * n..(q + 1) * n];
-                let g: Z = x.iter().zip(y).map(|(a, b)| a.conj() * b).sum();
-                orth = orth.max((g - Z::new(if q == c { 1.0 } else { 0.0 }, 0.0)).norm());
-            }
-        }
-        // Subspace distance, only meaningful when λ_k > λ_{k+1} clearly.
-        let mut sub = 0.0f64;
-        for i in 0..n {
-            for j in 0..n {
-                let p: Z = (0..k).map(|c| vecs[c * n + i] * vecs[c * n + j].conj()).sum();
-                let q: Z = (0..k).map(|c| u[(i, c)] * u[(j, c)].conj()).sum();
-                sub = sub.max((p - q).norm());
-            }
-        }
-        (val_err, resid, orth, sub)
+        testing::errors(a, n, k, s.values(), &vecs)
     }
 
     #[test]

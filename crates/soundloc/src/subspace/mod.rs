@@ -32,6 +32,8 @@ mod gevd_hark;
 mod gsvd;
 mod sevd;
 pub mod simd;
+#[cfg(test)]
+mod testing;
 pub mod tracking;
 mod tridiag;
 mod v8;
