@@ -123,24 +123,31 @@ fn stdin_wav_prints_results_before_the_input_ends() {
 fn raw_pcm_on_stdin_equals_the_file() {
     let (audio, geo, wav) = scene();
     let want = from_file(&wav, &geo);
-    let mut child = spawn_piped(
-        bin()
-            .args(["localize", "-"])
-            .args(RAW_S16_RING)
-            .arg("--geometry")
-            .arg(&geo)
-            .args(OPTS),
-    );
-    let mut stdin = child.stdin.take().unwrap();
     let bytes = s16le(&audio, 0..audio.num_samples());
-    // Odd-sized writes: frames split across writes.
-    for c in bytes.chunks(7777) {
-        stdin.write_all(c).unwrap();
+    // Any pool: the main thread pushes as one of its workers where it has two or more
+    // threads (`soundloc::pool`), hands over to the single worker otherwise.
+    for threads in [None, Some("1"), Some("3")] {
+        let mut cmd = bin();
+        if let Some(t) = threads {
+            cmd.env("RAYON_NUM_THREADS", t);
+        }
+        let mut child = spawn_piped(
+            cmd.args(["localize", "-"])
+                .args(RAW_S16_RING)
+                .arg("--geometry")
+                .arg(&geo)
+                .args(OPTS),
+        );
+        let mut stdin = child.stdin.take().unwrap();
+        // Odd-sized writes: frames split across writes.
+        for c in bytes.chunks(7777) {
+            stdin.write_all(c).unwrap();
+        }
+        drop(stdin);
+        let o = child.wait_with_output().unwrap();
+        assert!(o.status.success(), "{threads:?}: {}", String::from_utf8_lossy(&o.stderr));
+        assert_eq!(String::from_utf8(o.stdout).unwrap(), want, "RAYON_NUM_THREADS {threads:?}");
     }
-    drop(stdin);
-    let o = child.wait_with_output().unwrap();
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    assert_eq!(String::from_utf8(o.stdout).unwrap(), want);
     // --raw needs its companions.
     let o = bin()
         .args(["localize", "-", "--raw", "s16le", "--geometry"])

@@ -57,6 +57,7 @@ pub mod noise;
 pub mod output;
 pub mod peaks;
 pub mod plan;
+pub mod pool;
 pub mod real;
 pub mod result;
 pub mod sim;

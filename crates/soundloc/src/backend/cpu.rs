@@ -18,6 +18,7 @@
 //! a task's windows stays together (each bin's steering read once per call). Results are
 //! the same bits for any pool size (`music::tests`).
 
+mod linger;
 mod pass;
 
 use super::{Backend, BatchOutput, Job, StageTimes, StreamId};
@@ -55,6 +56,8 @@ pub struct CpuBackend<T: Real> {
     /// with the stream's running sums (which then restart exact).
     tracks: HashMap<StreamId, Vec<BinTrack>>,
     calls: u64,
+    /// When the last pass ended ([`linger`]).
+    pass_end: Option<Instant>,
     /// Scratch per pool thread, kept between calls (a small array's window costs tens of
     /// µs: building the scratch anew for each call weighed as much as a stage).
     scratch: Vec<Mutex<ThreadScratch<T>>>,
@@ -106,6 +109,7 @@ impl<T: Real> CpuBackend<T> {
             running: HashMap::new(),
             tracks: HashMap::new(),
             calls: 0,
+            pass_end: None,
             scratch: scratch_slots(rayon::current_num_threads()),
         }
     }
@@ -324,10 +328,17 @@ impl<T: Real> CpuBackend<T> {
             // pool: about eight parts per thread (one part, all windows, on small pools).
             part_windows: nw.div_ceil((8 * threads).div_ceil(nb.div_ceil(per_task)).max(1)),
         };
+        linger::pass_starts();
+        let ntasks = tasks.len();
         tasks
             .into_par_iter()
             .try_for_each(|task| ctx.run(task, slots, &nanos))?;
         let pass_ms = ms(t_pass);
+        // Helpers stay awake for the next pass when passes come close together.
+        if linger::wanted(self.pass_end, t_pass) {
+            linger::keep_awake(threads.min(ntasks) - 1);
+        }
+        self.pass_end = Some(Instant::now());
         let cpu: Vec<f64> = nanos.0.iter().map(|n| n.load(Ordering::Relaxed) as f64).collect();
         let total: f64 = cpu.iter().sum::<f64>().max(1.0);
         self.times.correlation_ms += pass_ms * cpu[0] / total;

@@ -1,7 +1,8 @@
-//! Eight f64 lanes, one type per instruction set: [`Avx2`] (two 256-bit registers) and
-//! [`Scalar`] (a plain array, the baseline build). Both do the same IEEE operations
+//! Eight f64 lanes, one type per instruction set: [`Avx512`] (one 512-bit register),
+//! [`Avx2`] (two 256-bit registers) and [`Scalar`] (a plain array, the baseline build).
+//! All do the same IEEE operations
 //! (add, subtract, multiply, divide, square root, compare, select; no fused
-//! multiply-add), so code written once over [`F8`] gives the same bits on either.
+//! multiply-add), so code written once over [`F8`] gives the same bits on any of them.
 
 use std::ops::{Add, Div, Mul, Neg, Sub};
 
@@ -217,6 +218,103 @@ mod avx2 {
         fn lanes(m: Self::Mask) -> [bool; 8] {
             let bits = unsafe { _mm256_movemask_pd(m.0) | (_mm256_movemask_pd(m.1) << 4) };
             std::array::from_fn(|l| (bits >> l) & 1 == 1)
+        }
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+pub(crate) use avx512::Avx512;
+
+#[cfg(target_arch = "x86_64")]
+mod avx512 {
+    //! SAFETY (every `unsafe` block below): an [`Avx512`] value exists only in code the
+    //! caller runs after checking that the CPU has AVX-512F (`is_x86_feature_detected!`),
+    //! and the loads and stores go through references to whole `[f64; 8]` arrays.
+    use super::F8;
+    use std::arch::x86_64::*;
+    use std::ops::{Add, Div, Mul, Neg, Sub};
+
+    /// Eight f64 lanes in one AVX-512 register (use only where the CPU has AVX-512F:
+    /// every value starts from `splat` or `load`, which check that in debug builds).
+    #[derive(Clone, Copy)]
+    pub(crate) struct Avx512(__m512d);
+
+    macro_rules! avx_op {
+        ($tr:ident, $f:ident, $intr:ident) => {
+            impl $tr for Avx512 {
+                type Output = Avx512;
+                #[inline(always)]
+                fn $f(self, o: Avx512) -> Avx512 {
+                    unsafe { Avx512($intr(self.0, o.0)) }
+                }
+            }
+        };
+    }
+    avx_op!(Add, add, _mm512_add_pd);
+    avx_op!(Sub, sub, _mm512_sub_pd);
+    avx_op!(Mul, mul, _mm512_mul_pd);
+    avx_op!(Div, div, _mm512_div_pd);
+
+    impl Neg for Avx512 {
+        type Output = Avx512;
+        /// The sign bit flipped (as `-x`, not `0 − x`: −0 for +0).
+        #[inline(always)]
+        fn neg(self) -> Avx512 {
+            unsafe {
+                let s = _mm512_set1_epi64(i64::MIN);
+                Avx512(_mm512_castsi512_pd(_mm512_xor_si512(_mm512_castpd_si512(self.0), s)))
+            }
+        }
+    }
+
+    impl F8 for Avx512 {
+        type Mask = __mmask8;
+        #[inline(always)]
+        fn splat(x: f64) -> Self {
+            debug_assert!(std::arch::is_x86_feature_detected!("avx512f"));
+            unsafe { Avx512(_mm512_set1_pd(x)) }
+        }
+        #[inline(always)]
+        fn load(a: &[f64; 8]) -> Self {
+            debug_assert!(std::arch::is_x86_feature_detected!("avx512f"));
+            unsafe { Avx512(_mm512_loadu_pd(a.as_ptr())) }
+        }
+        #[inline(always)]
+        fn store(self, a: &mut [f64; 8]) {
+            unsafe { _mm512_storeu_pd(a.as_mut_ptr(), self.0) }
+        }
+        #[inline(always)]
+        fn sqrt(self) -> Self {
+            unsafe { Avx512(_mm512_sqrt_pd(self.0)) }
+        }
+        #[inline(always)]
+        fn abs(self) -> Self {
+            unsafe { Avx512(_mm512_abs_pd(self.0)) }
+        }
+        #[inline(always)]
+        fn lt(self, o: Self) -> Self::Mask {
+            unsafe { _mm512_cmp_pd_mask::<_CMP_LT_OQ>(self.0, o.0) }
+        }
+        #[inline(always)]
+        fn eq(self, o: Self) -> Self::Mask {
+            unsafe { _mm512_cmp_pd_mask::<_CMP_EQ_OQ>(self.0, o.0) }
+        }
+        #[inline(always)]
+        fn and(a: Self::Mask, b: Self::Mask) -> Self::Mask {
+            a & b
+        }
+        #[inline(always)]
+        fn select(m: Self::Mask, a: Self, b: Self) -> Self {
+            // Lanes of the second operand where the mask is set.
+            unsafe { Avx512(_mm512_mask_blend_pd(m, b.0, a.0)) }
+        }
+        #[inline(always)]
+        fn any(m: Self::Mask) -> bool {
+            m != 0
+        }
+        #[inline(always)]
+        fn lanes(m: Self::Mask) -> [bool; 8] {
+            std::array::from_fn(|l| (m >> l) & 1 == 1)
         }
     }
 }

@@ -165,14 +165,19 @@ fn whitened_and_gram_forms_match_their_definitions() {
     }
 }
 
-/// The AVX2 lanes and the baseline's plain arrays give the same bits.
+/// The AVX-512 and AVX2 lanes and the baseline's plain arrays give the same bits.
 #[test]
-fn avx2_and_baseline_lanes_agree_bit_for_bit() {
+fn vector_and_baseline_lanes_agree_bit_for_bit() {
     #[cfg(target_arch = "x86_64")]
     {
-        if !std::arch::is_x86_feature_detected!("avx2") {
-            println!("SKIPPED avx2_and_baseline_lanes_agree_bit_for_bit: no AVX2 on this CPU");
-            return;
+        let has = |f: &str| match f {
+            "avx2" => std::arch::is_x86_feature_detected!("avx2"),
+            _ => std::arch::is_x86_feature_detected!("avx512f"),
+        };
+        for isa in ["avx2", "avx512f"] {
+            if !has(isa) {
+                println!("SKIPPED vector_and_baseline_lanes_agree_bit_for_bit ({isa}): not on this CPU");
+            }
         }
         let mut rng = rand::rngs::StdRng::seed_from_u64(6);
         let n = 8;
@@ -183,7 +188,7 @@ fn avx2_and_baseline_lanes_agree_bit_for_bit() {
             let rs: Vec<Vec<Z>> = (0..LANES)
                 .map(|_| scene(n, &[30.0, 5.0], 1.0, 0.1, &mut rng))
                 .collect();
-            let run = |avx: bool| {
+            let run = |isa: &str| {
                 let mut s = EighLanes::new(n);
                 s.clear(form);
                 for r in &rs {
@@ -191,10 +196,10 @@ fn avx2_and_baseline_lanes_agree_bit_for_bit() {
                 }
                 s.yr.resize(n * n, ZERO);
                 s.yi.resize(n * n, ZERO);
-                if avx {
-                    solve_with::<v8::Avx2>(&mut s, n);
-                } else {
-                    solve_with::<v8::Scalar>(&mut s, n);
+                match isa {
+                    "avx2" => solve_with::<v8::Avx2>(&mut s, n),
+                    "avx512f" => solve_with::<v8::Avx512>(&mut s, n),
+                    _ => solve_with::<v8::Scalar>(&mut s, n),
                 }
                 let mut out = Vec::new();
                 let mut v = vec![Z::new(0.0, 0.0); n];
@@ -207,7 +212,12 @@ fn avx2_and_baseline_lanes_agree_bit_for_bit() {
                 }
                 out
             };
-            assert_eq!(run(true), run(false), "{form:?}");
+            let baseline = run("baseline");
+            for isa in ["avx2", "avx512f"] {
+                if has(isa) {
+                    assert_eq!(run(isa), baseline, "{isa} {form:?}");
+                }
+            }
         }
     }
 }
