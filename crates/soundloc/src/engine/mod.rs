@@ -333,7 +333,8 @@ impl<T: Real> Engine<T> {
         }
         // With a CPU backend the rest runs on a thread of the pool: the parallel stages of
         // a small push then start from inside it, so the caller hands off once per push
-        // instead of once per stage (`Backend::runs_on_pool` says why not for devices).
+        // instead of once per stage, and not at all where it is a worker itself
+        // (`crate::pool`; `Backend::runs_on_pool` says why not for devices).
         if self.backend.as_ref().is_some_and(|b| b.runs_on_pool()) {
             rayon::scope(|_| self.push_checked(&block, &idx, len, out))
         } else {
