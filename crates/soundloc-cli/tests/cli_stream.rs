@@ -145,8 +145,16 @@ fn raw_pcm_on_stdin_equals_the_file() {
         }
         drop(stdin);
         let o = child.wait_with_output().unwrap();
-        assert!(o.status.success(), "{threads:?}: {}", String::from_utf8_lossy(&o.stderr));
-        assert_eq!(String::from_utf8(o.stdout).unwrap(), want, "RAYON_NUM_THREADS {threads:?}");
+        assert!(
+            o.status.success(),
+            "{threads:?}: {}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+        assert_eq!(
+            String::from_utf8(o.stdout).unwrap(),
+            want,
+            "RAYON_NUM_THREADS {threads:?}"
+        );
     }
     // --raw needs its companions.
     let o = bin()

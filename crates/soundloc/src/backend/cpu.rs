@@ -56,7 +56,7 @@ pub struct CpuBackend<T: Real> {
     /// with the stream's running sums (which then restart exact).
     tracks: HashMap<StreamId, Vec<BinTrack>>,
     calls: u64,
-    /// When the last pass ended ([`linger`]).
+    /// When the last call ended ([`linger`]).
     pass_end: Option<Instant>,
     /// Scratch per pool thread, kept between calls (a small array's window costs tens of
     /// µs: building the scratch anew for each call weighed as much as a stage).
@@ -334,11 +334,7 @@ impl<T: Real> CpuBackend<T> {
             .into_par_iter()
             .try_for_each(|task| ctx.run(task, slots, &nanos))?;
         let pass_ms = ms(t_pass);
-        // Helpers stay awake for the next pass when passes come close together.
-        if linger::wanted(self.pass_end, t_pass) {
-            linger::keep_awake(threads.min(ntasks) - 1);
-        }
-        self.pass_end = Some(Instant::now());
+        let linger_after = linger::wanted(self.pass_end, t_pass);
         let cpu: Vec<f64> = nanos.0.iter().map(|n| n.load(Ordering::Relaxed) as f64).collect();
         let total: f64 = cpu.iter().sum::<f64>().max(1.0);
         self.times.correlation_ms += pass_ms * cpu[0] / total;
@@ -421,6 +417,11 @@ impl<T: Real> CpuBackend<T> {
             }
         }
         self.times.peaks_ms += ms(t);
+        // Helpers stay awake for the next call when calls come close together.
+        if linger_after {
+            linger::keep_awake(threads.min(ntasks).saturating_sub(1));
+        }
+        self.pass_end = Some(Instant::now());
         Ok(())
     }
 }

@@ -2,14 +2,13 @@
 //! microphones), [`LANES`] problems at once, one per vector lane, in f64: every
 //! eigenvalue and the eigenvectors of the k largest.
 //!
-//! For an 8-microphone array a decomposition is a few hundred arithmetic operations
-//! spread over chains of dependent divisions and square roots: one problem at a time
-//! leaves the core idle (≈ 3 µs per 8 × 8 problem with [`super::eigh`], 2026-11-27).
-//! Here every operation acts on the same element of eight problems at once — eight
-//! chains share each instruction — and no step branches on the data: where one problem
-//! needs a step that another does not, the step runs for all and its result is kept
-//! only where it is needed. Each lane's operations are exactly those it would run alone,
-//! so a problem's result does not depend on which problems share its group.
+//! For an 8-microphone array a decomposition is a few hundred operations spread over
+//! chains of dependent divisions and square roots: one problem at a time leaves the core
+//! idle (≈ 3 µs per 8 × 8 problem with [`super::eigh`], 2026-11-27). Here every operation
+//! acts on the same element of eight problems at once, and no step branches on the data:
+//! a step one problem needs runs for all and its result is kept only where needed. Each
+//! lane's operations are those it would run alone, so its result does not depend on
+//! which problems share its group.
 //!
 //! 1. **Householder tridiagonalisation** (LAPACK `zhetd2`, lower, in full storage):
 //!    A = Q T Qᴴ, Q = H₀ ⋯ H_{n−2}, H_j = I − τ_j v_j v_jᴴ; per step p = τ A₂₂ v,
@@ -25,8 +24,7 @@
 //!    largest x = Q z (the reflectors applied from the last to the first).
 //!
 //! Operations are plain IEEE multiplies and adds (no fused multiply-add), so AVX-512
-//! (where the CPU has it: ≈ 12 % faster than AVX2 on Zen 4, 2026-11-27), AVX2 and the
-//! baseline x86-64 build give the same bits.
+//! (≈ 12 % faster than AVX2 on Zen 4), AVX2 and the baseline build give the same bits.
 
 use super::v8::{self, F8};
 use crate::real::C;
@@ -215,21 +213,7 @@ impl EighLanes {
         if self.used == 0 || n == 0 {
             return Ok(());
         }
-        // Idle lanes repeat lane 0 (a problem known to be finite), in what the form reads.
-        if self.used < LANES {
-            let loaded: [&mut Vec<V>; 4] = if self.form == Form::R {
-                [&mut self.re, &mut self.im, &mut Vec::new(), &mut Vec::new()]
-            } else {
-                [&mut self.rr, &mut self.ri, &mut self.wr, &mut self.wi]
-            };
-            for x in loaded.into_iter().flat_map(|v| v.iter_mut()) {
-                for l in self.used..LANES {
-                    x[l] = x[0];
-                }
-            }
-        }
-        self.yr.resize(n * k, ZERO);
-        self.yi.resize(n * k, ZERO);
+        self.prepare(k);
         solve_lanes(self, k);
         for l in 0..self.used {
             if self.failed[l] {
@@ -243,6 +227,25 @@ impl EighLanes {
             }
         }
         Ok(())
+    }
+
+    /// Before a solve for `k` vectors: idle lanes repeat lane 0 (known to be finite) in
+    /// what the form reads; the vectors' storage is sized.
+    fn prepare(&mut self, k: usize) {
+        if self.used < LANES {
+            let loaded: [&mut Vec<V>; 4] = if self.form == Form::R {
+                [&mut self.re, &mut self.im, &mut Vec::new(), &mut Vec::new()]
+            } else {
+                [&mut self.rr, &mut self.ri, &mut self.wr, &mut self.wi]
+            };
+            for x in loaded.into_iter().flat_map(|v| v.iter_mut()) {
+                for l in self.used..LANES {
+                    x[l] = x[0];
+                }
+            }
+        }
+        self.yr.resize(self.n * k, ZERO);
+        self.yi.resize(self.n * k, ZERO);
     }
 
     /// Eigenvalues of problem `lane`, descending.
@@ -271,24 +274,31 @@ impl EighLanes {
 fn solve_lanes(s: &mut EighLanes, k: usize) {
     #[cfg(target_arch = "x86_64")]
     {
-        #[target_feature(enable = "avx512f")]
-        unsafe fn avx512(s: &mut EighLanes, k: usize) {
-            solve_with::<v8::Avx512>(s, k)
-        }
-        #[target_feature(enable = "avx2")]
-        unsafe fn avx2(s: &mut EighLanes, k: usize) {
-            solve_with::<v8::Avx2>(s, k)
-        }
         if std::arch::is_x86_feature_detected!("avx512f") {
             // SAFETY: the CPU supports AVX-512F (checked just above).
-            return unsafe { avx512(s, k) };
+            return unsafe { solve_avx512(s, k) };
         }
         if std::arch::is_x86_feature_detected!("avx2") {
             // SAFETY: the CPU supports AVX2 (checked just above).
-            return unsafe { avx2(s, k) };
+            return unsafe { solve_avx2(s, k) };
         }
     }
     solve_with::<v8::Scalar>(s, k)
+}
+
+/// [`solve_with`] in AVX-512 registers (the caller checks the CPU): faster than AVX2 on
+/// Zen 4 and on an Intel Xeon (2026-11-27; BENCHMARKS.md, seventh session).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f")]
+unsafe fn solve_avx512(s: &mut EighLanes, k: usize) {
+    solve_with::<v8::Avx512>(s, k)
+}
+
+/// [`solve_with`] in AVX2 registers (the caller checks the CPU).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn solve_avx2(s: &mut EighLanes, k: usize) {
+    solve_with::<v8::Avx2>(s, k)
 }
 
 #[inline(always)]

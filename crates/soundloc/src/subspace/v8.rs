@@ -262,7 +262,10 @@ mod avx512 {
         fn neg(self) -> Avx512 {
             unsafe {
                 let s = _mm512_set1_epi64(i64::MIN);
-                Avx512(_mm512_castsi512_pd(_mm512_xor_si512(_mm512_castpd_si512(self.0), s)))
+                Avx512(_mm512_castsi512_pd(_mm512_xor_si512(
+                    _mm512_castpd_si512(self.0),
+                    s,
+                )))
             }
         }
     }

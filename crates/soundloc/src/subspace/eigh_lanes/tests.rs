@@ -165,7 +165,9 @@ fn whitened_and_gram_forms_match_their_definitions() {
     }
 }
 
-/// The AVX-512 and AVX2 lanes and the baseline's plain arrays give the same bits.
+/// The AVX-512 and AVX2 lanes (through the functions the solver dispatches to) and the
+/// baseline's plain arrays give the same bits: full and part-filled groups, every form,
+/// and a diagonal matrix whose off-diagonal zeros carry both signs.
 #[test]
 fn vector_and_baseline_lanes_agree_bit_for_bit() {
     #[cfg(target_arch = "x86_64")]
@@ -184,38 +186,48 @@ fn vector_and_baseline_lanes_agree_bit_for_bit() {
         let w: Vec<Z> = (0..n * n)
             .map(|_| Z::new(rng.gen_range(-1.0..1.0), rng.gen_range(-1.0..1.0)))
             .collect();
+        let mut diagonal = vec![Z::new(0.0, 0.0); n * n];
+        for i in 0..n {
+            diagonal[i * n + i] = Z::new(1.0 + i as f64, 0.0);
+            for j in 0..i {
+                diagonal[i * n + j] = Z::new(if (i + j) % 2 == 0 { -0.0 } else { 0.0 }, -0.0);
+            }
+        }
         for form in [Form::R, Form::Whitened { lower: true }, Form::Gram] {
-            let rs: Vec<Vec<Z>> = (0..LANES)
+            let mut rs: Vec<Vec<Z>> = (0..LANES)
                 .map(|_| scene(n, &[30.0, 5.0], 1.0, 0.1, &mut rng))
                 .collect();
-            let run = |isa: &str| {
-                let mut s = EighLanes::new(n);
-                s.clear(form);
-                for r in &rs {
-                    s.push(r, Some(&w)).unwrap();
-                }
-                s.yr.resize(n * n, ZERO);
-                s.yi.resize(n * n, ZERO);
-                match isa {
-                    "avx2" => solve_with::<v8::Avx2>(&mut s, n),
-                    "avx512f" => solve_with::<v8::Avx512>(&mut s, n),
-                    _ => solve_with::<v8::Scalar>(&mut s, n),
-                }
-                let mut out = Vec::new();
-                let mut v = vec![Z::new(0.0, 0.0); n];
-                for lane in 0..LANES {
-                    out.extend(s.values(lane).iter().map(|v| v.to_bits()));
-                    for c in 0..n {
-                        s.vector(lane, c, &mut v);
-                        out.extend(v.iter().flat_map(|z| [z.re.to_bits(), z.im.to_bits()]));
+            rs[3] = diagonal.clone();
+            for used in [LANES, 3] {
+                let run = |isa: &str| {
+                    let mut s = EighLanes::new(n);
+                    s.clear(form);
+                    for r in &rs[..used] {
+                        s.push(r, Some(&w)).unwrap();
                     }
-                }
-                out
-            };
-            let baseline = run("baseline");
-            for isa in ["avx2", "avx512f"] {
-                if has(isa) {
-                    assert_eq!(run(isa), baseline, "{isa} {form:?}");
+                    s.prepare(n);
+                    // SAFETY: each is called only where `has` found its instruction set.
+                    match isa {
+                        "avx2" => unsafe { solve_avx2(&mut s, n) },
+                        "avx512f" => unsafe { solve_avx512(&mut s, n) },
+                        _ => solve_with::<v8::Scalar>(&mut s, n),
+                    }
+                    let mut out = Vec::new();
+                    let mut v = vec![Z::new(0.0, 0.0); n];
+                    for lane in 0..used {
+                        out.extend(s.values(lane).iter().map(|v| v.to_bits()));
+                        for c in 0..n {
+                            s.vector(lane, c, &mut v);
+                            out.extend(v.iter().flat_map(|z| [z.re.to_bits(), z.im.to_bits()]));
+                        }
+                    }
+                    out
+                };
+                let baseline = run("baseline");
+                for isa in ["avx2", "avx512f"] {
+                    if has(isa) {
+                        assert_eq!(run(isa), baseline, "{isa} {form:?}, {used} lanes");
+                    }
                 }
             }
         }
