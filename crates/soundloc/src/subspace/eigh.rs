@@ -31,7 +31,7 @@
 //! k = 2 vectors a few µs, against faer's `self_adjoint_evd` with vectors at 278 µs (c32)
 //! and 415 µs (c64).
 
-use super::simd::{self, axpy, axpy_real, conj_axpy, dot4, dot_real, dotc, rank2_row};
+use super::simd::{self, axpy, axpy_real, conj_axpy, dot_real, dotc, rank2_row};
 use super::tridiag::{ql_values, ql_values_many, TriLu};
 use crate::real::C;
 use crate::{Error, Result};
@@ -301,11 +301,11 @@ fn iterate_group(
 simd::dispatch!(
     /// The k leading eigenvectors: of T by inverse iteration, then x = Q z for all of them
     /// together (each reflector is applied to every vector while it is in cache).
-    fn leading_vectors(s: &mut Eigh, k: usize, vectors: &mut [C<f64>]) => leading_vectors_impl
+    fn leading_vectors(s: &mut Eigh, k: usize, vectors: &mut [C<f64>]) => leading_vectors_impl::<AVX2>
 );
 
 #[inline(always)]
-fn leading_vectors_impl(s: &mut Eigh, k: usize, vectors: &mut [C<f64>]) {
+fn leading_vectors_impl<const AVX2: bool>(s: &mut Eigh, k: usize, vectors: &mut [C<f64>]) {
     let n = s.n;
     s.tridiagonal_vectors(k);
     // Y = Z (real), split parts, one row per vector.
@@ -328,7 +328,8 @@ fn leading_vectors_impl(s: &mut Eigh, k: usize, vectors: &mut [C<f64>]) {
                 &mut s.yr[c * n + j + 1..(c + 1) * n],
                 &mut s.yi[c * n + j + 1..(c + 1) * n],
             );
-            let f = -(t * dotc(hr, hi, yr, yi));
+            // SAFETY: AVX2 is true only in the variant run where the CPU has AVX2.
+            let f = -(t * unsafe { simd::dot4_in::<AVX2, true>(hr, hi, yr, yi) });
             axpy(f, hr, hi, yr, yi);
         }
     }
@@ -340,11 +341,11 @@ fn leading_vectors_impl(s: &mut Eigh, k: usize, vectors: &mut [C<f64>]) {
 simd::dispatch!(
     /// Householder reduction of `s.re/s.im` to tridiagonal form: diagonal into `s.diag`,
     /// the (real) subdiagonal into `s.off`, v_j into row j and τ_j into `s.tau`.
-    fn tridiagonalize(s: &mut Eigh) => tridiagonalize_impl
+    fn tridiagonalize(s: &mut Eigh) => tridiagonalize_impl::<AVX2>
 );
 
 #[inline(always)]
-fn tridiagonalize_impl(s: &mut Eigh) {
+fn tridiagonalize_impl<const AVX2: bool>(s: &mut Eigh) {
     let n = s.n;
     for j in 0..n {
         s.diag[j] = s.re[j * n + j];
@@ -393,7 +394,8 @@ fn tridiagonalize_impl(s: &mut Eigh) {
             let r0 = (j + 1 + i) * n + j + 1;
             let (ar, ai) = (&s.re[r0..r0 + i], &s.im[r0..r0 + i]);
             let vi_ = C::new(vr[i], vi[i]);
-            let left = dot4::<false>(ar, ai, &vr[..i], &vi[..i]);
+            // SAFETY: AVX2 is true only in the variant run where the CPU has AVX2.
+            let left = unsafe { simd::dot4_in::<AVX2, false>(ar, ai, &vr[..i], &vi[..i]) };
             conj_axpy(vi_, ar, ai, &mut pr[..i], &mut pi[..i]);
             let d = s.re[r0 + i];
             pr[i] += left.re + d * vi_.re;

@@ -17,6 +17,24 @@ use crate::real::C;
 /// and the C library's `fma` in the other (slower; the same bits where that is correctly
 /// rounded, as glibc's is).
 macro_rules! dispatch {
+    // `=> imp::<AVX2>`: `imp<const AVX2: bool>` is told which variant it is compiled into,
+    // so it may call `#[target_feature]` kernels such as [`dot4_avx2`] where it is true.
+    ($(#[$m:meta])* $vis:vis fn $name:ident ($($a:ident: $t:ty),* $(,)?) => $imp:ident::<AVX2>) => {
+        $(#[$m])* $vis fn $name ($($a: $t),*) {
+            #[cfg(target_arch = "x86_64")]
+            {
+                #[target_feature(enable = "avx2,fma")]
+                unsafe fn avx2 ($($a: $t),*) {
+                    $imp::<true>($($a),*)
+                }
+                if std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma") {
+                    // SAFETY: the CPU supports AVX2 and FMA (checked just above).
+                    return unsafe { avx2($($a),*) };
+                }
+            }
+            $imp::<false>($($a),*)
+        }
+    };
     ($(#[$m:meta])* $vis:vis fn $name:ident $(<$g:ident: $b:path>)? ($($a:ident: $t:ty),* $(,)?) => $imp:ident) => {
         $(#[$m])* $vis fn $name $(<$g: $b>)? ($($a: $t),*) {
             #[cfg(target_arch = "x86_64")]
@@ -82,6 +100,74 @@ pub fn dot4<const CONJ: bool>(ar: &[f64], ai: &[f64], br: &[f64], bi: &[f64]) ->
         (sr[0] + sr[2]) + (sr[1] + sr[3]),
         (si[0] + si[2]) + (si[1] + si[3]),
     );
+    for i in n / 4 * 4..n {
+        tr += ar[i] * br[i] - sgn * ai[i] * bi[i];
+        ti += ar[i] * bi[i] + sgn * ai[i] * br[i];
+    }
+    C::new(tr, ti)
+}
+
+/// [`dot4`], in its AVX2 form ([`dot4_avx2`]) where `AVX2` says the caller was compiled
+/// for AVX2 (`dispatch!`'s `=> imp::<AVX2>` form): the same bits either way.
+///
+/// # Safety
+/// `AVX2` only where the CPU has AVX2.
+#[inline(always)]
+pub unsafe fn dot4_in<const AVX2: bool, const CONJ: bool>(
+    ar: &[f64],
+    ai: &[f64],
+    br: &[f64],
+    bi: &[f64],
+) -> C<f64> {
+    #[cfg(target_arch = "x86_64")]
+    if AVX2 {
+        // SAFETY: the caller's promise.
+        return unsafe { dot4_avx2::<CONJ>(ar, ai, br, bi) };
+    }
+    dot4::<CONJ>(ar, ai, br, bi)
+}
+
+/// [`dot4`] with its four partial sums in one 256-bit register: the same operations in
+/// the same order (no fused multiply-add), so the same bits. (One loop over both sums
+/// had the compiler pair each real sum with its imaginary one in 128-bit registers: the
+/// 60-mic tridiagonal reduction 64 → 55 µs with this, 2026-11-27.)
+///
+/// # Safety
+/// The CPU must have AVX2.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+pub unsafe fn dot4_avx2<const CONJ: bool>(ar: &[f64], ai: &[f64], br: &[f64], bi: &[f64]) -> C<f64> {
+    use std::arch::x86_64::*;
+    let n = ar.len();
+    let (ai, br, bi) = (&ai[..n], &br[..n], &bi[..n]);
+    let sgn = if CONJ { -1.0 } else { 1.0 };
+    let vs = _mm256_set1_pd(sgn);
+    let (mut sr, mut si) = (_mm256_setzero_pd(), _mm256_setzero_pd());
+    let mut i = 0;
+    while i + 4 <= n {
+        // SAFETY: i + 4 <= n and every slice holds n values.
+        let (xr, xi, yr, yi) = unsafe {
+            (
+                _mm256_loadu_pd(ar.as_ptr().add(i)),
+                _mm256_loadu_pd(ai.as_ptr().add(i)),
+                _mm256_loadu_pd(br.as_ptr().add(i)),
+                _mm256_loadu_pd(bi.as_ptr().add(i)),
+            )
+        };
+        let sxi = _mm256_mul_pd(vs, xi);
+        // sr += xr·yr − (sgn·xi)·yi; si += xr·yi + (sgn·xi)·yr.
+        sr = _mm256_add_pd(sr, _mm256_sub_pd(_mm256_mul_pd(xr, yr), _mm256_mul_pd(sxi, yi)));
+        si = _mm256_add_pd(si, _mm256_add_pd(_mm256_mul_pd(xr, yi), _mm256_mul_pd(sxi, yr)));
+        i += 4;
+    }
+    let (mut a, mut b) = ([0.0f64; 4], [0.0f64; 4]);
+    // SAFETY: two arrays of four f64.
+    unsafe {
+        _mm256_storeu_pd(a.as_mut_ptr(), sr);
+        _mm256_storeu_pd(b.as_mut_ptr(), si);
+    }
+    let (mut tr, mut ti) = ((a[0] + a[2]) + (a[1] + a[3]), (b[0] + b[2]) + (b[1] + b[3]));
     for i in n / 4 * 4..n {
         tr += ar[i] * br[i] - sgn * ai[i] * bi[i];
         ti += ar[i] * bi[i] + sgn * ai[i] * br[i];
@@ -159,5 +245,42 @@ pub fn rank2_row(
         let im = v.im * wr[k] - v.re * wi[k] + w.im * vr[k] - w.re * vi[k];
         ar[k] -= re;
         ai[k] -= im;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::{Rng, SeedableRng};
+
+    /// The AVX2 dot product gives the plain one's bits, for every length's remainder.
+    #[test]
+    fn avx2_dot_products_equal_the_plain_ones_bit_for_bit() {
+        #[cfg(target_arch = "x86_64")]
+        {
+            if !std::arch::is_x86_feature_detected!("avx2") {
+                println!("SKIPPED avx2_dot_products_equal_the_plain_ones_bit_for_bit: no AVX2 on this CPU");
+                return;
+            }
+            let mut rng = rand::rngs::StdRng::seed_from_u64(9);
+            let mut v = |n: usize| -> Vec<f64> { (0..n).map(|_| rng.gen_range(-1e3..1e3)).collect() };
+            for n in 0..23 {
+                let (ar, ai, br, bi) = (v(n), v(n), v(n), v(n));
+                let bits = |z: C<f64>| (z.re.to_bits(), z.im.to_bits());
+                // SAFETY: the CPU has AVX2 (checked above).
+                let (x, y) = unsafe {
+                    (
+                        dot4_avx2::<false>(&ar, &ai, &br, &bi),
+                        dot4_avx2::<true>(&ar, &ai, &br, &bi),
+                    )
+                };
+                assert_eq!(bits(x), bits(dot4::<false>(&ar, &ai, &br, &bi)), "n = {n}");
+                assert_eq!(
+                    bits(y),
+                    bits(dot4::<true>(&ar, &ai, &br, &bi)),
+                    "n = {n}, conjugated"
+                );
+            }
+        }
     }
 }
