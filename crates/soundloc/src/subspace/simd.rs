@@ -9,8 +9,10 @@
 use crate::real::C;
 
 /// `dispatch!(pub fn name(args) => imp)` (or `fn name<T: Bound>(args) => imp`, generic
-/// over one type, or `fn name<const N: usize>(args) => imp`) defines `name`, which calls the `#[inline(always)]` function `imp`
-/// compiled for AVX2 and FMA where the CPU has them (checked at run time), else as it is.
+/// over one type, or `fn name<const N: usize>(args) => imp`) defines `name`, which calls
+/// the `#[inline(always)]` function `imp` compiled for AVX2 and FMA where the CPU has them
+/// (checked at run time), else as it is. With `=> imp::<AVX2>`, `imp<const AVX2: bool>`
+/// learns which variant it is, for kernels that need intrinsics ([`dot4_in`]).
 /// The kernels below are `#[inline(always)]`, so they are compiled into each variant.
 /// Compilers never fuse a multiply and an add on their own, so a kernel gives the same
 /// bits in both variants; one that asks for `f64::mul_add` gets the FMA instruction here
@@ -96,11 +98,26 @@ pub fn dot4<const CONJ: bool>(ar: &[f64], ai: &[f64], br: &[f64], bi: &[f64]) ->
             si[l] += xr[l] * yi[l] + sgn * xi[l] * yr[l];
         }
     }
+    dot4_finish::<CONJ>(sr, si, ar, ai, br, bi)
+}
+
+/// [`dot4`]'s end, shared by its AVX2 form: the four partial sums of each part combined
+/// pairwise, then the elements past the last whole chunk of four added in order.
+#[inline(always)]
+fn dot4_finish<const CONJ: bool>(
+    sr: [f64; 4],
+    si: [f64; 4],
+    ar: &[f64],
+    ai: &[f64],
+    br: &[f64],
+    bi: &[f64],
+) -> C<f64> {
+    let sgn = if CONJ { -1.0 } else { 1.0 };
     let (mut tr, mut ti) = (
         (sr[0] + sr[2]) + (sr[1] + sr[3]),
         (si[0] + si[2]) + (si[1] + si[3]),
     );
-    for i in n / 4 * 4..n {
+    for i in ar.len() / 4 * 4..ar.len() {
         tr += ar[i] * br[i] - sgn * ai[i] * bi[i];
         ti += ar[i] * bi[i] + sgn * ai[i] * br[i];
     }
@@ -167,12 +184,7 @@ pub unsafe fn dot4_avx2<const CONJ: bool>(ar: &[f64], ai: &[f64], br: &[f64], bi
         _mm256_storeu_pd(a.as_mut_ptr(), sr);
         _mm256_storeu_pd(b.as_mut_ptr(), si);
     }
-    let (mut tr, mut ti) = ((a[0] + a[2]) + (a[1] + a[3]), (b[0] + b[2]) + (b[1] + b[3]));
-    for i in n / 4 * 4..n {
-        tr += ar[i] * br[i] - sgn * ai[i] * bi[i];
-        ti += ar[i] * bi[i] + sgn * ai[i] * br[i];
-    }
-    C::new(tr, ti)
+    dot4_finish::<CONJ>(a, b, ar, ai, br, bi)
 }
 
 /// Σ a_i b_i over reals, four partial sums.
