@@ -7,12 +7,13 @@
 //   H = (W R)(W R)ᴴ             mode 3  (GSVD: the left singular vectors of A = K⁻¹R are
 //                                        the eigenvectors of A Aᴴ, σ = √λ)
 //   H = Q T Qᴴ,  Q = H_0 H_1 ⋯ H_{n−2},  H_k = I − τ_k v_k v_kᴴ  (LAPACK's zhetd2, lower),
-//   T scaled to ‖T‖ ≈ 1; λ_0 ≥ … ≥ λ_{Ns−1} to EH_BTOL by multisection of Sturm counts
-//   (Ns ≤ warps: the block's warps shared among the values, 32 points per warp and round;
-//   more values: P ≤ 16 lanes per value, all values at once); z_r by inverse iteration
-//   with partial pivoting (LAPACK's dlagtf/dstein idea, one thread per vector; two or
-//   three rounds of solving every vector and orthonormalising them all by the block, which
-//   separates clustered values); λ_0 from the Rayleigh quotient z_0ᵀ T z_0; e_r = Q z_r
+//   T scaled to ‖T‖ ≈ 1; then tridiag.cuh: λ_0 ≥ … ≥ λ_{Ns−1} to EH_BTOL by multisection
+//   of Sturm counts (division-free leading-minor recurrence; Ns ≤ warps: the block's warps
+//   shared among the values, 32 points per warp and round; more values: P ≤ 16 lanes per
+//   value, all values at once); z_r by inverse iteration with partial pivoting (LAPACK's
+//   dlagtf/dstein idea, one thread per vector, branch-free; two or three rounds of solving
+//   every vector and orthonormalising them in rank order, EH_OB at a time, which separates
+//   clustered values); λ_0 from the Rayleigh quotient z_0ᵀ T z_0; here again: e_r = Q z_r
 //   (each warp applies the reflectors to up to EH_BT vectors at once).
 //
 // Two kernels: form_h (modes 1–3) writes H to global memory, eigh reads it (or R in
@@ -55,7 +56,12 @@
 // the robust default's deepest vectors 1e-4 dB from the CPU's (2026-11-27).
 #define EH_BTOL 1e-14
 #endif
+#ifndef EH_BT
 #define EH_BT 2                     // vectors per warp at once in the back-transformation
+#endif
+#ifndef EH_OB
+#define EH_OB 4                     // vectors orthonormalised by one warp at once
+#endif
 
 typedef cplx<double> zd;
 
@@ -66,26 +72,7 @@ __device__ __forceinline__ zd to_zd(cplx<T> a) {
 
 __device__ __forceinline__ double warp_sum_d(double v) { return group_sum<32>(v); }
 
-// 1/x to ~46 bits: the single-precision reciprocal and one Newton step (x scaled so that
-// 1e-30 ≤ |x| ≤ 1e30; a full double division is ~3× the latency on the device).
-__device__ __forceinline__ double rcp_fast(double x) {
-    const double y = (double)__frcp_rn((float)x);
-    return y * (2.0 - x * y);
-}
-
-// Number of eigenvalues of T (diagonal d, squared off-diagonal e2) below x (Sturm count,
-// LDLᵀ form with LAPACK's pivmin guard).
-__device__ int sturm_count(const double* d, const double* e2, int n, double x, double pivmin) {
-    double q = d[0] - x;
-    if (fabs(q) < pivmin) q = -pivmin;
-    int cnt = q < 0.0 ? 1 : 0;
-    for (int i = 1; i < n; ++i) {
-        q = d[i] - x - e2[i - 1] * rcp_fast(q);
-        if (fabs(q) < pivmin) q = -pivmin;
-        cnt += q < 0.0 ? 1 : 0;
-    }
-    return cnt;
-}
+#include "tridiag.cuh"
 
 // C = X · Y for the register tile of this thread (rows ty + EH_TY·a, columns tx + 16·b).
 // xat(i, k) and yat(k, j) read the operands; C goes to acc (fused multiply-adds:
@@ -271,6 +258,9 @@ __device__ void eigh_impl(const zd* __restrict__ R, const zd* __restrict__ Hg, i
     double* zs = F + 2 * (size_t)npk;         // Ns × us
     double* scr = zs + (size_t)ns * us;       // vpp × 3 × us: 1/U diagonal, U's two superdiagonals
     const int vpp = max(1, min(ns, (2 * n * lda + xd - 2 * npk - ns * us) / (3 * us)));
+    // vectors per orthonormalisation step: their dot products with the ones before (≤ ns
+    // each) fit the scratch
+    const int ob = max(1, min(EH_OB, (2 * n * lda + xd - 2 * npk - ns * us) / max(ns, 1)));
     const zd* Rm = R + (size_t)blockIdx.x * M * M;    // column-major, R_ik = Rm[k*M + i]
 
     // ---- H in A: R itself (mode 0) or the product form_h wrote ----
@@ -430,201 +420,13 @@ __device__ void eigh_impl(const zd* __restrict__ R, const zd* __restrict__ Hg, i
         __syncthreads();
     }
 
-    // ---- the top Ns eigenvalues of T: multisection of Sturm counts ----
-    const double eps = 2.220446049250313e-16;
-    const double tiny = 1e-30;  // pivot guard, relative to ‖T‖ = 1 (LAPACK's pivmin role)
-    const double glo = -1.0 - 4.0 * n * eps, ghi = 1.0 + 4.0 * n * eps;  // Gershgorin
-    // To EH_BTOL·‖T‖ only: inverse iteration below converges from there, and λ_0 is then
-    // taken from the Rayleigh quotient of its vector.
-    const double btol = fmax(EH_BTOL, 4.0 * eps);
-    if (ns <= nwarps) {
-        // Few values: the block's warps shared among them (wpe warps per value: 32·wpe
-        // points per round).
-        const int cnt_e = ns;
-        const int wpe = nwarps / cnt_e;
-        const int npts = 32 * wpe;
-        int rounds = 0;  // the same in every thread: each round divides the width by npts + 1
-        for (double w = ghi - glo; w > btol && rounds < 64; w /= (double)(npts + 1)) ++rounds;
-        const int e = warp / wpe, sub = warp - e * wpe;
-        const bool act = e < cnt_e && tn > 0.0;
-        const int r = e;
-        const int want = n - 1 - r;  // ascending index of λ_r
-        double lo = glo, hi = ghi;
-        for (int it = 0; it < rounds; ++it) {
-            int first = 32;
-            if (act) {
-                const double x = lo + (hi - lo) * (double)(sub * 32 + lane + 1) / (double)(npts + 1);
-                const int cnt = sturm_count(dd, e2, n, x, tiny);
-                // first point of this warp with more than `want` values below it
-                const unsigned bal = __ballot_sync(0xffffffffu, cnt > want);
-                first = bal ? __ffs((int)bal) - 1 : 32;
-            }
-            if (lane == 0) bfirst[warp] = first;
-            __syncthreads();
-            if (act) {
-                int gp = npts;
-                for (int q = wpe - 1; q >= 0; --q) {
-                    const int f = bfirst[e * wpe + q];
-                    if (f < 32) gp = q * 32 + f;
-                }
-                const double nlo = gp == 0 ? lo : lo + (hi - lo) * (double)gp / (double)(npts + 1);
-                const double nhi = gp == npts ? hi : lo + (hi - lo) * (double)(gp + 1) / (double)(npts + 1);
-                lo = nlo;
-                hi = fmax(nhi, nlo);
-            }
-            __syncthreads();
-        }
-        if (act && sub == 0 && lane == 0) {
-            lam[r] = 0.5 * (lo + hi);
-            if (r == 0) steps[0] = rounds;
-        }
-    } else {
-        // Many values (the robust default's M/2): P lanes of one warp per value, all values
-        // at once (fewer, wider rounds than a warp each in turn); no barrier inside.
-        int P = 16;
-        while (P > 1 && P * ns > nt) P >>= 1;
-        const int vpass = nt / P;
-        int rounds = 0;
-        for (double w = ghi - glo; w > btol && rounds < 64; w /= (double)(P + 1)) ++rounds;
-        const int e = tid / P, sub = tid - e * P;
-        const int sh = (lane / P) * P;
-        const unsigned segm = (1u << P) - 1u;
-        for (int r0e = 0; r0e < ns; r0e += vpass) {  // uniform over the block
-            const int r = r0e + e;
-            const bool act = r < ns && tn > 0.0;
-            const int want = n - 1 - r;
-            double lo = glo, hi = ghi;
-            for (int it = 0; it < rounds; ++it) {
-                int cnt = 0;
-                if (act) cnt = sturm_count(dd, e2, n, lo + (hi - lo) * (double)(sub + 1) / (double)(P + 1), tiny);
-                const unsigned bal = (__ballot_sync(0xffffffffu, act && cnt > want) >> sh) & segm;
-                const int gp = bal ? __ffs((int)bal) - 1 : P;
-                const double nlo = gp == 0 ? lo : lo + (hi - lo) * (double)gp / (double)(P + 1);
-                const double nhi = gp == P ? hi : lo + (hi - lo) * (double)(gp + 1) / (double)(P + 1);
-                lo = nlo;
-                hi = fmax(nhi, nlo);
-            }
-            if (act && sub == 0) {
-                lam[r] = 0.5 * (lo + hi);
-                if (r == 0) steps[0] = rounds;
-            }
-        }
-    }
+    // ---- the top Ns eigenvalues of T (tridiag.cuh) ----
+    tridiag_values(dd, e2, n, ns, tn > 0.0, lam, steps, bfirst);
     __syncthreads();
     EH_PROF(3);
 
-    // ---- eigenvectors of T: inverse iteration, one thread per vector, vpp at a time,
-    // rounds of (solve every vector; orthonormalise them all): two, or three when two of
-    // the values are closer than 10⁻³‖T‖ (dstein's cluster distance; LAPACK iterates
-    // such clusters more, the CPU path three times). P L U = T − λ I with
-    // partial pivoting is factored again in each solve together with its forward
-    // elimination (so only U is kept: three rows of stride us per thread). Orthonormalising
-    // between the solves, not only after them, keeps close values apart: vectors of one
-    // cluster come out of the first solve nearly parallel, and the second solve, from an
-    // orthonormal start, amplifies each within the cluster's span only.
-    int close = 0;
-    for (int r = 1 + tid; r < ns; r += nt) close |= lam[r - 1] - lam[r] < 1e-3;
-    const int rounds_v = __syncthreads_or(close) ? 3 : 2;
-    for (int iter = 0; iter < rounds_v; ++iter) {
-        for (int r0v = 0; r0v < ns; r0v += vpp) {  // uniform over the block
-            const int r = r0v + tid;
-            if (tid < vpp && r < ns) {
-                double* u0 = scr + (size_t)tid * us;              // 1 / U diagonal
-                double* u1 = scr + (size_t)(vpp + tid) * us;      // U first superdiagonal
-                double* u2 = scr + (size_t)(2 * vpp + tid) * us;  // U second superdiagonal
-                double* z = zs + (size_t)r * us;
-                if (tn == 0.0) {
-                    for (int i = 0; i < n; ++i) z[i] = i == r ? 1.0 : 0.0;
-                } else {
-                    const double lm = lam[r];
-                    const double piv_min = 4.0 * eps;  // |pivot| floor (‖T‖ = 1)
-                    if (iter == 0) {
-                        for (int i = 0; i < n; ++i) {
-                            // a fixed, non-special start vector (dstein uses random numbers)
-                            const unsigned h = (unsigned)(i * 2654435761u) ^ (unsigned)(r * 40503u + 12345u);
-                            z[i] = 0.5 + (double)(h % 1024u) / 1024.0;
-                        }
-                    }
-                    // Each solve multiplies the wanted component by ≥ 1 / EH_BTOL against
-                    // values outside its cluster (growth ≤ 1 / (4ε): no rescaling needed).
-                    double p0 = dd[0] - lm, p1 = n > 1 ? ee[0] : 0.0;  // row k's pending entries
-                    for (int kk = 0; kk < n - 1; ++kk) {
-                        const double sub = ee[kk];                             // T(k+1, k)
-                        const double dn = dd[kk + 1] - lm;                     // T(k+1, k+1)
-                        const double sup = kk + 1 < n - 1 ? ee[kk + 1] : 0.0;  // T(k+1, k+2)
-                        if (fabs(p0) >= fabs(sub) || fabs(sub) < piv_min) {
-                            const double ip = rcp_fast(fabs(p0) < piv_min ? (p0 < 0.0 ? -piv_min : piv_min) : p0);
-                            const double mu = sub * ip;
-                            u0[kk] = ip;
-                            u1[kk] = p1;
-                            u2[kk] = 0.0;
-                            z[kk + 1] -= mu * z[kk];
-                            p0 = dn - mu * p1;
-                            p1 = sup;
-                        } else {
-                            const double is = rcp_fast(sub);
-                            const double mu = p0 * is;
-                            u0[kk] = is;
-                            u1[kk] = dn;
-                            u2[kk] = sup;
-                            const double t = z[kk];
-                            z[kk] = z[kk + 1];
-                            z[kk + 1] = t - mu * z[kk + 1];
-                            p0 = p1 - mu * dn;
-                            p1 = -mu * sup;
-                        }
-                    }
-                    u0[n - 1] = rcp_fast(fabs(p0) < piv_min ? (p0 < 0.0 ? -piv_min : piv_min) : p0);
-                    z[n - 1] *= u0[n - 1];  // U z = rhs
-                    if (n > 1) z[n - 2] = (z[n - 2] - u1[n - 2] * z[n - 1]) * u0[n - 2];
-                    for (int kk = n - 3; kk >= 0; --kk)
-                        z[kk] = (z[kk] - u1[kk] * z[kk + 1] - u2[kk] * z[kk + 2]) * u0[kk];
-                }
-            }
-            __syncthreads();
-        }
-        // Orthonormalise Z in rank order (classical Gram–Schmidt, twice, by the whole
-        // block); the solver scratch holds the dot products.
-        double* dots = scr;
-        for (int r = 0; r < ns; ++r) {  // uniform over the block
-            double* z = zs + (size_t)r * us;
-            for (int pass = 0; pass < 2 && r > 0; ++pass) {
-                for (int q = warp; q < r; q += nwarps) {
-                    const double* zq = zs + (size_t)q * us;
-                    double s = 0.0;
-                    for (int i = lane; i < n; i += 32) s += zq[i] * z[i];
-                    s = warp_sum_d(s);
-                    if (lane == 0) dots[q] = s;
-                }
-                __syncthreads();
-                for (int i = tid; i < n; i += nt) {
-                    double acc = z[i];
-                    for (int q = 0; q < r; ++q) acc -= dots[q] * zs[(size_t)q * us + i];
-                    z[i] = acc;
-                }
-                __syncthreads();
-            }
-            double s = 0.0;
-            for (int i = lane; i < n; i += 32) s += z[i] * z[i];
-            s = warp_sum_d(s);
-            const double inv = s > 0.0 ? 1.0 / sqrt(s) : 0.0;
-            __syncthreads();
-            for (int i = tid; i < n; i += nt) z[i] *= inv;
-            __syncthreads();
-        }
-    }
-    // λ_0 = z_0ᵀ T z_0 (error O(‖T‖ δ²) for a vector error δ).
-    if (warp == 0 && ns > 0 && tn > 0.0) {
-        double s = 0.0;
-        for (int i = lane; i < n; i += 32) {
-            double tz = dd[i] * zs[i];
-            if (i > 0) tz += ee[i - 1] * zs[i - 1];
-            if (i < n - 1) tz += ee[i] * zs[i + 1];
-            s += zs[i] * tz;
-        }
-        s = warp_sum_d(s);
-        if (lane == 0) lam[0] = s;  // of the scaled T
-    }
+    // ---- their vectors z_r (tridiag.cuh), and λ_0 from z_0's Rayleigh quotient ----
+    tridiag_vectors(dd, ee, n, ns, tn > 0.0, lam, zs, us, scr, vpp, ob);
     __syncthreads();
     EH_PROF(4);
 

@@ -47,6 +47,8 @@ impl KernelId {
 }
 
 const COMMON: &str = include_str!("../../../kernels/common.cuh");
+/// eigh.cu's tridiagonal eigensolver, inlined where eigh.cu includes it.
+const TRIDIAG: &str = include_str!("../../../kernels/tridiag.cuh");
 
 /// Register layout of the Jacobi kernel: `lpp` lanes share a column pair, each holding
 /// `rpl` rows; it handles matrices with up to `lpp · rpl` (even) columns.
@@ -145,7 +147,13 @@ pub(crate) fn full_source(v: Variant) -> String {
     s.push('\n');
     for k in KernelId::ALL {
         for line in k.source().lines() {
-            if line.trim_start().starts_with("#include \"common.cuh\"") {
+            let l = line.trim_start();
+            if l.starts_with("#include \"common.cuh\"") {
+                continue;
+            }
+            if l.starts_with("#include \"tridiag.cuh\"") {
+                s.push_str(TRIDIAG);
+                s.push('\n');
                 continue;
             }
             s.push_str(line);
