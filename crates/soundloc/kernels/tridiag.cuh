@@ -28,9 +28,11 @@ __device__ int sturm_count_ratio(const double* d, const double* e2, int n, doubl
 // The same count without divisions: the leading minors p_i = det(T_{0..i} − x I) follow
 // p_i = (d_i − x) p_{i−1} − e2_{i−1} p_{i−2} (p_{−1} = 1, q_i = p_i / p_{i−1}), and the
 // count is the number of sign changes. One fused multiply-add on the dependency chain per
-// row instead of a reciprocal and its conversions. ‖T‖ ≈ 1 bounds the growth (≤ 3ⁿ); decay
-// is undone every fourth row by an exact power of two. A zero or a value near underflow
-// (a pivot below pivmin, or T nearly split) falls back to the ratio form.
+// row instead of a reciprocal and its conversions. ‖T‖ ≈ 1 bounds the growth (≤ (1+√2)ⁿ);
+// decay is undone every fourth row by an exact power of two. A zero or a value below
+// 2⁻⁹⁰⁰ (x on an eigenvalue of a leading block, or T nearly split) falls back to the ratio
+// form. A nonzero pivot below pivmin is counted by its own sign here, where the ratio form
+// makes it −pivmin: both are exact counts of T perturbed by ~pivmin.
 __device__ int sturm_count(const double* d, const double* e2, int n, double x, double pivmin) {
     double pm = 1.0, pc = d[0] - x;
     int cnt = pc < 0.0 ? 1 : 0;
@@ -145,7 +147,7 @@ __device__ __forceinline__ void tridiag_vectors(const double* __restrict__ dd, c
                                 double* __restrict__ lam, double* __restrict__ zs, int us, double* __restrict__ scr,
                                 int vpp, int ob) {
     const int tid = threadIdx.x, nt = blockDim.x;
-    const int lane = tid & 31, warp = tid >> 5, nwarps = nt >> 5;
+    const int lane = tid & 31, warp = tid >> 5;
     const double eps = 2.220446049250313e-16;
     // rounds of (solve every vector; orthonormalise them all): two, or three when two of
     // the values are closer than 10⁻³‖T‖ (dstein's cluster distance; LAPACK iterates
@@ -222,8 +224,12 @@ __device__ __forceinline__ void tridiag_vectors(const double* __restrict__ dd, c
         // Orthonormalise Z in rank order (classical Gram–Schmidt, twice), ob vectors at a
         // time: the block first frees them of the vectors before them (one thread per dot
         // product, then one per entry), then warp 0 alone orthonormalises them in order
-        // (each lane keeps to rows lane and lane + 32: warp sums, no barriers). The same
-        // projections as one vector at a time, with ~5 barriers per ob vectors, not per vector.
+        // (each lane keeps to rows lane and lane + 32: warp sums, no barriers): ~5 barriers
+        // per ob vectors, not per vector. In exact arithmetic the same as one vector at a
+        // time; in rounding, a vector that cancels against earlier vectors of its own group
+        // down to a fraction δ of its norm keeps ~ε/δ of the earlier groups (one vector at
+        // a time left ~ε). The parity scenes at the robust default's subspace, deep in the
+        // noise floor's clusters, agree with the CPU as before (docs/gpu.md).
         double* dots = scr;
         for (int b0 = 0; b0 < ns; b0 += ob) {  // uniform over the block
             const int bn = min(ob, ns - b0);
