@@ -34,7 +34,8 @@
 // it, p (M), v (2 × M), τ (M), d, e, e² (M each), λ (Ns), 1 + 32 ints. After the
 // reduction A's storage holds the packed reflectors ((M−1)(M−2)/2 complex), then Z
 // (Ns rows of stride M|1) and the inverse-iteration scratch (3 rows of stride M|1 per
-// vector solved at once; at least one fits).
+// vector solved at once, at least one fits; between the solves it holds the
+// orthonormalisation's dot products, tridiag.cuh).
 //
 // R and W arrive in double whatever T is (the correlation hands R on unrounded).
 // Outputs as decompose.cu: E [blk][Ns][M] (rank order) in T and, when E64 is not null, the
@@ -257,10 +258,11 @@ __device__ void eigh_impl(const zd* __restrict__ R, const zd* __restrict__ Hg, i
     const zd* Pk = reinterpret_cast<const zd*>(F);
     double* zs = F + 2 * (size_t)npk;         // Ns × us
     double* scr = zs + (size_t)ns * us;       // vpp × 3 × us: 1/U diagonal, U's two superdiagonals
-    const int vpp = max(1, min(ns, (2 * n * lda + xd - 2 * npk - ns * us) / (3 * us)));
+    const int avail = 2 * n * lda + xd - 2 * npk - ns * us;  // scratch doubles after Z
+    const int vpp = max(1, min(ns, avail / (3 * us)));
     // vectors per orthonormalisation step: their dot products with the ones before (≤ ns
     // each) fit the scratch
-    const int ob = max(1, min(EH_OB, (2 * n * lda + xd - 2 * npk - ns * us) / max(ns, 1)));
+    const int ob = max(1, min(EH_OB, avail / max(ns, 1)));
     const zd* Rm = R + (size_t)blockIdx.x * M * M;    // column-major, R_ik = Rm[k*M + i]
 
     // ---- H in A: R itself (mode 0) or the product form_h wrote ----
