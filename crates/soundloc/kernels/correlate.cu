@@ -11,12 +11,19 @@
 //                             factor form, which rebuilds R's factor from the frames)
 // phat    SRP-PHAT: every coefficient reduced to its phase x/|x| (0 where |x| = 0) as it is
 //         loaded, and R̃ = (1/W) Σ x̃ x̃ᴴ unscaled (scale = 1; srp.rs)
-// Grid: (windows × bins) blocks, matrix index = window * nb + bin. Dynamic shared
-// memory: fc × M complex (a chunk of fc frames) + 32 doubles. Sums in double, as the CPU's
-// running correlation, which also hands R on in double.
+// Grid: (windows × bins) blocks, matrix index = window * nb + bin; threads: any multiple
+// of 32 (the host gives one per tile, `corr_threads`). Dynamic shared memory: fc × M
+// complex doubles (a chunk of fc frames, converted once as they are loaded) + 32 doubles.
+// Sums in double, as the CPU's running correlation, which also hands R on in double.
+//
+// Register tiles: a thread sums the 2 × 4 entries of rows 2g, 2g+1 and columns 4J … 4J+3
+// (the tiles that reach the lower triangle, g ≥ 2J), so each frame costs it six shared
+// loads for eight complex multiply-adds. In shared memory the even microphones come first,
+// then the odd ones: the lanes of a warp (consecutive g) read consecutive entries.
 #include "common.cuh"
 
-#define SL_CORR_EPT 8
+// Position of microphone i in a shared frame (h2 = ⌈M/2⌉ even microphones first).
+__device__ __forceinline__ int corr_pos(int i, int h2) { return (i & 1) * h2 + (i >> 1); }
 
 // Frame coefficient x, or its phase x/|x| (0 where |x| is 0 or not finite) with `phat`;
 // |x| = √(re² + im²) in double, or hypot where re² + im² leaves double's normal range
@@ -34,108 +41,103 @@ template <typename T, typename TR>
 __device__ void correlate_impl(const cplx<T>* __restrict__ X, int nb, int M, const int* __restrict__ win, int fc,
                                int mat0, int phat, cplx<TR>* __restrict__ R, TR* __restrict__ scale) {
     SL_DYN_SMEM(sl_smem);
-    cplx<T>* xs = reinterpret_cast<cplx<T>*>(sl_smem);
+    cplx<double>* xs = reinterpret_cast<cplx<double>*>(sl_smem);
     double* red = reinterpret_cast<double*>(xs + (size_t)fc * M);
     const int mat = mat0 + blockIdx.x;
     const int w = mat / nb, b = mat - w * nb;
     const int start = win[2 * w], len = win[2 * w + 1];
     const int tid = threadIdx.x, nt = blockDim.x;
-    const int ntri = M * (M + 1) / 2;
+    const int h2 = (M + 1) >> 1, nj = (M + 3) >> 2;
+    int ntiles = 0;
+    for (int J = 0; J < nj; ++J) ntiles += max(0, h2 - 2 * J);
     cplx<TR>* Rm = R + (size_t)blockIdx.x * M * M;
     const double inv_len = 1.0 / (double)len;
-    // The divisor first: for Hermitian PSD R, max_ij |Re R_ij| is the largest diagonal
-    // entry (|R_ij| ≤ √(R_ii R_jj)), so R is scaled as it is written — one rounding to T.
-    double diag = 0.0;
-    for (int f0 = 0; f0 < (phat ? 0 : len); f0 += fc) {
-        const int nf = min(fc, len - f0);
-        __syncthreads();
-        for (int k = tid; k < nf * M; k += nt) {
-            const int f = k / M, m = k - f * M;
-            xs[k] = X[((size_t)(start + f0 + f) * nb + b) * M + m];
-        }
-        __syncthreads();
-        if (tid < M) {
-            for (int f = 0; f < nf; ++f) {
-                const cplx<T> x = xs[f * M + tid];
-                diag += (double)x.re * (double)x.re + (double)x.im * (double)x.im;
+    // max_ij |Re R_ij| of a Hermitian PSD R is its largest diagonal entry (|R_ij| ≤
+    // √(R_ii R_jj)): thread i < M sums |x_i|² as the first pass goes, and R is scaled as
+    // it is written (one rounding to TR).
+    double diag = 0.0, k = inv_len;
+    for (int base = 0; base < ntiles; base += nt) {
+        int t = base + tid, J = 0, g = -1;
+        if (t < ntiles) {
+            while (t >= h2 - 2 * J) {
+                t -= h2 - 2 * J;
+                ++J;
             }
+            g = 2 * J + t;
         }
-    }
-    const double mx = block_max(tid < M ? diag * inv_len : 0.0, red);
-    const double div = phat ? 1.0 : mx + 1.0;
-    const double k = inv_len / div;
-    if (tid == 0) scale[blockIdx.x] = (TR)div;
-    for (int base = 0; base < ntri; base += SL_CORR_EPT * nt) {
-        // Sums in double: f32 frames multiply exactly, and 50-term sums keep their digits.
-        cplx<double> acc[SL_CORR_EPT];
-        int ii[SL_CORR_EPT], jj[SL_CORR_EPT];
+        const int i0 = 2 * g, j0 = 4 * J;
+        // Shared positions of the tile's rows and columns (clamped to M − 1: entries past
+        // M are summed but never written).
+        const int pa0 = g >= 0 ? g : 0, pa1 = corr_pos(min(i0 + 1, M - 1), h2);
+        int pc[4];
 #pragma unroll
-        for (int e = 0; e < SL_CORR_EPT; ++e) {
-            acc[e] = czero<double>();
-            int idx = base + tid + e * nt;
-            int j = 0, i = 0;
-            if (idx < ntri) {
-                j = (int)((sl_sqrt(8.0 * (double)idx + 1.0) - 1.0) * 0.5);
-                while (j * (j + 1) / 2 > idx) --j;
-                while ((j + 1) * (j + 2) / 2 <= idx) ++j;
-                i = idx - j * (j + 1) / 2;
-            } else {
-                j = -1;
-            }
-            ii[e] = i;
-            jj[e] = j;
-        }
+        for (int q = 0; q < 4; ++q) pc[q] = corr_pos(min(j0 + q, M - 1), h2);
+        cplx<double> acc[2][4];
+#pragma unroll
+        for (int r = 0; r < 2; ++r)
+#pragma unroll
+            for (int q = 0; q < 4; ++q) acc[r][q] = czero<double>();
         for (int f0 = 0; f0 < len; f0 += fc) {
             const int nf = min(fc, len - f0);
             __syncthreads();
             for (int q = tid; q < nf * M; q += nt) {
                 const int f = q / M, m = q - f * M;
-                xs[q] = load_x(X[((size_t)(start + f0 + f) * nb + b) * M + m], phat);
+                const cplx<T> x = load_x(X[((size_t)(start + f0 + f) * nb + b) * M + m], phat);
+                xs[f * M + corr_pos(m, h2)] = cx<double>((double)x.re, (double)x.im);
             }
             __syncthreads();
-            for (int f = 0; f < nf; ++f) {
-                const cplx<T>* xf = xs + f * M;
+            if (base == 0 && !phat && tid < M) {
+                const int p = corr_pos(tid, h2);
+                for (int f = 0; f < nf; ++f) diag += cnorm2(xs[f * M + p]);
+            }
+            if (g >= 0) {
+                for (int f = 0; f < nf; ++f) {
+                    const cplx<double>* xf = xs + f * M;
+                    const cplx<double> a[2] = {xf[pa0], xf[pa1]};
+                    cplx<double> c[4];
 #pragma unroll
-                for (int e = 0; e < SL_CORR_EPT; ++e) {
-                    if (jj[e] >= 0) {
-                        const cplx<T> a = xf[ii[e]], c = xf[jj[e]];
-                        cmac_cb(acc[e], cplx<double>{(double)a.re, (double)a.im},
-                                cplx<double>{(double)c.re, (double)c.im});
-                    }
+                    for (int q = 0; q < 4; ++q) c[q] = xf[pc[q]];
+#pragma unroll
+                    for (int r = 0; r < 2; ++r)
+#pragma unroll
+                        for (int q = 0; q < 4; ++q) cmac_cb(acc[r][q], a[r], c[q]);
                 }
             }
         }
+        if (base == 0) {
+            const double mx = block_max(tid < M ? diag * inv_len : 0.0, red);
+            const double div = phat ? 1.0 : mx + 1.0;
+            k = inv_len / div;
+            if (tid == 0) scale[blockIdx.x] = (TR)div;
+        }
+        if (g >= 0) {
 #pragma unroll
-        for (int e = 0; e < SL_CORR_EPT; ++e) {
-            if (jj[e] >= 0) {
-                const int i = ii[e], j = jj[e];
-                cplx<TR> v{(TR)(acc[e].re * k), (TR)(acc[e].im * k)};
-                if (i == j) v.im = (TR)0;
-                Rm[(size_t)j * M + i] = v;
-                Rm[(size_t)i * M + j] = cconj(v);
-            }
+            for (int r = 0; r < 2; ++r)
+#pragma unroll
+                for (int q = 0; q < 4; ++q) {
+                    const int i = i0 + r, j = j0 + q;
+                    if (i < M && j <= i) {
+                        cplx<TR> v{(TR)(acc[r][q].re * k), (TR)(acc[r][q].im * k)};
+                        if (i == j) v.im = (TR)0;
+                        Rm[(size_t)j * M + i] = v;
+                        Rm[(size_t)i * M + j] = cconj(v);
+                    }
+                }
         }
     }
 }
 
 // correlate_T: R in double for the decompositions; correlate_phat_T: SRP-PHAT's R̃ in T.
+#define SL_CORR_KERNEL(NAME, T, TR)                                                                       \
+    extern "C" __global__ void __launch_bounds__(512)                                                     \
+        NAME(const cplx<T>* X, int nb, int M, const int* win, int fc, int mat0, int phat, cplx<TR>* R, TR* scale) { \
+        correlate_impl<T, TR>(X, nb, M, win, fc, mat0, phat, R, scale);                                   \
+    }
 #ifndef SL_NO_F32
-extern "C" __global__ void correlate_f32(const cplx<float>* X, int nb, int M, const int* win, int fc, int mat0,
-                                         int phat, cplx<double>* R, double* scale) {
-    correlate_impl<float, double>(X, nb, M, win, fc, mat0, phat, R, scale);
-}
-extern "C" __global__ void correlate_phat_f32(const cplx<float>* X, int nb, int M, const int* win, int fc, int mat0,
-                                              int phat, cplx<float>* R, float* scale) {
-    correlate_impl<float, float>(X, nb, M, win, fc, mat0, phat, R, scale);
-}
+SL_CORR_KERNEL(correlate_f32, float, double)
+SL_CORR_KERNEL(correlate_phat_f32, float, float)
 #endif
 #ifndef SL_NO_F64
-extern "C" __global__ void correlate_f64(const cplx<double>* X, int nb, int M, const int* win, int fc, int mat0,
-                                         int phat, cplx<double>* R, double* scale) {
-    correlate_impl<double, double>(X, nb, M, win, fc, mat0, phat, R, scale);
-}
-extern "C" __global__ void correlate_phat_f64(const cplx<double>* X, int nb, int M, const int* win, int fc,
-                                              int mat0, int phat, cplx<double>* R, double* scale) {
-    correlate_impl<double, double>(X, nb, M, win, fc, mat0, phat, R, scale);
-}
+SL_CORR_KERNEL(correlate_f64, double, double)
+SL_CORR_KERNEL(correlate_phat_f64, double, double)
 #endif

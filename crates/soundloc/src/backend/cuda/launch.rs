@@ -234,7 +234,7 @@ impl<T: Real> CudaBackend<T> {
             .i(usize::from(l.srp))
             .p(self.d_r.ptr)
             .p(self.d_scale.ptr)
-            .launch(g, self.f.correlate, [nmat, 1, 1], 256, l.corr_smem)?;
+            .launch(g, self.f.correlate, [nmat, 1, 1], l.corr_threads, l.corr_smem)?;
         g.record(ev[1], Stream::Compute)?;
         if l.srp {
             // No decomposition: the spectrum reads R̃.

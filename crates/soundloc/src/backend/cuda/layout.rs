@@ -44,6 +44,8 @@ pub(super) struct Layout {
     pub(super) dec_scratch_per_mat: usize,
     pub(super) corr_fc: usize,
     pub(super) corr_smem: usize,
+    /// Threads of a correlation block (one per register tile, a multiple of 32).
+    pub(super) corr_threads: usize,
     /// Directions per spectrum block.
     pub(super) spec_dt: usize,
     /// Directions per spectrum thread (spectrum.cu `RD`: 1 or 4; A/B knobs
@@ -144,8 +146,14 @@ pub(super) fn layout<T: Real>(plan: &Plan<T>, gpu: &dyn Gpu) -> Result<Layout> {
         && std::env::var("SOUNDLOC_CUDA_DEC").map_or(true, |v| v != "jacobi");
     let groups = n / 2 * v.lpp as usize;
     let dec_threads = groups.div_ceil(32).clamp(1, 32) * 32;
-    let corr_fc = ((SMEM_DEFAULT - 32 * 8) / (m * cs)).clamp(1, 32);
-    let corr_smem = corr_fc * m * cs + 32 * 8;
+    // correlate.cu: a chunk of frames in complex double, one thread per 2 × 4 tile of the
+    // lower triangle (rows 2g, 2g + 1, columns 4J … 4J + 3, g ≥ 2J), at most 512 a pass.
+    let corr_fc = ((SMEM_DEFAULT - 32 * 8) / (m * 16)).clamp(1, 32);
+    let corr_smem = corr_fc * m * 16 + 32 * 8;
+    let corr_tiles: usize = (0..m.div_ceil(4))
+        .map(|j| m.div_ceil(2).saturating_sub(2 * j))
+        .sum();
+    let corr_threads = (corr_tiles.div_ceil(32) * 32).clamp(32, 512);
     let lds = m | 1;
     let mut spec_dt = 64;
     while spec_dt > 32 && spec_dt * lds * cs > 64 * 1024 {
@@ -214,6 +222,7 @@ pub(super) fn layout<T: Real>(plan: &Plan<T>, gpu: &dyn Gpu) -> Result<Layout> {
         dec_scratch_per_mat,
         corr_fc,
         corr_smem,
+        corr_threads,
         spec_dt,
         spec_rd,
         spec_wg,

@@ -416,7 +416,7 @@ impl<T: Real> CudaBackend<T> {
         // (launch bounds, registers): a clear error here rather than a failed launch.
         let l = &self.lay;
         for (f, name, threads) in [
-            (self.f.correlate, "correlate", 256),
+            (self.f.correlate, "correlate", l.corr_threads),
             (self.f.decompose, "decompose", l.dec_threads),
             (self.f.eigh, "eigh", l.eigh_threads),
             (self.f.form_h, "form_h", l.eigh_threads),
