@@ -518,6 +518,12 @@ fn bin_whitening<T: Real>(
             let l = llt.L();
             let mut linv = Mat::<c64>::zeros(m, m);
             faer::linalg::triangular_inverse::invert_lower_triangular(linv.as_mut(), l, faer::Par::Seq);
+            // Exactly lower triangular: the GPU's products skip the zeros above (eigh.cu).
+            for j in 1..m {
+                for i in 0..j {
+                    linv[(i, j)] = c64::new(0.0, 0.0);
+                }
+            }
             // Whitened steering a_w = L⁻¹ a for every direction.
             let a = Mat::<c64>::from_fn(m, d, |i, dir| {
                 let z = steering[dir * m + i];
@@ -585,6 +591,64 @@ mod tests {
             &w[..6]
         );
         assert_eq!(p.whitening_matrix64(0).unwrap()[5].re, 1.0);
+    }
+
+    /// The textbook GEVD's W = L⁻¹ is exactly lower triangular (the GPU's products skip
+    /// the zeros above its diagonal, eigh.cu) and whitens K: W K Wᴴ = I after HARK's scaling.
+    #[test]
+    fn the_textbook_gevd_whitening_is_exactly_lower_triangular() {
+        let config = LocalizeConfig {
+            algorithm: Algorithm::Gevd,
+            ..LocalizeConfig::default()
+        };
+        let m = 6;
+        let tf = free_field(
+            &Geometry::circle(m, 0.05, 0.0),
+            &Grid::ring(30.0, 0.0, 1.0),
+            512,
+            16000,
+            config.bin_range(),
+            343.0,
+        )
+        .unwrap();
+        // A full, well-conditioned K: K_ij = 0.3^|i−j| e^{i(i−j)/2} + δ_ij.
+        let mut k = NoiseMatrices::identity(m, config.bin_range());
+        for b in 0..k.num_bins {
+            for i in 0..m {
+                for j in 0..m {
+                    let d = i as f64 - j as f64;
+                    let z = c64::from_polar(0.3f64.powf(d.abs()), 0.5 * d);
+                    k.data[b * m * m + i * m + j] = z + if i == j {
+                        c64::new(1.0, 0.0)
+                    } else {
+                        c64::new(0.0, 0.0)
+                    };
+                }
+            }
+        }
+        let p = Plan::<f32>::new(&config, &tf, Some(&k)).unwrap();
+        let w = p.whitening_matrix64(0).unwrap();
+        let kb = &k.data[..m * m];
+        let mx = kb.iter().map(|z| z.re.abs()).fold(0.0, f64::max);
+        for i in 0..m {
+            for j in i + 1..m {
+                assert_eq!(w[i * m + j], c64::new(0.0, 0.0), "W[{i}][{j}]");
+            }
+            for j in 0..m {
+                // (W K Wᴴ)_ij with K scaled by 1 / max|Re K|
+                let mut s = c64::new(0.0, 0.0);
+                for a in 0..m {
+                    for c in 0..m {
+                        s += w[i * m + a] * kb[a * m + c] / mx * w[j * m + c].conj();
+                    }
+                }
+                let want = if i == j { 1.0 } else { 0.0 };
+                assert!(
+                    (s - c64::new(want, 0.0)).norm() < 1e-12,
+                    "(W K Wᴴ)[{i}][{j}] = {s}"
+                );
+            }
+        }
     }
 
     /// Small arrays' planar steering follows the denominator's steering: for the textbook
