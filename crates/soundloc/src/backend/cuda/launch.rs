@@ -204,11 +204,9 @@ impl<T: Real> CudaBackend<T> {
             )
     }
 
-    #[allow(clippy::too_many_arguments)]
     pub(super) fn launch_sub_batch(
         &mut self,
-        k: usize,
-        nw: usize,
+        windows: std::ops::Range<usize>,
         kout: usize,
         want_spectrum: bool,
         mode: &DecMode,
@@ -216,9 +214,7 @@ impl<T: Real> CudaBackend<T> {
     ) -> Result<()> {
         let l = self.lay.clone();
         let (cs, ts) = (csize::<T>(), std::mem::size_of::<T>());
-        let sb = self.sub_batch;
-        let w0 = k * sb;
-        let nwb = sb.min(nw - w0);
+        let (w0, nwb) = (windows.start, windows.len());
         let mat0 = w0 * l.nb;
         let nmat = nwb * l.nb;
         let nbg = self.bin_groups(nwb);

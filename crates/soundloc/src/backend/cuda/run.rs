@@ -28,7 +28,8 @@ impl<T: Real> CudaBackend<T> {
         let row = (1 + kout) * 16;
         let fbytes = nb * m * cs;
         let sb = self.sub_batch;
-        let nsb = nw.div_ceil(sb);
+        let subs = sub_batches(nw, sb);
+        let nsb = subs.len();
         let nwb_max = sb.min(nw);
 
         // Where each job's frames go on the device; only frames not there yet go up.
@@ -62,10 +63,7 @@ impl<T: Real> CudaBackend<T> {
         if !l.srp && !l.dec_smem_mode {
             self.ensure(Scratch::Jacobi, nwb_max * nb * l.dec_scratch_per_mat)?;
         }
-        let nbg_max = (0..nsb)
-            .map(|k| self.bin_groups(sb.min(nw - k * sb)))
-            .max()
-            .unwrap_or(1);
+        let nbg_max = subs.iter().map(|r| self.bin_groups(r.len())).max().unwrap_or(1);
         self.ensure(Scratch::Ppart, nbg_max * nwb_max * d * ts)?;
         self.ensure(Scratch::Gain, nw * nb * ts)?;
         self.ensure(Scratch::Bw, nw * nb * 4)?;
@@ -160,8 +158,8 @@ impl<T: Real> CudaBackend<T> {
         // Uploaded frames needed by sub-batches 0..=k (prefix maximum).
         let mut need = Vec::with_capacity(nsb);
         let mut mx = 0usize;
-        for k in 0..nsb {
-            for r in &ready[k * sb..(k * sb + sb).min(nw)] {
+        for sub in &subs {
+            for r in &ready[sub.clone()] {
                 mx = mx.max(*r);
             }
             need.push(mx);
@@ -174,8 +172,7 @@ impl<T: Real> CudaBackend<T> {
         self.gpu.wait(Stream::Compute, win_ev)?;
         while next < nsb && need[next] == 0 {
             self.launch_sub_batch(
-                next,
-                nw,
+                subs[next].clone(),
                 kout,
                 want_spectrum,
                 &mode,
@@ -222,8 +219,7 @@ impl<T: Real> CudaBackend<T> {
                         waited = true;
                     }
                     self.launch_sub_batch(
-                        next,
-                        nw,
+                        subs[next].clone(),
                         kout,
                         want_spectrum,
                         &mode,
@@ -296,7 +292,7 @@ impl<T: Real> CudaBackend<T> {
             let mean = info.iter().map(|&x| x as f64).sum::<f64>() / info.len() as f64;
             let _ = writeln!(
                 std::io::stderr(),
-                "soundloc cuda: {nw} windows in {nsb} sub-batches of {sb}, {}; {} min {} mean {mean:.2} max {}",
+                "soundloc cuda: {nw} windows in {nsb} sub-batches of at most {sb}, {}; {} min {} mean {mean:.2} max {}",
                 if l.eigh {
                     "tridiagonal eigensolver".to_string()
                 } else {
@@ -324,5 +320,54 @@ impl<T: Real> CudaBackend<T> {
             }
         }
         Ok(())
+    }
+}
+
+/// The sub-batches' window ranges. One when the windows fit one sub-batch of `sb`;
+/// otherwise they ramp up (sb/8, sb/4, sb/2, then sb each) so that the first kernels
+/// start after a small upload and the copies of the larger ones that follow overlap
+/// the compute of the smaller ones before them.
+pub(super) fn sub_batches(nw: usize, sb: usize) -> Vec<std::ops::Range<usize>> {
+    let sb = sb.max(1);
+    let mut size = if nw > sb { (sb / 8).max(1) } else { sb };
+    let mut v = Vec::with_capacity(nw.div_ceil(sb) + 3);
+    let mut w = 0;
+    while w < nw {
+        let n = size.min(nw - w);
+        v.push(w..w + n);
+        w += n;
+        size = (2 * size).min(sb);
+    }
+    v
+}
+
+#[cfg(test)]
+mod tests {
+    use super::sub_batches;
+
+    #[test]
+    fn sub_batches_cover_every_window_once_and_ramp_up_only_when_there_are_several() {
+        for (nw, sb) in [
+            (1, 58),
+            (58, 58),
+            (59, 58),
+            (256, 58),
+            (1000, 7),
+            (5, 1),
+            (300, 3),
+        ] {
+            let v = sub_batches(nw, sb);
+            let mut w = 0;
+            for r in &v {
+                assert_eq!(r.start, w, "{nw} {sb}: {v:?}");
+                assert!(!r.is_empty() && r.len() <= sb, "{nw} {sb}: {v:?}");
+                w = r.end;
+            }
+            assert_eq!(w, nw, "{nw} {sb}: {v:?}");
+        }
+        assert_eq!(sub_batches(58, 58), vec![0..58]);
+        assert_eq!(sub_batches(20, 58), vec![0..20]);
+        let v: Vec<usize> = sub_batches(256, 58).iter().map(|r| r.len()).collect();
+        assert_eq!(v, vec![7, 14, 28, 56, 58, 58, 35]);
     }
 }
