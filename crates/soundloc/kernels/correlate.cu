@@ -53,8 +53,8 @@ __device__ void correlate_impl(const cplx<T>* __restrict__ X, int nb, int M, con
     cplx<TR>* Rm = R + (size_t)blockIdx.x * M * M;
     const double inv_len = 1.0 / (double)len;
     // max_ij |Re R_ij| of a Hermitian PSD R is its largest diagonal entry (|R_ij| ≤
-    // √(R_ii R_jj)): thread i < M sums |x_i|² as the first pass goes, and R is scaled as
-    // it is written (one rounding to TR).
+    // √(R_ii R_jj)): thread i < M sums |x_i|² as the first pass goes (blockDim.x ≥ M: the
+    // host's corr_threads), and R is scaled as it is written (one rounding to TR).
     double diag = 0.0, k = inv_len;
     for (int base = 0; base < ntiles; base += nt) {
         int t = base + tid, J = 0, g = -1;

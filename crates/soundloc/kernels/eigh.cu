@@ -316,7 +316,8 @@ __device__ void eigh_impl(const zd* __restrict__ R, const zd* __restrict__ Hg, i
         A[(size_t)j * lda + i] = mode == 0 ? to_zd(Rm[idx]) : Hg[(size_t)blockIdx.x * n * n + idx];
     }
     __syncthreads();
-    // Exact Hermitian symmetry (the products round differently above and below).
+    // Exact Hermitian symmetry. A guard: the correlation and form_h now write both triangles
+    // from one rounding (mirrored), so this changes nothing for the matrices they hand on.
     for (int idx = tid; idx < n * n; idx += nt) {
         const int j = idx / n, i = idx - j * n;
         if (i > j) {

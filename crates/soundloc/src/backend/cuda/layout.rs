@@ -154,6 +154,8 @@ pub(super) fn layout<T: Real>(plan: &Plan<T>, gpu: &dyn Gpu) -> Result<Layout> {
         .map(|j| m.div_ceil(2).saturating_sub(2 * j))
         .sum();
     let corr_threads = (corr_tiles.div_ceil(32) * 32).clamp(32, 512);
+    // The kernel's diagonal sums take one thread per microphone.
+    debug_assert!(corr_threads >= m.min(512));
     let lds = m | 1;
     let mut spec_dt = 64;
     while spec_dt > 32 && spec_dt * lds * cs > 64 * 1024 {

@@ -324,7 +324,7 @@ impl<T: Real> CudaBackend<T> {
 }
 
 /// The sub-batches' window ranges. One when the windows fit one sub-batch of `sb`;
-/// otherwise they ramp up (sb/8, sb/4, sb/2, then sb each) so that the first kernels
+/// otherwise they ramp up (doubling from ⌊sb/8⌋ to sb) so that the first kernels
 /// start after a small upload and the copies of the larger ones that follow overlap
 /// the compute of the smaller ones before them.
 pub(super) fn sub_batches(nw: usize, sb: usize) -> Vec<std::ops::Range<usize>> {
