@@ -1,0 +1,133 @@
+//! The plan: shared steering across K updates, the whitening matrices' structure.
+
+use super::*;
+use crate::array::{freefield::free_field, Geometry, Grid};
+
+#[test]
+fn a_k_update_shares_the_steering_and_rebuilds_only_the_whitening() {
+    let config = LocalizeConfig {
+        algorithm: Algorithm::Gsvd,
+        ..LocalizeConfig::default()
+    };
+    let tf = free_field(
+        &Geometry::circle(4, 0.05, 0.0),
+        &Grid::ring(10.0, 0.0, 1.0),
+        512,
+        16000,
+        config.bin_range(),
+        343.0,
+    )
+    .unwrap();
+    let p = Plan::<f32>::new(&config, &tf, None).unwrap();
+    let mut k = NoiseMatrices::identity(4, config.bin_range());
+    for b in 0..k.num_bins {
+        k.data[b * 16].re = 4.0; // K = diag(4, 1, 1, 1)
+    }
+    let q = p.with_noise(&k).unwrap();
+    assert!(Arc::ptr_eq(&p.steering, &q.steering));
+    assert!(Arc::ptr_eq(&p.steering_norm2, &q.steering_norm2));
+    // GSVD's W = K⁻¹ after HARK's scaling (K / max|Re K| = diag(1, 1/4, 1/4, 1/4)).
+    let w = q.whitening_matrix64(0).unwrap();
+    assert!(
+        (w[0].re - 1.0).abs() < 1e-6 && (w[5].re - 4.0).abs() < 1e-5,
+        "{:?}",
+        &w[..6]
+    );
+    assert_eq!(p.whitening_matrix64(0).unwrap()[5].re, 1.0);
+}
+
+/// The textbook GEVD's W = L⁻¹ is exactly lower triangular (the GPU's products skip
+/// the zeros above its diagonal, eigh.cu) and whitens K: W K Wᴴ = I after HARK's scaling.
+#[test]
+fn the_textbook_gevd_whitening_is_exactly_lower_triangular() {
+    let config = LocalizeConfig {
+        algorithm: Algorithm::Gevd,
+        ..LocalizeConfig::default()
+    };
+    let m = 6;
+    let tf = free_field(
+        &Geometry::circle(m, 0.05, 0.0),
+        &Grid::ring(30.0, 0.0, 1.0),
+        512,
+        16000,
+        config.bin_range(),
+        343.0,
+    )
+    .unwrap();
+    // A full, well-conditioned K: K_ij = 0.3^|i−j| e^{i(i−j)/2} + δ_ij.
+    let mut k = NoiseMatrices::identity(m, config.bin_range());
+    for b in 0..k.num_bins {
+        for i in 0..m {
+            for j in 0..m {
+                let d = i as f64 - j as f64;
+                let z = c64::from_polar(0.3f64.powf(d.abs()), 0.5 * d);
+                k.data[b * m * m + i * m + j] = z + if i == j {
+                    c64::new(1.0, 0.0)
+                } else {
+                    c64::new(0.0, 0.0)
+                };
+            }
+        }
+    }
+    let p = Plan::<f32>::new(&config, &tf, Some(&k)).unwrap();
+    let w = p.whitening_matrix64(0).unwrap();
+    let kb = &k.data[..m * m];
+    let mx = kb.iter().map(|z| z.re.abs()).fold(0.0, f64::max);
+    for i in 0..m {
+        for j in i + 1..m {
+            assert_eq!(w[i * m + j], c64::new(0.0, 0.0), "W[{i}][{j}]");
+        }
+        for j in 0..m {
+            // (W K Wᴴ)_ij with K scaled by 1 / max|Re K|
+            let mut s = c64::new(0.0, 0.0);
+            for a in 0..m {
+                for c in 0..m {
+                    s += w[i * m + a] * kb[a * m + c] / mx * w[j * m + c].conj();
+                }
+            }
+            let want = if i == j { 1.0 } else { 0.0 };
+            assert!(
+                (s - c64::new(want, 0.0)).norm() < 1e-12,
+                "(W K Wᴴ)[{i}][{j}] = {s}"
+            );
+        }
+    }
+}
+
+/// Small arrays' planar steering follows the denominator's steering: for the textbook
+/// GEVD the whitened one, rebuilt by a K update (equal to a plan built with that K);
+/// otherwise the raw one, shared.
+#[test]
+fn the_planar_steering_follows_a_k_update() {
+    let bins = LocalizeConfig::default().bin_range();
+    let tf = free_field(
+        &Geometry::circle(4, 0.05, 0.0),
+        &Grid::ring(10.0, 0.0, 1.0),
+        512,
+        16000,
+        bins.clone(),
+        343.0,
+    )
+    .unwrap();
+    let mut k = NoiseMatrices::identity(4, bins);
+    for b in 0..k.num_bins {
+        k.data[b * 16].re = 4.0;
+    }
+    for alg in [Algorithm::Gevd, Algorithm::Gsvd] {
+        let config = LocalizeConfig {
+            algorithm: alg,
+            ..LocalizeConfig::default()
+        };
+        let p = Plan::<f32>::new(&config, &tf, None).unwrap();
+        let q = p.with_noise(&k).unwrap();
+        let fresh = Plan::<f32>::new(&config, &tf, Some(&k)).unwrap();
+        assert!(q.planar.is_some(), "{alg:?}: no planar copy for 4 mics");
+        assert_eq!(q.planar, fresh.planar, "{alg:?}");
+        let (old, new) = (p.planar.as_ref().unwrap(), q.planar.as_ref().unwrap());
+        if alg == Algorithm::Gevd {
+            assert_ne!(old, new, "the whitened steering did not change");
+        } else {
+            assert!(Arc::ptr_eq(old, new));
+        }
+    }
+}
