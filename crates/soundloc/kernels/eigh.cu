@@ -310,24 +310,15 @@ __device__ void eigh_impl(const zd* __restrict__ R, const zd* __restrict__ Hg, i
     const int ob = max(1, min(EH_OB, avail / max(ns, 1)));
     const zd* Rm = R + (size_t)blockIdx.x * M * M;    // column-major, R_ik = Rm[k*M + i]
 
-    // ---- H in A: R itself (mode 0) or the product form_h wrote ----
+    // ---- H in A: R itself (mode 0) or the product form_h wrote. The reduction reads only
+    // the lower triangle, which both hand on exactly Hermitian (one rounding per entry,
+    // mirrored); the diagonal is made exactly real as it is loaded. ----
     for (int idx = tid; idx < n * n; idx += nt) {
         const int j = idx / n, i = idx - j * n;
-        A[(size_t)j * lda + i] = mode == 0 ? to_zd(Rm[idx]) : Hg[(size_t)blockIdx.x * n * n + idx];
-    }
-    __syncthreads();
-    // Exact Hermitian symmetry. A guard: the correlation and form_h now write both triangles
-    // from one rounding (mirrored), so this changes nothing for the matrices they hand on.
-    for (int idx = tid; idx < n * n; idx += nt) {
-        const int j = idx / n, i = idx - j * n;
-        if (i > j) {
-            const zd a = A[(size_t)j * lda + i], c = A[(size_t)i * lda + j];
-            const zd h = cx<double>(0.5 * (a.re + c.re), 0.5 * (a.im - c.im));
-            A[(size_t)j * lda + i] = h;
-            A[(size_t)i * lda + j] = cconj(h);
-        } else if (i == j) {
-            A[(size_t)j * lda + i].im = 0.0;
-        }
+        if (i < j) continue;
+        zd h = mode == 0 ? to_zd(Rm[idx]) : Hg[(size_t)blockIdx.x * n * n + idx];
+        if (i == j) h.im = 0.0;
+        A[(size_t)j * lda + i] = h;
     }
     __syncthreads();
     EH_PROF(1);

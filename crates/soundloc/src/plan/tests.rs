@@ -3,21 +3,26 @@
 use super::*;
 use crate::array::{freefield::free_field, Geometry, Grid};
 
+/// Free-field transfer functions of an `m`-microphone circle (5 cm) on a ring grid.
+fn circle_tf(m: usize, step_deg: f64, bins: std::ops::Range<usize>) -> TransferFunctions {
+    free_field(
+        &Geometry::circle(m, 0.05, 0.0),
+        &Grid::ring(step_deg, 0.0, 1.0),
+        512,
+        16000,
+        bins,
+        343.0,
+    )
+    .unwrap()
+}
+
 #[test]
 fn a_k_update_shares_the_steering_and_rebuilds_only_the_whitening() {
     let config = LocalizeConfig {
         algorithm: Algorithm::Gsvd,
         ..LocalizeConfig::default()
     };
-    let tf = free_field(
-        &Geometry::circle(4, 0.05, 0.0),
-        &Grid::ring(10.0, 0.0, 1.0),
-        512,
-        16000,
-        config.bin_range(),
-        343.0,
-    )
-    .unwrap();
+    let tf = circle_tf(4, 10.0, config.bin_range());
     let p = Plan::<f32>::new(&config, &tf, None).unwrap();
     let mut k = NoiseMatrices::identity(4, config.bin_range());
     for b in 0..k.num_bins {
@@ -45,15 +50,7 @@ fn the_textbook_gevd_whitening_is_exactly_lower_triangular() {
         ..LocalizeConfig::default()
     };
     let m = 6;
-    let tf = free_field(
-        &Geometry::circle(m, 0.05, 0.0),
-        &Grid::ring(30.0, 0.0, 1.0),
-        512,
-        16000,
-        config.bin_range(),
-        343.0,
-    )
-    .unwrap();
+    let tf = circle_tf(m, 30.0, config.bin_range());
     // A full, well-conditioned K: K_ij = 0.3^|i−j| e^{i(i−j)/2} + δ_ij.
     let mut k = NoiseMatrices::identity(m, config.bin_range());
     for b in 0..k.num_bins {
@@ -100,15 +97,7 @@ fn the_textbook_gevd_whitening_is_exactly_lower_triangular() {
 #[test]
 fn the_planar_steering_follows_a_k_update() {
     let bins = LocalizeConfig::default().bin_range();
-    let tf = free_field(
-        &Geometry::circle(4, 0.05, 0.0),
-        &Grid::ring(10.0, 0.0, 1.0),
-        512,
-        16000,
-        bins.clone(),
-        343.0,
-    )
-    .unwrap();
+    let tf = circle_tf(4, 10.0, bins.clone());
     let mut k = NoiseMatrices::identity(4, bins);
     for b in 0..k.num_bins {
         k.data[b * 16].re = 4.0;
