@@ -47,8 +47,10 @@ impl KernelId {
 }
 
 const COMMON: &str = include_str!("../../../kernels/common.cuh");
-/// eigh.cu's tridiagonal eigensolver, inlined where eigh.cu includes it.
+/// eigh.cu's tridiagonal eigensolver and its forming of H, inlined where eigh.cu includes
+/// them.
 const TRIDIAG: &str = include_str!("../../../kernels/tridiag.cuh");
+const FORM_H: &str = include_str!("../../../kernels/form_h.cuh");
 
 /// Register layout of the Jacobi kernel: `lpp` lanes share a column pair, each holding
 /// `rpl` rows; it handles matrices with up to `lpp · rpl` (even) columns.
@@ -153,6 +155,11 @@ pub(crate) fn full_source(v: Variant) -> String {
             }
             if l.starts_with("#include \"tridiag.cuh\"") {
                 s.push_str(TRIDIAG);
+                s.push('\n');
+                continue;
+            }
+            if l.starts_with("#include \"form_h.cuh\"") {
+                s.push_str(FORM_H);
                 s.push('\n');
                 continue;
             }
@@ -375,4 +382,38 @@ pub(crate) fn compile_all(arch: &str) -> Result<Vec<(String, usize)>, String> {
         out.push((v.tag(), bytes.len()));
     }
     Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// NVRTC gets one translation unit: every local header is inlined where it is included
+    /// (NVRTC would not find it), and its code is there exactly once.
+    #[test]
+    fn the_full_source_inlines_every_local_header() {
+        for v in Variant::ALL {
+            let s = full_source(v);
+            for header in ["common.cuh", "tridiag.cuh", "form_h.cuh"] {
+                let inc = format!("#include \"{header}\"");
+                assert!(
+                    !s.lines().any(|l| l.trim_start().starts_with(&inc)),
+                    "{v:?}: {header} is still included"
+                );
+            }
+            // Only the emulator's header stays, behind SOUNDLOC_EMU (common.cuh).
+            let left = s
+                .lines()
+                .filter(|l| l.trim_start().starts_with("#include \""))
+                .count();
+            assert_eq!(left, 1, "{v:?}");
+            for marker in [
+                "void form_h_impl(",
+                "int sturm_count_ratio(",
+                "struct sl_eps<double>",
+            ] {
+                assert_eq!(s.matches(marker).count(), 1, "{v:?}: {marker}");
+            }
+        }
+    }
 }
