@@ -16,8 +16,8 @@
 //   clustered values); λ_0 from the Rayleigh quotient z_0ᵀ T z_0; here again: e_r = Q z_r
 //   (each warp applies the reflectors to up to EH_BT vectors at once).
 //
-// Two kernels: form_h (modes 1–3, form_h.cuh) writes H to global memory, eigh reads it (or R in
-// mode 0) and does the rest; apart, the products' register tiles do not cap the
+// Two kernels: form_h (modes 1–3, form_h.cuh) writes H to global memory, eigh reads it
+// (or R in mode 0) and does the rest; apart, the products' register tiles do not cap the
 // eigensolver's occupancy (at most 85 registers: three blocks per multiprocessor at M = 60).
 //
 // This is all the squared MUSIC denominator needs (the noise projector is I − E_s E_sᴴ,
@@ -27,8 +27,8 @@
 // double keeps A Aᴴ's squared condition number harmless: the rounding of H is 1e-16·‖H‖,
 // below the f32 rounding of the inputs it is formed from.
 //
-// Threads: EH_THREADS (256, or 512 for tuning) = EH_TY × 16; the products use 4 (or 2)
-// rows × 4 columns of registers per thread, so M ≤ 64. Shared memory (dynamic, see
+// Threads: EH_THREADS (256, or 512 for tuning) = EH_TY × 16; the products (form_h.cuh)
+// use 4 (or 2) rows × 4 columns of registers per thread, so M ≤ 64. Shared memory (dynamic, see
 // `eigh_smem` / `form_h_smem` on the host): A (M × lda complex doubles, lda = M | 1: odd,
 // so column reads are conflict-free) and xd = 3·(M|1) (rounded up to even) doubles after
 // it, p (M), v (2 × M), τ (M), d, e, e² (M each), λ (Ns), 1 + 32 ints. After the

@@ -1,7 +1,8 @@
 // Forming H for eigh.cu (modes 1–3: W R Wᴴ, W R W, (W R)(W R)ᴴ) in double, one block per
 // matrix: P = W R, then H's lower triangle from P, mirrored, each product by register
 // tiles on the double-precision pipe (EH_RT rows × 4 columns per thread, so M ≤ 64), the
-// known zeros of W's triangle and H's symmetry skipped.
+// known zeros of W's triangle and H's symmetry skipped. Included by eigh.cu after `zd`,
+// `to_zd` and the EH_* sizes (EH_MAXN, EH_TY, EH_RT).
 //
 // Tried on the double-precision tensor cores (mma.sync m8n8k4 .f64, 8 × 8 tiles a warp
 // each; branch experiments/form-h-dmma): on an H100 the decomposition went 58.7 → 58.4 µs
@@ -143,4 +144,3 @@ __device__ void form_h_impl(const zd* __restrict__ R, const zd* __restrict__ Wcm
         Hg[(size_t)blockIdx.x * n * n + idx] = A[(size_t)j * lda + i];
     }
 }
-

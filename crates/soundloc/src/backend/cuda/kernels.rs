@@ -47,9 +47,9 @@ impl KernelId {
 }
 
 const COMMON: &str = include_str!("../../../kernels/common.cuh");
-/// eigh.cu's tridiagonal eigensolver and its forming of H, inlined where eigh.cu includes
-/// them.
+/// eigh.cu's tridiagonal eigensolver, inlined where eigh.cu includes it.
 const TRIDIAG: &str = include_str!("../../../kernels/tridiag.cuh");
+/// eigh.cu's forming of H (the form_h kernel's products), inlined where eigh.cu includes it.
 const FORM_H: &str = include_str!("../../../kernels/form_h.cuh");
 
 /// Register layout of the Jacobi kernel: `lpp` lanes share a column pair, each holding
@@ -402,11 +402,12 @@ mod tests {
                 );
             }
             // Only the emulator's header stays, behind SOUNDLOC_EMU (common.cuh).
-            let left = s
+            let left: Vec<&str> = s
                 .lines()
-                .filter(|l| l.trim_start().starts_with("#include \""))
-                .count();
-            assert_eq!(left, 1, "{v:?}");
+                .map(str::trim_start)
+                .filter(|l| l.starts_with("#include \""))
+                .collect();
+            assert_eq!(left, ["#include \"emu/emu.h\""], "{v:?}");
             for marker in [
                 "void form_h_impl(",
                 "int sturm_count_ratio(",
@@ -414,6 +415,13 @@ mod tests {
             ] {
                 assert_eq!(s.matches(marker).count(), 1, "{v:?}: {marker}");
             }
+            // Each header where eigh.cu includes it: after the names it uses, before
+            // their users.
+            let at = |m: &str| s.find(m).unwrap_or_else(|| panic!("{v:?}: {m} missing"));
+            assert!(at("typedef cplx<double> zd;") < at("int sturm_count_ratio("));
+            assert!(at("int sturm_count_ratio(") < at("void eigh_impl("));
+            assert!(at("void make_reflector(") < at("void form_h_impl("));
+            assert!(at("void form_h_impl(") < at("void eigh_impl("));
         }
     }
 }
