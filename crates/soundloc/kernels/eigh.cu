@@ -28,11 +28,11 @@
 // below the f32 rounding of the inputs it is formed from.
 //
 // Threads: EH_THREADS (256, or 512 for tuning) = EH_TY × 16; the products (form_h.cuh)
-// use 4 (or 2) rows × 4 columns of registers per thread, so M ≤ 64. Shared memory (dynamic, see
-// `eigh_smem` / `form_h_smem` on the host): A (M × lda complex doubles, lda = M | 1: odd,
-// so column reads are conflict-free) and xd = 3·(M|1) (rounded up to even) doubles after
-// it, p (M), v (2 × M), τ (M), d, e, e² (M each), λ (Ns), 1 + 32 ints. After the
-// reduction A's storage holds the packed reflectors ((M−1)(M−2)/2 complex), then Z
+// use 4 (or 2) rows × 4 columns of registers per thread, so M ≤ 64. Shared memory
+// (dynamic, see `eigh_smem` / `form_h_smem` on the host): A (M × lda complex doubles,
+// lda = M | 1: odd, so column reads are conflict-free) and xd = 3·(M|1) (rounded up to
+// even) doubles after it, p (M), v (2 × M), τ (M), d, e, e² (M each), λ (Ns), 1 + 32 ints.
+// After the reduction A's storage holds the packed reflectors ((M−1)(M−2)/2 complex), then Z
 // (Ns rows of stride M|1) and the inverse-iteration scratch (3 rows of stride M|1 per
 // vector solved at once, at least one fits; between the solves it holds the
 // orthonormalisation's dot products, tridiag.cuh).

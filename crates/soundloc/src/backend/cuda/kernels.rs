@@ -47,10 +47,14 @@ impl KernelId {
 }
 
 const COMMON: &str = include_str!("../../../kernels/common.cuh");
-/// eigh.cu's tridiagonal eigensolver, inlined where eigh.cu includes it.
-const TRIDIAG: &str = include_str!("../../../kernels/tridiag.cuh");
-/// eigh.cu's forming of H (the form_h kernel's products), inlined where eigh.cu includes it.
-const FORM_H: &str = include_str!("../../../kernels/form_h.cuh");
+/// The headers the kernel files include (NVRTC gets one translation unit): common.cuh goes
+/// first, once; the others are inlined where they are included — eigh.cu's tridiagonal
+/// eigensolver and its forming of H (the form_h kernel's products).
+const HEADERS: [(&str, &str); 3] = [
+    ("common.cuh", ""),
+    ("tridiag.cuh", include_str!("../../../kernels/tridiag.cuh")),
+    ("form_h.cuh", include_str!("../../../kernels/form_h.cuh")),
+];
 
 /// Register layout of the Jacobi kernel: `lpp` lanes share a column pair, each holding
 /// `rpl` rows; it handles matrices with up to `lpp · rpl` (even) columns.
@@ -150,21 +154,22 @@ pub(crate) fn full_source(v: Variant) -> String {
     for k in KernelId::ALL {
         for line in k.source().lines() {
             let l = line.trim_start();
-            if l.starts_with("#include \"common.cuh\"") {
-                continue;
+            let header = HEADERS.iter().find(|(name, _)| {
+                l.strip_prefix("#include \"")
+                    .and_then(|r| r.strip_prefix(name))
+                    .is_some_and(|r| r.starts_with('"'))
+            });
+            match header {
+                Some((_, text)) if !text.is_empty() => {
+                    s.push_str(text);
+                    s.push('\n');
+                }
+                Some(_) => {}
+                None => {
+                    s.push_str(line);
+                    s.push('\n');
+                }
             }
-            if l.starts_with("#include \"tridiag.cuh\"") {
-                s.push_str(TRIDIAG);
-                s.push('\n');
-                continue;
-            }
-            if l.starts_with("#include \"form_h.cuh\"") {
-                s.push_str(FORM_H);
-                s.push('\n');
-                continue;
-            }
-            s.push_str(line);
-            s.push('\n');
         }
     }
     s
@@ -394,7 +399,7 @@ mod tests {
     fn the_full_source_inlines_every_local_header() {
         for v in Variant::ALL {
             let s = full_source(v);
-            for header in ["common.cuh", "tridiag.cuh", "form_h.cuh"] {
+            for (header, _) in HEADERS {
                 let inc = format!("#include \"{header}\"");
                 assert!(
                     !s.lines().any(|l| l.trim_start().starts_with(&inc)),
