@@ -58,6 +58,7 @@ pub mod output;
 pub mod peaks;
 pub mod plan;
 pub mod pool;
+pub(crate) mod projections;
 pub mod real;
 pub mod result;
 pub mod sim;

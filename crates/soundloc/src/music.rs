@@ -27,6 +27,7 @@
 use crate::config::Denominator;
 use crate::lanes;
 use crate::plan::Plan;
+use crate::projections;
 use crate::real::{Real, C};
 use crate::subspace::Decomposition;
 use faer::{Accum, MatRef, Par};
@@ -46,8 +47,11 @@ pub struct SpectrumScratch<T: Real> {
     proj: faer::Mat<C<T>>,
     /// The windows' vectors side by side (M × columns), column-major.
     cols: Vec<C<T>>,
-    /// Σ_s |aᴴe_s|² per direction of the block (squared denominator).
+    /// Σ_s |aᴴe_s|² per direction of the block (squared denominator; per window of a
+    /// group on the AVX-512 path).
     sig: Vec<T>,
+    /// The group's signal vectors in lanes (the AVX-512 path, [`projections`]).
+    lanes: projections::Columns,
 }
 
 impl<T: Real> SpectrumScratch<T> {
@@ -64,6 +68,7 @@ impl<T: Real> SpectrumScratch<T> {
             proj: faer::Mat::zeros(ncols, plan.num_dirs.min(DIR_BLOCK)),
             cols: Vec::with_capacity(plan.num_mics * ncols),
             sig: vec![T::zero(); plan.num_dirs.min(DIR_BLOCK)],
+            lanes: projections::Columns::default(),
         }
     }
 }
@@ -135,6 +140,34 @@ pub fn accumulate_bin<T: Real>(
             quotients(&den, dec, ns, gain, &scratch.sig, acc);
         }
         return;
+    }
+    if plan.config.denominator == Denominator::Squared && projections::available() {
+        if let Some(st32) = T::cplx_f32(st) {
+            // Single precision on AVX-512: the fused kernel, windows grouped into lanes.
+            let sigs = &mut scratch.sig;
+            for (gdecs, gaccs) in decs
+                .chunks(projections::windows_per_group(ns))
+                .zip(accs.chunks_mut(projections::windows_per_group(ns)))
+            {
+                scratch.lanes.fill(
+                    m,
+                    ns,
+                    gdecs
+                        .iter()
+                        .map(|dec| T::cplx_f32(&dec.vectors[..m * ns]).expect("f32")),
+                );
+                sigs.clear();
+                sigs.resize(gdecs.len() * d, T::zero());
+                projections::signal_power(st32, &scratch.lanes, T::f32_mut(sigs).expect("f32"));
+                for (i, (dec, acc)) in gdecs.iter().zip(gaccs.iter_mut()).enumerate() {
+                    let gain = plan.weights[b] * bin_gain(plan, dec);
+                    if gain != T::zero() {
+                        quotients(&den, dec, ns, gain, &sigs[i * d..(i + 1) * d], acc);
+                    }
+                }
+            }
+            return;
+        }
     }
     // Windows go through the product in groups of a fixed size, the last group padded
     // with zero columns: every product has the same shape (this block's directions × G·nc

@@ -45,6 +45,10 @@ pub trait Real:
     fn of_f64(x: f64) -> Self;
     /// Widen to `f64`.
     fn to_f64(self) -> f64;
+    /// `s` itself when `Self` is `f32` (the way into single-precision-only kernels).
+    fn cplx_f32(s: &[C<Self>]) -> Option<&[C<f32>]>;
+    /// `s` itself when `Self` is `f32`.
+    fn f32_mut(s: &mut [Self]) -> Option<&mut [f32]>;
 }
 
 impl Real for f32 {
@@ -59,6 +63,12 @@ impl Real for f32 {
     fn to_f64(self) -> f64 {
         self as f64
     }
+    fn cplx_f32(s: &[C<f32>]) -> Option<&[C<f32>]> {
+        Some(s)
+    }
+    fn f32_mut(s: &mut [f32]) -> Option<&mut [f32]> {
+        Some(s)
+    }
 }
 
 impl Real for f64 {
@@ -72,5 +82,11 @@ impl Real for f64 {
     #[inline(always)]
     fn to_f64(self) -> f64 {
         self
+    }
+    fn cplx_f32(_: &[C<f64>]) -> Option<&[C<f32>]> {
+        None
+    }
+    fn f32_mut(_: &mut [f64]) -> Option<&mut [f32]> {
+        None
     }
 }
