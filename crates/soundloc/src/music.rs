@@ -41,6 +41,28 @@ pub const REFINE_RATIO: f64 = 1e-2;
 /// once per window. Fixed, so a window's result does not depend on its batch.
 pub const DIR_BLOCK: usize = 256;
 
+/// Whether a plan's spectrum runs on the fused AVX-512 kernel ([`projections`]): single
+/// precision, the squared denominator, an array larger than the planar kernels serve, a
+/// signal subspace of at most [`projections::MAX_COLS`] vectors.
+fn fused<T: Real>(plan: &Plan<T>) -> bool {
+    plan.planar.is_none()
+        && plan.config.denominator == Denominator::Squared
+        && plan.config.signal_dim() <= projections::MAX_COLS
+        && T::NAME == "f32"
+        && projections::available()
+}
+
+/// Directions per call of [`accumulate_bin`]: [`DIR_BLOCK`], or all of a bin's on the
+/// fused kernel, whose steering tiles (a few directions) are small: there the windows'
+/// columns, laid out once per bin and group, are what stays in cache.
+pub fn dir_block<T: Real>(plan: &Plan<T>) -> usize {
+    if fused(plan) {
+        plan.num_dirs.max(1)
+    } else {
+        DIR_BLOCK
+    }
+}
+
 /// Per-thread scratch for [`accumulate_bin`].
 pub struct SpectrumScratch<T: Real> {
     /// (aᴴE)ᵀ for one block of directions: a group of windows' columns as rows.
@@ -52,6 +74,8 @@ pub struct SpectrumScratch<T: Real> {
     sig: Vec<T>,
     /// The group's signal vectors in lanes (the AVX-512 path, [`projections`]).
     lanes: projections::Columns,
+    /// The steering block's a_r − a_i (the AVX-512 path).
+    pq: Vec<f32>,
 }
 
 impl<T: Real> SpectrumScratch<T> {
@@ -69,6 +93,7 @@ impl<T: Real> SpectrumScratch<T> {
             cols: Vec::with_capacity(plan.num_mics * ncols),
             sig: vec![T::zero(); plan.num_dirs.min(DIR_BLOCK)],
             lanes: projections::Columns::default(),
+            pq: Vec::new(),
         }
     }
 }
@@ -91,7 +116,7 @@ pub fn bin_gain<T: Real>(plan: &Plan<T>, dec: &Decomposition<T>) -> T {
     }
 }
 
-/// Adds w_k·g_k·P_k(d) for the directions `dirs` (at most [`DIR_BLOCK`] of them) of used
+/// Adds w_k·g_k·P_k(d) for the directions `dirs` (at most [`dir_block`] of them) of used
 /// bin `b` to `accs[i]` (one value per direction of `dirs`), for the windows whose
 /// decompositions of bin `b` are `decs[i]`. The windows' vectors go through the product
 /// with the block's steering vectors in groups (at least [`MIN_PRODUCT_COLS`] columns, the
@@ -108,7 +133,7 @@ pub fn accumulate_bin<T: Real>(
     let m = plan.num_mics;
     let nd = plan.num_dirs;
     let d = dirs.len();
-    debug_assert!(d <= DIR_BLOCK && accs.iter().all(|a| a.len() == d) && accs.len() == decs.len());
+    debug_assert!(d <= dir_block(plan) && accs.iter().all(|a| a.len() == d) && accs.len() == decs.len());
     let ns = plan.config.signal_dim();
     let (st_all, n2_all) = plan.denominator_steering();
     let (d0, d1) = (b * nd + dirs.start, b * nd + dirs.end);
@@ -141,10 +166,11 @@ pub fn accumulate_bin<T: Real>(
         }
         return;
     }
-    if plan.config.denominator == Denominator::Squared && projections::available() {
+    if fused(plan) {
         if let Some(st32) = T::cplx_f32(st) {
             // Single precision on AVX-512: the fused kernel, windows grouped into lanes.
             let sigs = &mut scratch.sig;
+            projections::steering_sums(st32, &mut scratch.pq);
             for (gdecs, gaccs) in decs
                 .chunks(projections::windows_per_group(ns))
                 .zip(accs.chunks_mut(projections::windows_per_group(ns)))
@@ -158,7 +184,7 @@ pub fn accumulate_bin<T: Real>(
                 );
                 sigs.clear();
                 sigs.resize(gdecs.len() * d, T::zero());
-                projections::signal_power(st32, &scratch.lanes, T::f32_mut(sigs).expect("f32"));
+                projections::signal_power(st32, &scratch.pq, &scratch.lanes, T::f32_mut(sigs).expect("f32"));
                 for (i, (dec, acc)) in gdecs.iter().zip(gaccs.iter_mut()).enumerate() {
                     let gain = plan.weights[b] * bin_gain(plan, dec);
                     if gain != T::zero() {

@@ -2,21 +2,26 @@
 //! single precision on AVX-512: Σ_s |aᴴe_s|² per direction (MUSIC's squared denominator,
 //! complement form), the windows' signal vectors side by side in vector lanes.
 //!
-//! A group of windows' vectors becomes planar columns `[mic][lane]` (real and imaginary
-//! parts apart; lane = window·Ns + s, padded with zeros to a multiple of [`LANES`]). Per
-//! direction a, one accumulator pair per lane sums, mic by mic in order,
+//! A group of windows' vectors becomes planar columns `[mic][lane]` (lane = window·Ns + s,
+//! padded with zeros to a multiple of [`LANES`]) of e_r, e_i − e_r and e_r + e_i. Per
+//! direction a, conj(a)·e = (p + iq)(c + id) with p = a_r, q = −a_i, c = e_r, d = e_i is
+//! summed mic by mic in order as three products (Gauss's form; fused multiply-adds, one
+//! accumulator each per lane):
 //!
-//! Re += a_r·e_r, Re += a_i·e_i, Im += a_r·e_i, Im −= a_i·e_r   (conj(a)·e, fused),
+//! k₁ += (p + q)·c,  k₂ += p·(d − c),  k₃ += q·(c + d);  Re = k₁ − k₃,  Im = k₁ + k₂,
 //!
 //! then |aᴴe_s|² = fma(Im, Im, Re·Re), and each window's lanes are added in the order of s.
-//! Every lane does the same operations whatever its neighbours, so a window's result is
-//! the same bits alone or in a group, and for any batch. The steering vectors stay
-//! interleaved (`[dir][mic]`, each value broadcast to all lanes): nothing is copied per
-//! block, and the windows' columns (M × ≤ 64 values) are cheap to lay out.
+//! Three multiply-adds per complex product instead of four; the rounding is that of sums
+//! of terms up to √2·|a_m||e_m| instead of |a_m||e_m| (tests bound it against f64; on the
+//! 60-mic drone scene the SEVD spectrum's f32-vs-f64 RMS is 3.0e-6 dB, against 2.7e-6 dB
+//! with four products). Every lane does the same operations whatever its neighbours, so a
+//! window's result is the same bits alone or in a group, and for any batch. The steering
+//! vectors stay interleaved (`[dir][mic]`, each value broadcast to all lanes; p + q is
+//! formed once per bin and call, [`steering_sums`]).
 //!
 //! Against faer's complex product and a separate pass over its result (the path for f64
-//! and for CPUs without AVX-512), the fused form does ~4 fused multiply-adds per complex
-//! product with no product matrix written and reread (BENCHMARKS.md, "eleventh session").
+//! and for CPUs without AVX-512) no product matrix is written and reread
+//! (BENCHMARKS.md, "eleventh session").
 
 use crate::real::C;
 
@@ -47,8 +52,10 @@ pub fn windows_per_group(ns: usize) -> usize {
 /// A group of windows' signal vectors as planar columns `[mic][lane]`.
 #[derive(Debug, Default, Clone)]
 pub struct Columns {
-    re: Vec<f32>,
-    im: Vec<f32>,
+    /// e_r, e_i − e_r, e_r + e_i.
+    c: Vec<f32>,
+    dmc: Vec<f32>,
+    cpd: Vec<f32>,
     m: usize,
     /// Lanes per mic row (a multiple of [`LANES`], at most [`MAX_COLS`]).
     lanes: usize,
@@ -67,16 +74,18 @@ impl Columns {
             lanes <= MAX_COLS,
             "{nw} windows × {ns} vectors exceed {MAX_COLS} lanes"
         );
-        self.re.clear();
-        self.re.resize(m * lanes, 0.0);
-        self.im.clear();
-        self.im.resize(m * lanes, 0.0);
+        for v in [&mut self.c, &mut self.dmc, &mut self.cpd] {
+            v.clear();
+            v.resize(m * lanes, 0.0);
+        }
         for (w, v) in windows.enumerate() {
             for s in 0..ns {
                 let col = &v[s * m..(s + 1) * m];
                 for (mic, z) in col.iter().enumerate() {
-                    self.re[mic * lanes + w * ns + s] = z.re;
-                    self.im[mic * lanes + w * ns + s] = z.im;
+                    let o = mic * lanes + w * ns + s;
+                    self.c[o] = z.re;
+                    self.dmc[o] = z.im - z.re;
+                    self.cpd[o] = z.re + z.im;
                 }
             }
         }
@@ -84,19 +93,26 @@ impl Columns {
     }
 }
 
-/// Σ_s |aᴴe_s|² for every direction of `st` (row-major directions × M, interleaved) and
-/// every window of `cols`: window w's value for direction d at `out[w·D + d]`, D =
-/// `st.len() / M`. Call only where [`available`] (panics elsewhere).
-pub fn signal_power(st: &[C<f32>], cols: &Columns, out: &mut [f32]) {
+/// p + q = a_r − a_i of every value of `st` into `out`: the three-product form's third
+/// factor, formed once per bin for all of [`signal_power`]'s groups.
+pub fn steering_sums(st: &[C<f32>], out: &mut Vec<f32>) {
+    out.clear();
+    out.extend(st.iter().map(|z| z.re - z.im));
+}
+
+/// Σ_s |aᴴe_s|² for every direction of `st` (row-major directions × M, interleaved; `pq`
+/// its [`steering_sums`]) and every window of `cols`: window w's value for direction d at
+/// `out[w·D + d]`, D = `st.len() / M`. Call only where [`available`] (panics elsewhere).
+pub fn signal_power(st: &[C<f32>], pq: &[f32], cols: &Columns, out: &mut [f32]) {
     let m = cols.m;
-    assert!(m > 0 && st.len().is_multiple_of(m));
+    assert!(m > 0 && st.len().is_multiple_of(m) && pq.len() == st.len());
     let d = st.len() / m;
     assert!(out.len() >= cols.windows * d);
     #[cfg(target_arch = "x86_64")]
     if available() {
         // SAFETY: the CPU has AVX-512F (checked just above); the slices' lengths were
         // checked against the shapes the kernel reads and writes.
-        unsafe { avx512::signal_power(st, cols, d, out) };
+        unsafe { avx512::signal_power(st, pq, cols, d, out) };
         return;
     }
     panic!("projections::signal_power needs AVX-512F");
@@ -108,18 +124,18 @@ mod avx512 {
     use crate::real::C;
     use std::arch::x86_64::*;
 
-    /// Accumulator registers per tile: RD directions × NC registers × (Re, Im).
+    /// Accumulator registers per tile: RD directions × NC registers × (k₁, k₂, k₃).
     const ACC: usize = 24;
 
     #[target_feature(enable = "avx512f")]
-    pub(super) unsafe fn signal_power(st: &[C<f32>], cols: &Columns, d: usize, out: &mut [f32]) {
+    pub(super) unsafe fn signal_power(st: &[C<f32>], pq: &[f32], cols: &Columns, d: usize, out: &mut [f32]) {
         // SAFETY: AVX-512F (this function's feature).
         unsafe {
             match cols.lanes / LANES {
-                1 => run::<{ ACC / 2 }, 1>(st, cols, d, out),
-                2 => run::<{ ACC / 4 }, 2>(st, cols, d, out),
-                3 => run::<{ ACC / 6 }, 3>(st, cols, d, out),
-                _ => run::<{ ACC / 8 }, 4>(st, cols, d, out),
+                1 => run::<{ ACC / 3 }, 1>(st, pq, cols, d, out),
+                2 => run::<{ ACC / 6 }, 2>(st, pq, cols, d, out),
+                3 => run::<{ ACC / 9 }, 3>(st, pq, cols, d, out),
+                _ => run::<{ ACC / 12 }, 4>(st, pq, cols, d, out),
             }
         }
     }
@@ -129,6 +145,7 @@ mod avx512 {
     #[target_feature(enable = "avx512f")]
     unsafe fn run<const RD: usize, const NC: usize>(
         st: &[C<f32>],
+        pq: &[f32],
         cols: &Columns,
         d: usize,
         out: &mut [f32],
@@ -139,7 +156,14 @@ mod avx512 {
         while dir + RD <= d {
             let mut tile = [[0.0f32; MAX_COLS]; RD];
             // SAFETY: AVX-512F (this function's feature); the rows hold RD·M values.
-            unsafe { tile_rd::<RD, NC>(&st[dir * m..(dir + RD) * m], cols, &mut tile) };
+            unsafe {
+                tile_rd::<RD, NC>(
+                    &st[dir * m..(dir + RD) * m],
+                    &pq[dir * m..(dir + RD) * m],
+                    cols,
+                    &mut tile,
+                )
+            };
             for (r, t) in tile.iter().enumerate() {
                 window_sums(t, cols, d, dir + r, out);
             }
@@ -148,7 +172,14 @@ mod avx512 {
         for dir in dir..d {
             let mut one = [[0.0f32; MAX_COLS]; 1];
             // SAFETY: as above, M values.
-            unsafe { tile_rd::<1, NC>(&st[dir * m..(dir + 1) * m], cols, &mut one) };
+            unsafe {
+                tile_rd::<1, NC>(
+                    &st[dir * m..(dir + 1) * m],
+                    &pq[dir * m..(dir + 1) * m],
+                    cols,
+                    &mut one,
+                )
+            };
             window_sums(&one[0], cols, d, dir, out);
         }
     }
@@ -171,44 +202,57 @@ mod avx512 {
     #[inline]
     unsafe fn tile_rd<const RD: usize, const NC: usize>(
         st: &[C<f32>],
+        pq: &[f32],
         cols: &Columns,
         pw: &mut [[f32; MAX_COLS]; RD],
     ) {
         let (m, lanes) = (cols.m, cols.lanes);
-        assert!(st.len() >= RD * m && cols.re.len() >= m * lanes && cols.im.len() >= m * lanes);
-        let mut acr = [[_mm512_setzero_ps(); NC]; RD];
-        let mut aci = [[_mm512_setzero_ps(); NC]; RD];
-        let stp = st.as_ptr() as *const f32;
-        let (rp, ip) = (cols.re.as_ptr(), cols.im.as_ptr());
+        assert!(
+            st.len() >= RD * m
+                && pq.len() >= RD * m
+                && [&cols.c, &cols.dmc, &cols.cpd]
+                    .iter()
+                    .all(|v| v.len() >= m * lanes)
+        );
+        let mut k1 = [[_mm512_setzero_ps(); NC]; RD];
+        let mut k2 = [[_mm512_setzero_ps(); NC]; RD];
+        let mut k3 = [[_mm512_setzero_ps(); NC]; RD];
+        let (cp, dp, sp) = (cols.c.as_ptr(), cols.dmc.as_ptr(), cols.cpd.as_ptr());
         for i in 0..m {
-            let mut er = [_mm512_setzero_ps(); NC];
-            let mut ei = [_mm512_setzero_ps(); NC];
-            for c in 0..NC {
-                // SAFETY: i·lanes + c·16 + 16 ≤ m·lanes (checked above).
+            let mut c = [_mm512_setzero_ps(); NC];
+            let mut dmc = [_mm512_setzero_ps(); NC];
+            let mut cpd = [_mm512_setzero_ps(); NC];
+            for q in 0..NC {
+                let o = i * lanes + q * LANES;
+                // SAFETY: o + 16 ≤ m·lanes (checked above).
                 unsafe {
-                    er[c] = _mm512_loadu_ps(rp.add(i * lanes + c * LANES));
-                    ei[c] = _mm512_loadu_ps(ip.add(i * lanes + c * LANES));
+                    c[q] = _mm512_loadu_ps(cp.add(o));
+                    dmc[q] = _mm512_loadu_ps(dp.add(o));
+                    cpd[q] = _mm512_loadu_ps(sp.add(o));
                 }
             }
             for r in 0..RD {
-                // SAFETY: (r·m + i)·2 + 1 < 2·RD·m ≤ the f32 values of `st`.
-                let (ar, ai) = unsafe {
-                    let p = stp.add((r * m + i) * 2);
-                    (_mm512_set1_ps(*p), _mm512_set1_ps(*p.add(1)))
-                };
-                for c in 0..NC {
-                    acr[r][c] = _mm512_fmadd_ps(ar, er[c], acr[r][c]);
-                    acr[r][c] = _mm512_fmadd_ps(ai, ei[c], acr[r][c]);
-                    aci[r][c] = _mm512_fmadd_ps(ar, ei[c], aci[r][c]);
-                    aci[r][c] = _mm512_fnmadd_ps(ai, er[c], aci[r][c]);
+                let a = st[r * m + i];
+                let (p, q, s) = (
+                    _mm512_set1_ps(a.re),
+                    _mm512_set1_ps(a.im),
+                    _mm512_set1_ps(pq[r * m + i]),
+                );
+                for l in 0..NC {
+                    k1[r][l] = _mm512_fmadd_ps(s, c[l], k1[r][l]);
+                    k2[r][l] = _mm512_fmadd_ps(p, dmc[l], k2[r][l]);
+                    // q = −a_i: k₃ −= a_i·(c + d)
+                    k3[r][l] = _mm512_fnmadd_ps(q, cpd[l], k3[r][l]);
                 }
             }
         }
         for r in 0..RD {
-            for c in 0..NC {
-                let p = _mm512_fmadd_ps(aci[r][c], aci[r][c], _mm512_mul_ps(acr[r][c], acr[r][c]));
-                // SAFETY: c·16 + 16 ≤ NC·16 ≤ MAX_COLS.
-                unsafe { _mm512_storeu_ps(pw[r].as_mut_ptr().add(c * LANES), p) };
+            for l in 0..NC {
+                let re = _mm512_sub_ps(k1[r][l], k3[r][l]);
+                let im = _mm512_add_ps(k1[r][l], k2[r][l]);
+                let p = _mm512_fmadd_ps(im, im, _mm512_mul_ps(re, re));
+                // SAFETY: l·16 + 16 ≤ NC·16 ≤ MAX_COLS.
+                unsafe { _mm512_storeu_ps(pw[r].as_mut_ptr().add(l * LANES), p) };
             }
         }
     }
@@ -250,16 +294,19 @@ mod tests {
             (64, 63, 7),
         ] {
             let st = random(d * m, &mut seed);
+            let mut pq = Vec::new();
+            steering_sums(&st, &mut pq);
             let nw = windows_per_group(ns);
             let vecs: Vec<Vec<C<f32>>> = (0..nw).map(|_| random(m * ns, &mut seed)).collect();
             let mut cols = Columns::default();
             cols.fill(m, ns, vecs.iter().map(|v| v.as_slice()));
             let mut out = vec![f32::NAN; nw * d];
-            signal_power(&st, &cols, &mut out);
+            signal_power(&st, &pq, &cols, &mut out);
             for (w, v) in vecs.iter().enumerate() {
                 for dir in 0..d {
                     let a = &st[dir * m..(dir + 1) * m];
-                    // Each projection's M-term sums err by at most ~2M·ε·Σ_m|a_m||e_m| (δ);
+                    // Each projection's three M-term sums (terms up to √2|a_m||e_m|) and
+                    // their sum or difference err by at most ~3M·ε·Σ_m|a_m||e_m| (δ);
                     // |z|² then by 2|z|δ + δ², and the Ns-term sum by Ns·ε of the total.
                     let (mut want, mut tol) = (0.0f64, 0.0f64);
                     for s in 0..ns {
@@ -270,7 +317,7 @@ mod tests {
                             z += C::new(x.re as f64, -x.im as f64) * C::new(y.re as f64, y.im as f64);
                             scale += (x.norm() * y.norm()) as f64;
                         }
-                        let delta = 2.0 * m as f64 * f32::EPSILON as f64 * scale;
+                        let delta = 3.0 * m as f64 * f32::EPSILON as f64 * scale;
                         want += z.norm_sqr();
                         tol += 2.0 * z.norm() * delta + delta * delta;
                     }
@@ -296,16 +343,18 @@ mod tests {
         for (m, ns) in [(24, 2), (60, 5), (40, 3)] {
             let d = 31;
             let st = random(d * m, &mut seed);
+            let mut pq = Vec::new();
+            steering_sums(&st, &mut pq);
             let nw = windows_per_group(ns);
             let vecs: Vec<Vec<C<f32>>> = (0..nw).map(|_| random(m * ns, &mut seed)).collect();
             let mut cols = Columns::default();
             cols.fill(m, ns, vecs.iter().map(|v| v.as_slice()));
             let mut all = vec![0.0; nw * d];
-            signal_power(&st, &cols, &mut all);
+            signal_power(&st, &pq, &cols, &mut all);
             for (w, v) in vecs.iter().enumerate() {
                 cols.fill(m, ns, std::iter::once(v.as_slice()));
                 let mut one = vec![0.0; d];
-                signal_power(&st, &cols, &mut one);
+                signal_power(&st, &pq, &cols, &mut one);
                 let bits = |x: &[f32]| x.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
                 assert_eq!(
                     bits(&one),

@@ -6,7 +6,7 @@
 use super::{thread_scratch, ThreadScratch};
 use crate::backend::{Job, WindowSpec};
 use crate::correlation::running::{run_bin, Step};
-use crate::music::{accumulate_bin, normalize_bin, SpectrumScratch, DIR_BLOCK};
+use crate::music::{accumulate_bin, dir_block, normalize_bin, SpectrumScratch};
 use crate::plan::Plan;
 use crate::real::{Real, C};
 use crate::srp::{self, SrpScratch};
@@ -240,7 +240,7 @@ impl<T: Real> Ctx<'_, '_, T> {
         let srp = !c.algorithm.is_music();
         let r_of = |i: usize, w: usize| &r[(i * nw + w) * mm..(i * nw + w + 1) * mm];
         let t = Instant::now();
-        // 3. Within a bin the directions run in fixed blocks and every window passes
+        // 3. Within a bin the directions run in fixed blocks (`dir_block`) and every window passes
         // through each block (its steering stays in cache).
         for (i, b) in bins.clone().enumerate() {
             let cb = &mut contrib[i * nw * d..(i + 1) * nw * d];
@@ -252,8 +252,9 @@ impl<T: Real> Ctx<'_, '_, T> {
             } else {
                 let sc = slot.spectrum.get_or_insert_with(|| SpectrumScratch::new(plan));
                 let bin_decs: Vec<&Decomposition<T>> = decs[i * nw..(i + 1) * nw].iter().collect();
-                for d0 in (0..d).step_by(DIR_BLOCK) {
-                    let dirs = d0..(d0 + DIR_BLOCK).min(d);
+                let block = dir_block(plan);
+                for d0 in (0..d).step_by(block) {
+                    let dirs = d0..(d0 + block).min(d);
                     let mut accs: Vec<&mut [T]> =
                         cb.chunks_mut(d).map(|acc| &mut acc[dirs.clone()]).collect();
                     accumulate_bin(plan, b, dirs, &bin_decs, sc, &mut accs);
