@@ -74,8 +74,6 @@ pub struct SpectrumScratch<T: Real> {
     sig: Vec<T>,
     /// The group's signal vectors in lanes (the AVX-512 path, [`projections`]).
     lanes: projections::Columns,
-    /// The steering block's a_r − a_i (the AVX-512 path).
-    pq: Vec<f32>,
 }
 
 impl<T: Real> SpectrumScratch<T> {
@@ -93,7 +91,6 @@ impl<T: Real> SpectrumScratch<T> {
             cols: Vec::with_capacity(plan.num_mics * ncols),
             sig: vec![T::zero(); plan.num_dirs.min(DIR_BLOCK)],
             lanes: projections::Columns::default(),
-            pq: Vec::new(),
         }
     }
 }
@@ -167,10 +164,12 @@ pub fn accumulate_bin<T: Real>(
         return;
     }
     if fused(plan) {
-        if let Some(st32) = T::cplx_f32(st) {
+        if let (Some(st32), Some(all32)) = (T::cplx_f32(st), T::cplx_f32(st_all)) {
             // Single precision on AVX-512: the fused kernel, windows grouped into lanes.
             let sigs = &mut scratch.sig;
-            projections::steering_sums(st32, &mut scratch.pq);
+            let pq = &plan
+                .steering_sums
+                .get_or_init(|| projections::steering_sums(all32))[d0 * m..d1 * m];
             for (gdecs, gaccs) in decs
                 .chunks(projections::windows_per_group(ns))
                 .zip(accs.chunks_mut(projections::windows_per_group(ns)))
@@ -184,7 +183,7 @@ pub fn accumulate_bin<T: Real>(
                 );
                 sigs.clear();
                 sigs.resize(gdecs.len() * d, T::zero());
-                projections::signal_power(st32, &scratch.pq, &scratch.lanes, T::f32_mut(sigs).expect("f32"));
+                projections::signal_power(st32, pq, &scratch.lanes, T::f32_mut(sigs).expect("f32"));
                 for (i, (dec, acc)) in gdecs.iter().zip(gaccs.iter_mut()).enumerate() {
                     let gain = plan.weights[b] * bin_gain(plan, dec);
                     if gain != T::zero() {

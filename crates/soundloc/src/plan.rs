@@ -70,6 +70,10 @@ pub struct Plan<T: Real> {
     /// derived at construction and by [`Plan::with_noise`] (a plan's steering, whitening
     /// and algorithm are not changed after construction).
     pub(crate) planar: Option<Arc<Planar<T>>>,
+    /// a_r − a_i of every value of [`Plan::denominator_steering`] for the CPU's AVX-512
+    /// spectrum kernel (`projections::steering_sums`), formed on its first use (GPU runs
+    /// never pay for it) and anew by [`Plan::with_noise`] for GEVD.
+    pub(crate) steering_sums: Arc<std::sync::OnceLock<Vec<f32>>>,
 }
 
 impl<T: Real> Plan<T> {
@@ -201,6 +205,7 @@ impl<T: Real> Plan<T> {
             whitening,
             peak_table,
             planar: None,
+            steering_sums: Default::default(),
         };
         plan.planar = plan.planar_steering();
         Ok(plan)
@@ -223,6 +228,7 @@ impl<T: Real> Plan<T> {
             if self.config.algorithm == Algorithm::Gevd {
                 // Its denominator reads the whitened steering.
                 p.planar = p.planar_steering();
+                p.steering_sums = Default::default();
             }
         }
         Ok(p)

@@ -17,7 +17,7 @@
 //! with four products). Every lane does the same operations whatever its neighbours, so a
 //! window's result is the same bits alone or in a group, and for any batch. The steering
 //! vectors stay interleaved (`[dir][mic]`, each value broadcast to all lanes; p + q is
-//! formed once per bin and call, [`steering_sums`]).
+//! formed once per plan, [`steering_sums`]).
 //!
 //! Against faer's complex product and a separate pass over its result (the path for f64
 //! and for CPUs without AVX-512) no product matrix is written and reread
@@ -93,11 +93,10 @@ impl Columns {
     }
 }
 
-/// p + q = a_r − a_i of every value of `st` into `out`: the three-product form's third
-/// factor, formed once per bin for all of [`signal_power`]'s groups.
-pub fn steering_sums(st: &[C<f32>], out: &mut Vec<f32>) {
-    out.clear();
-    out.extend(st.iter().map(|z| z.re - z.im));
+/// p + q = a_r − a_i of every value of `st`: the three-product form's third factor,
+/// formed once per plan (`Plan::steering_sums`).
+pub fn steering_sums(st: &[C<f32>]) -> Vec<f32> {
+    st.iter().map(|z| z.re - z.im).collect()
 }
 
 /// Σ_s |aᴴe_s|² for every direction of `st` (row-major directions × M, interleaved; `pq`
@@ -294,8 +293,7 @@ mod tests {
             (64, 63, 7),
         ] {
             let st = random(d * m, &mut seed);
-            let mut pq = Vec::new();
-            steering_sums(&st, &mut pq);
+            let pq = steering_sums(&st);
             let nw = windows_per_group(ns);
             let vecs: Vec<Vec<C<f32>>> = (0..nw).map(|_| random(m * ns, &mut seed)).collect();
             let mut cols = Columns::default();
@@ -343,8 +341,7 @@ mod tests {
         for (m, ns) in [(24, 2), (60, 5), (40, 3)] {
             let d = 31;
             let st = random(d * m, &mut seed);
-            let mut pq = Vec::new();
-            steering_sums(&st, &mut pq);
+            let pq = steering_sums(&st);
             let nw = windows_per_group(ns);
             let vecs: Vec<Vec<C<f32>>> = (0..nw).map(|_| random(m * ns, &mut seed)).collect();
             let mut cols = Columns::default();
