@@ -23,6 +23,7 @@
 //! lanes; ≈ 3× faster per 8 × 8 problem than one at a time), larger ones through the
 //! partial eigensolver [`eigh`] after [`whiten`]'s products.
 
+mod back_lanes;
 mod block;
 pub mod count;
 pub mod eigh;
