@@ -272,6 +272,29 @@ mod tests {
         (0..n).map(|_| C::new(lcg(seed), lcg(seed))).collect()
     }
 
+    /// Random steering (d directions × m) and a full group of windows' Ns vectors, and
+    /// the kernel's values for them (`[window][direction]`).
+    struct Case {
+        st: Vec<C<f32>>,
+        vecs: Vec<Vec<C<f32>>>,
+        out: Vec<f32>,
+    }
+
+    fn case(m: usize, ns: usize, d: usize, seed: &mut u64) -> Case {
+        let st = random(d * m, seed);
+        let vecs: Vec<Vec<C<f32>>> = (0..windows_per_group(ns)).map(|_| random(m * ns, seed)).collect();
+        let out = powers(&st, m, ns, &vecs);
+        Case { st, vecs, out }
+    }
+
+    fn powers(st: &[C<f32>], m: usize, ns: usize, vecs: &[Vec<C<f32>>]) -> Vec<f32> {
+        let mut cols = Columns::default();
+        cols.fill(m, ns, vecs.iter().map(|v| v.as_slice()));
+        let mut out = vec![f32::NAN; vecs.len() * (st.len() / m)];
+        signal_power(st, &steering_sums(st), &cols, &mut out);
+        out
+    }
+
     /// Against Σ_s |aᴴe_s|² in f64, for arrays and subspaces that take one to four
     /// registers, several windows per group, and direction counts off the tile size.
     #[test]
@@ -292,14 +315,7 @@ mod tests {
             (64, 48, 9),
             (64, 63, 7),
         ] {
-            let st = random(d * m, &mut seed);
-            let pq = steering_sums(&st);
-            let nw = windows_per_group(ns);
-            let vecs: Vec<Vec<C<f32>>> = (0..nw).map(|_| random(m * ns, &mut seed)).collect();
-            let mut cols = Columns::default();
-            cols.fill(m, ns, vecs.iter().map(|v| v.as_slice()));
-            let mut out = vec![f32::NAN; nw * d];
-            signal_power(&st, &pq, &cols, &mut out);
+            let Case { st, vecs, out } = case(m, ns, d, &mut seed);
             for (w, v) in vecs.iter().enumerate() {
                 for dir in 0..d {
                     let a = &st[dir * m..(dir + 1) * m];
@@ -340,18 +356,9 @@ mod tests {
         let mut seed = 11u64;
         for (m, ns) in [(24, 2), (60, 5), (40, 3)] {
             let d = 31;
-            let st = random(d * m, &mut seed);
-            let pq = steering_sums(&st);
-            let nw = windows_per_group(ns);
-            let vecs: Vec<Vec<C<f32>>> = (0..nw).map(|_| random(m * ns, &mut seed)).collect();
-            let mut cols = Columns::default();
-            cols.fill(m, ns, vecs.iter().map(|v| v.as_slice()));
-            let mut all = vec![0.0; nw * d];
-            signal_power(&st, &pq, &cols, &mut all);
+            let Case { st, vecs, out: all } = case(m, ns, d, &mut seed);
             for (w, v) in vecs.iter().enumerate() {
-                cols.fill(m, ns, std::iter::once(v.as_slice()));
-                let mut one = vec![0.0; d];
-                signal_power(&st, &pq, &cols, &mut one);
+                let one = powers(&st, m, ns, std::slice::from_ref(v));
                 let bits = |x: &[f32]| x.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
                 assert_eq!(
                     bits(&one),

@@ -20,6 +20,15 @@ const L: usize = 8;
 /// vector).
 pub(crate) const MIN_VECTORS: usize = L;
 
+/// Q's reflectors: v_j in row j (columns j+1 …) of `re`/`im` (n × n row-major), τ_j in
+/// `tau`.
+pub(crate) struct Reflectors<'a> {
+    pub n: usize,
+    pub re: &'a [f64],
+    pub im: &'a [f64],
+    pub tau: &'a [C<f64>],
+}
+
 /// Scratch: the vectors in lanes, `[group][row]`, real and imaginary parts.
 #[derive(Default)]
 pub(crate) struct BackLanes {
@@ -29,77 +38,37 @@ pub(crate) struct BackLanes {
 
 impl BackLanes {
     /// x = Q z for the k vectors `z` (row c: z_c, n values) into `vectors` (n × k
-    /// column-major), with the reflectors v_j in row j (columns j+1 …) of `re`/`im` and
-    /// their τ_j in `tau`.
-    #[allow(clippy::too_many_arguments)]
-    pub(crate) fn apply(
-        &mut self,
-        n: usize,
-        k: usize,
-        z: &[f64],
-        re: &[f64],
-        im: &[f64],
-        tau: &[C<f64>],
-        vectors: &mut [C<f64>],
-    ) {
+    /// column-major).
+    pub(crate) fn apply(&mut self, q: &Reflectors<'_>, k: usize, z: &[f64], vectors: &mut [C<f64>]) {
         #[cfg(target_arch = "x86_64")]
         {
             if std::arch::is_x86_feature_detected!("avx512f") {
                 // SAFETY: the CPU supports AVX-512F (checked just above).
-                return unsafe { self.apply_avx512(n, k, z, re, im, tau, vectors) };
+                return unsafe { self.apply_avx512(q, k, z, vectors) };
             }
             if std::arch::is_x86_feature_detected!("avx2") {
                 // SAFETY: the CPU supports AVX2 (checked just above).
-                return unsafe { self.apply_avx2(n, k, z, re, im, tau, vectors) };
+                return unsafe { self.apply_avx2(q, k, z, vectors) };
             }
         }
-        self.apply_with::<v8::Scalar>(n, k, z, re, im, tau, vectors)
+        self.apply_with::<v8::Scalar>(q, k, z, vectors)
     }
 
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx512f")]
-    #[allow(clippy::too_many_arguments)]
-    unsafe fn apply_avx512(
-        &mut self,
-        n: usize,
-        k: usize,
-        z: &[f64],
-        re: &[f64],
-        im: &[f64],
-        tau: &[C<f64>],
-        vectors: &mut [C<f64>],
-    ) {
-        self.apply_with::<v8::Avx512>(n, k, z, re, im, tau, vectors)
+    unsafe fn apply_avx512(&mut self, q: &Reflectors<'_>, k: usize, z: &[f64], vectors: &mut [C<f64>]) {
+        self.apply_with::<v8::Avx512>(q, k, z, vectors)
     }
 
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
-    #[allow(clippy::too_many_arguments)]
-    unsafe fn apply_avx2(
-        &mut self,
-        n: usize,
-        k: usize,
-        z: &[f64],
-        re: &[f64],
-        im: &[f64],
-        tau: &[C<f64>],
-        vectors: &mut [C<f64>],
-    ) {
-        self.apply_with::<v8::Avx2>(n, k, z, re, im, tau, vectors)
+    unsafe fn apply_avx2(&mut self, q: &Reflectors<'_>, k: usize, z: &[f64], vectors: &mut [C<f64>]) {
+        self.apply_with::<v8::Avx2>(q, k, z, vectors)
     }
 
     #[inline(always)]
-    #[allow(clippy::too_many_arguments)]
-    fn apply_with<V: F8>(
-        &mut self,
-        n: usize,
-        k: usize,
-        z: &[f64],
-        re: &[f64],
-        im: &[f64],
-        tau: &[C<f64>],
-        vectors: &mut [C<f64>],
-    ) {
+    fn apply_with<V: F8>(&mut self, q: &Reflectors<'_>, k: usize, z: &[f64], vectors: &mut [C<f64>]) {
+        let Reflectors { n, re, im, tau } = *q;
         assert!(z.len() >= n * k && re.len() >= n * n && im.len() >= n * n && tau.len() + 1 >= n);
         assert!(vectors.len() >= n * k);
         let groups = k.div_ceil(L);
@@ -182,20 +151,26 @@ mod tests {
             let mut runs: Vec<Vec<C<f64>>> = Vec::new();
             let mut b = BackLanes::default();
             let mut out = vec![C::new(0.0, 0.0); n * k];
-            b.apply_with::<v8::Scalar>(n, k, &z, &re, &im, &tau, &mut out);
+            let q = Reflectors {
+                n,
+                re: &re,
+                im: &im,
+                tau: &tau,
+            };
+            b.apply_with::<v8::Scalar>(&q, k, &z, &mut out);
             runs.push(out.clone());
             #[cfg(target_arch = "x86_64")]
             {
                 if std::arch::is_x86_feature_detected!("avx2") {
                     // SAFETY: the CPU has AVX2 (checked just above).
-                    unsafe { b.apply_avx2(n, k, &z, &re, &im, &tau, &mut out) };
+                    unsafe { b.apply_avx2(&q, k, &z, &mut out) };
                     runs.push(out.clone());
                 } else {
                     println!("SKIPPED lanes_equal_the_reflectors_applied_per_vector (AVX2 part): no AVX2");
                 }
                 if std::arch::is_x86_feature_detected!("avx512f") {
                     // SAFETY: the CPU has AVX-512F (checked just above).
-                    unsafe { b.apply_avx512(n, k, &z, &re, &im, &tau, &mut out) };
+                    unsafe { b.apply_avx512(&q, k, &z, &mut out) };
                     runs.push(out.clone());
                 } else {
                     println!(

@@ -32,7 +32,7 @@
 //! k = 2 vectors a few µs, against faer's `self_adjoint_evd` with vectors at 278 µs (c32)
 //! and 415 µs (c64).
 
-use super::back_lanes::{self, BackLanes};
+use super::back_lanes::{self, BackLanes, Reflectors};
 use super::simd::{self, axpy, axpy_real, conj_axpy, dot_real, dotc, rank2_row};
 use super::tridiag::{ql_values, ql_values_many, TriLu};
 use crate::real::C;
@@ -315,7 +315,13 @@ fn leading_vectors_impl<const AVX2: bool>(s: &mut Eigh, k: usize, vectors: &mut 
     s.tridiagonal_vectors(k);
     if k >= back_lanes::MIN_VECTORS {
         // Many vectors: eight at a time in vector lanes.
-        s.back.apply(n, k, &s.z, &s.re, &s.im, &s.tau, vectors);
+        let q = Reflectors {
+            n,
+            re: &s.re,
+            im: &s.im,
+            tau: &s.tau,
+        };
+        s.back.apply(&q, k, &s.z, vectors);
         return;
     }
     // Y = Z (real), split parts, one row per vector.
