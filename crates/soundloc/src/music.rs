@@ -48,7 +48,7 @@ fn fused<T: Real>(plan: &Plan<T>) -> bool {
     plan.planar.is_none()
         && plan.config.denominator == Denominator::Squared
         && plan.config.signal_dim() <= projections::MAX_COLS
-        && T::NAME == "f32"
+        && T::cplx_f32(&[]).is_some()
         && projections::available()
 }
 
@@ -115,10 +115,13 @@ pub fn bin_gain<T: Real>(plan: &Plan<T>, dec: &Decomposition<T>) -> T {
 
 /// Adds w_k·g_k·P_k(d) for the directions `dirs` (at most [`dir_block`] of them) of used
 /// bin `b` to `accs[i]` (one value per direction of `dirs`), for the windows whose
-/// decompositions of bin `b` are `decs[i]`. The windows' vectors go through the product
-/// with the block's steering vectors in groups (at least [`MIN_PRODUCT_COLS`] columns, the
-/// last group zero-padded), so every product has the same shape whatever the batch and a
-/// window's result is the same bits alone or among others (`tests`).
+/// decompositions of bin `b` are `decs[i]`. Three paths: small arrays' planar kernels
+/// ([`lanes`]); the fused AVX-512 kernel ([`projections`], f32), whose lanes keep each
+/// window's operations independent of the others; otherwise faer's product, where the
+/// windows' vectors go through the product with the block's steering vectors in groups (at
+/// least [`MIN_PRODUCT_COLS`] columns, the last group zero-padded), so every product has the
+/// same shape whatever the batch. Either way a window's result is the same bits alone or
+/// among others (`tests`).
 pub fn accumulate_bin<T: Real>(
     plan: &Plan<T>,
     b: usize,

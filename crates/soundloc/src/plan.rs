@@ -71,8 +71,11 @@ pub struct Plan<T: Real> {
     /// and algorithm are not changed after construction).
     pub(crate) planar: Option<Arc<Planar<T>>>,
     /// a_r − a_i of every value of [`Plan::denominator_steering`] for the CPU's AVX-512
-    /// spectrum kernel (`projections::steering_sums`), formed on its first use (GPU runs
-    /// never pay for it) and anew by [`Plan::with_noise`] for GEVD.
+    /// spectrum kernel (`projections::steering_sums`; bins × D × M f32, 44 MB at the seed
+    /// config, half the steering's size), formed on its first use (GPU runs never pay for
+    /// it; the first CPU call waits for it) and anew by [`Plan::with_noise`] for GEVD. A
+    /// clone whose steering, whitening or algorithm is changed by hand keeps the old sums
+    /// (as it keeps `planar`): build a new plan instead.
     pub(crate) steering_sums: Arc<std::sync::OnceLock<Vec<f32>>>,
 }
 

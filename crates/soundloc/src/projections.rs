@@ -19,8 +19,8 @@
 //! vectors stay interleaved (`[dir][mic]`, each value broadcast to all lanes; p + q is
 //! formed once per plan, [`steering_sums`]).
 //!
-//! Against faer's complex product and a separate pass over its result (the path for f64
-//! and for CPUs without AVX-512) no product matrix is written and reread
+//! Against faer's complex product and a separate pass over its result (the path for f64,
+//! the unsquared denominator, Ns > 64 and CPUs without AVX-512) no product matrix is written and reread
 //! (BENCHMARKS.md, "eleventh session").
 
 use crate::real::C;
@@ -66,7 +66,7 @@ pub struct Columns {
 impl Columns {
     /// Lays out the first `ns` columns of each window's `vectors` (M × ≥ ns,
     /// column-major). Panics past [`MAX_COLS`] columns (callers group by
-    /// [`windows_per_group`], and Ns < M ≤ 64 on this path).
+    /// [`windows_per_group`], and Ns ≤ 64 on this path: `music::fused`).
     pub fn fill<'a>(&mut self, m: usize, ns: usize, windows: impl ExactSizeIterator<Item = &'a [C<f32>]>) {
         let nw = windows.len();
         let lanes = (nw * ns).div_ceil(LANES).max(1) * LANES;
@@ -79,6 +79,7 @@ impl Columns {
             v.resize(m * lanes, 0.0);
         }
         for (w, v) in windows.enumerate() {
+            assert!(w < nw, "the iterator yielded more windows than its length");
             for s in 0..ns {
                 let col = &v[s * m..(s + 1) * m];
                 for (mic, z) in col.iter().enumerate() {
@@ -134,7 +135,8 @@ mod avx512 {
                 1 => run::<{ ACC / 3 }, 1>(st, pq, cols, d, out),
                 2 => run::<{ ACC / 6 }, 2>(st, pq, cols, d, out),
                 3 => run::<{ ACC / 9 }, 3>(st, pq, cols, d, out),
-                _ => run::<{ ACC / 12 }, 4>(st, pq, cols, d, out),
+                4 => run::<{ ACC / 12 }, 4>(st, pq, cols, d, out),
+                _ => unreachable!("Columns::fill makes 1 to 4 registers per lane row"),
             }
         }
     }
@@ -207,7 +209,8 @@ mod avx512 {
     ) {
         let (m, lanes) = (cols.m, cols.lanes);
         assert!(
-            st.len() >= RD * m
+            NC * LANES <= lanes
+                && st.len() >= RD * m
                 && pq.len() >= RD * m
                 && [&cols.c, &cols.dmc, &cols.cpd]
                     .iter()

@@ -240,8 +240,9 @@ impl<T: Real> Ctx<'_, '_, T> {
         let srp = !c.algorithm.is_music();
         let r_of = |i: usize, w: usize| &r[(i * nw + w) * mm..(i * nw + w + 1) * mm];
         let t = Instant::now();
-        // 3. Within a bin the directions run in fixed blocks (`dir_block`) and every window passes
-        // through each block (its steering stays in cache).
+        // 3. Within a bin the directions run in fixed blocks (`dir_block`) and every window
+        // passes through each block (faer's path: its steering stays in cache; the fused
+        // kernel takes a bin's directions in one block, its windows' columns in cache).
         for (i, b) in bins.clone().enumerate() {
             let cb = &mut contrib[i * nw * d..(i + 1) * nw * d];
             if srp {
