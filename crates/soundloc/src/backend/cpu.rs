@@ -115,17 +115,17 @@ impl<T: Real> CpuBackend<T> {
     }
 }
 
-/// Used bins per task. Pairs of bins (their decompositions side by side) while they keep
-/// the pool busy (four or more per thread); single bins on larger pools, where twice the
-/// tasks for the correlation and the spectrum are worth more. Arrays of up to 16 mics
-/// decompose eight problems at once ([`crate::subspace::eigh_lanes`]), and a group costs
-/// the same however few of its lanes are used: a task holds enough bins for full groups
-/// when the call has few windows (eight bins for one window), whatever the pool — on 16
-/// threads, ten full groups beat 37 quarter-full ones (8-mic ring, 2026-11-27).
+/// Used bins per task. The exact decompositions run eight problems at once in vector
+/// lanes ([`crate::subspace::decompose_group`]), and a group costs the same however few of
+/// its lanes are used: a task holds enough bins for full groups when the call has few
+/// windows (eight bins for one window), whatever the pool — on 16 threads, ten full
+/// groups beat 37 quarter-full ones (8-mic ring, 2026-11-27). Otherwise (SRP-PHAT, the
+/// approximate mode) pairs of bins while they keep the pool busy (four or more per
+/// thread), single bins on larger pools, where twice the tasks for the correlation and
+/// the spectrum are worth more.
 fn bins_per_task<T: Real>(plan: &Plan<T>, nb: usize, nw: usize, threads: usize) -> usize {
-    use crate::subspace::eigh_lanes::{LANES, MAX_N};
-    let lanes = plan.config.algorithm.is_music() && !plan.config.subspace_tracking && plan.num_mics <= MAX_N;
-    if lanes {
+    use crate::subspace::eigh_lanes::LANES;
+    if plan.config.algorithm.is_music() && !plan.config.subspace_tracking {
         LANES.div_ceil(nw.max(1))
     } else if nb.div_ceil(2) >= 4 * threads {
         2

@@ -2,7 +2,9 @@
 //! the k largest only — what the MUSIC spectrum (signal-subspace complement) and the
 //! source count need, at a fraction of a full decomposition's cost. Used for arrays of
 //! more than 16 microphones (smaller ones: [`super::eigh_lanes`]) and for the approximate
-//! mode's projected problems.
+//! mode's projected problems. Where a caller has many problems, step 1 runs eight at a
+//! time in vector lanes ([`super::tridiag_lanes`], handing T and Q over through
+//! `Eigh::reduced_mut`) and steps 2–4 here (`Eigh::finish_reduced_many`).
 //!
 //! 1. **Householder tridiagonalisation** (LAPACK `zhetd2`, lower): A = Q T Qᴴ with T real
 //!    symmetric tridiagonal and Q = H₀ H₁ ⋯ H_{n−2}, H_j = I − τ_j v_j v_jᴴ. Per step j,
@@ -34,7 +36,7 @@
 
 use super::back_lanes::{self, BackLanes, Reflectors};
 use super::simd::{self, axpy, axpy_real, conj_axpy, dot_real, dotc, rank2_row};
-use super::tridiag::{ql_values, ql_values_many, TriLu};
+use super::tridiag::{ql_values_many, TriLu};
 use crate::real::C;
 use crate::{Error, Result};
 
@@ -118,9 +120,7 @@ impl Eigh {
             return Ok(());
         }
         self.reduce()?;
-        ql_values(&mut self.values, &mut self.e2)?;
-        self.finish(k, vectors);
-        Ok(())
+        Eigh::finish_reduced_many([(self, k, vectors)])
     }
 
     /// [`Eigh::solve`] for N matrices of one size at once (each problem: solver, k,
@@ -141,6 +141,22 @@ impl Eigh {
         for p in problems.iter_mut() {
             p.0.reduce()?;
         }
+        Eigh::finish_reduced_many(problems)
+    }
+
+    /// Steps 2–4 for N problems already reduced to T (by [`super::tridiag_lanes`], through
+    /// [`Eigh::reduced_mut`]): the same as the rest of [`Eigh::solve_many`].
+    pub(super) fn finish_reduced_many<const N: usize>(
+        problems: [(&mut Eigh, usize, &mut [C<f64>]); N],
+    ) -> Result<()> {
+        let mut problems = problems;
+        for (e, k, v) in problems.iter_mut() {
+            assert!(*k <= e.n && v.len() >= e.n * *k);
+            e.values.copy_from_slice(&e.diag);
+            for (e2, x) in e.e2.iter_mut().zip(&e.off) {
+                *e2 = x * x;
+            }
+        }
         ql_values_many(problems.each_mut().map(|p| {
             let e: &mut Eigh = p.0;
             (&mut e.values[..], &mut e.e2[..])
@@ -151,8 +167,19 @@ impl Eigh {
         Ok(())
     }
 
-    /// Check the input, reduce it to T (diagonal into `values`, squared off-diagonal into
-    /// `e2`, ready for the eigenvalue iteration).
+    /// Where a reduction done elsewhere hands T and Q over: v_j in row j right of the
+    /// diagonal of `re`/`im`, τ_j, T's diagonal and real subdiagonal.
+    pub(super) fn reduced_mut(&mut self) -> Reduced<'_> {
+        Reduced {
+            re: &mut self.re,
+            im: &mut self.im,
+            tau: &mut self.tau,
+            diag: &mut self.diag,
+            off: &mut self.off,
+        }
+    }
+
+    /// Check the input and reduce it to T.
     fn reduce(&mut self) -> Result<()> {
         if self.re.iter().chain(&self.im).any(|x| !x.is_finite()) {
             return Err(Error::numerical(
@@ -161,10 +188,6 @@ impl Eigh {
             ));
         }
         tridiagonalize(self);
-        self.values.copy_from_slice(&self.diag);
-        for (e2, e) in self.e2.iter_mut().zip(&self.off) {
-            *e2 = e * e;
-        }
         Ok(())
     }
 
@@ -245,6 +268,18 @@ impl Eigh {
             c += g;
         }
     }
+}
+
+/// [`Eigh::reduced_mut`]: T and Q's reflectors of one problem.
+pub(super) struct Reduced<'a> {
+    /// Row-major split parts; v_j in row j, columns j+1 ….
+    pub re: &'a mut [f64],
+    pub im: &'a mut [f64],
+    /// τ_j (zero: H_j = I).
+    pub tau: &'a mut [C<f64>],
+    /// T's diagonal and subdiagonal (off[j] couples j and j+1).
+    pub diag: &'a mut [f64],
+    pub off: &'a mut [f64],
 }
 
 /// Vectors solved side by side in inverse iteration (see `tridiagonal_vectors`).
@@ -357,7 +392,7 @@ fn leading_vectors_impl<const AVX2: bool>(s: &mut Eigh, k: usize, vectors: &mut 
 simd::dispatch!(
     /// Householder reduction of `s.re/s.im` to tridiagonal form: diagonal into `s.diag`,
     /// the (real) subdiagonal into `s.off`, v_j into row j and τ_j into `s.tau`.
-    fn tridiagonalize(s: &mut Eigh) => tridiagonalize_impl::<AVX2>
+    pub(super) fn tridiagonalize(s: &mut Eigh) => tridiagonalize_impl::<AVX2>
 );
 
 #[inline(always)]
@@ -448,151 +483,4 @@ fn tridiagonalize_impl<const AVX2: bool>(s: &mut Eigh) {
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::subspace::testing::{self, reference};
-    use rand::{Rng, SeedableRng};
-
-    type Z = C<f64>;
-
-    /// [`testing::scene`] from a seed.
-    fn scene(n: usize, strong: &[f64], floor: f64, jitter: f64, seed: u64) -> Vec<Z> {
-        testing::scene(
-            n,
-            strong,
-            floor,
-            jitter,
-            &mut rand::rngs::StdRng::seed_from_u64(seed),
-        )
-    }
-
-    /// A solver holding the row-major matrix `a`.
-    fn loaded(a: &[Z], n: usize) -> Eigh {
-        let mut s = Eigh::new(n);
-        let (re, im) = s.matrix_mut();
-        for (i, z) in a.iter().enumerate() {
-            re[i] = z.re;
-            im[i] = z.im;
-        }
-        s
-    }
-
-    /// Solve `a` for k vectors; [`testing::errors`] against faer.
-    fn check(a: &[Z], n: usize, k: usize) -> (f64, f64, f64, f64) {
-        let mut s = loaded(a, n);
-        let mut vecs = vec![Z::new(0.0, 0.0); n * k];
-        s.solve(k, &mut vecs).unwrap();
-        testing::errors(a, n, k, s.values(), &vecs)
-    }
-
-    #[test]
-    fn matches_a_full_decomposition_on_music_like_matrices() {
-        for (n, strong, k, seed) in [
-            (8, vec![50.0, 20.0], 2, 1u64),
-            (8, vec![50.0, 20.0], 4, 2),
-            (8, vec![1e4, 3.0, 1.5], 8, 3),
-            (16, vec![100.0, 90.0, 10.0], 5, 4),
-            (60, vec![1e3, 300.0], 2, 5),
-            (60, vec![1e3, 300.0, 40.0, 39.0], 30, 6),
-            (60, vec![1e6, 2.0], 4, 7),
-            (3, vec![5.0], 3, 8),
-            (1, vec![5.0], 1, 9),
-            (2, vec![], 2, 10),
-        ] {
-            let a = scene(n, &strong, 1.0, 0.05, seed);
-            let (val, resid, orth, sub) = check(&a, n, k);
-            let tol = 1e-12 * n as f64;
-            assert!(val < tol, "n={n} k={k}: eigenvalues off by {val:e}");
-            assert!(resid < tol, "n={n} k={k}: residual {resid:e}");
-            assert!(orth < tol, "n={n} k={k}: orthonormality {orth:e}");
-            if k == strong.len() {
-                assert!(sub < 1e-9, "n={n} k={k}: signal subspace differs by {sub:e}");
-            }
-        }
-    }
-
-    #[test]
-    fn clusters_and_exact_multiplicity_give_orthonormal_vectors() {
-        // Identity (every eigenvalue equal), rank-one plus identity, and a diagonal with
-        // a tight cluster: inverse iteration must still return an orthonormal basis.
-        for (n, strong, jitter, k) in [
-            (12, vec![], 0.0, 12),
-            (12, vec![10.0], 0.0, 6),
-            (40, vec![], 1e-9, 20),
-        ] {
-            let a = scene(n, &strong, 1.0, jitter, 11);
-            let (val, resid, orth, _) = check(&a, n, k);
-            assert!(val < 1e-12, "n={n}: eigenvalues off by {val:e}");
-            assert!(resid < 1e-10, "n={n}: residual {resid:e}");
-            assert!(orth < 1e-10, "n={n}: orthonormality {orth:e}");
-        }
-        // Already diagonal (every Householder step is the identity) and zero.
-        let n = 5;
-        let mut a = vec![Z::new(0.0, 0.0); n * n];
-        for i in 0..n {
-            a[i * n + i] = Z::new(i as f64 - 2.0, 0.0);
-        }
-        let (val, resid, orth, _) = check(&a, n, n);
-        assert!(val < 1e-15 && resid < 1e-15 && orth < 1e-15);
-        let z = vec![Z::new(0.0, 0.0); 16];
-        let (val, _, orth, _) = check(&z, 4, 4);
-        assert!(val == 0.0 && orth < 1e-15);
-    }
-
-    /// Σ_noise |aᴴe_m| (the unsquared MUSIC denominator) depends on each noise vector, not
-    /// only on the subspace: it must match a full decomposition's vectors.
-    #[test]
-    fn every_vector_matches_a_full_decomposition() {
-        let mut rng = rand::rngs::StdRng::seed_from_u64(21);
-        for (n, strong, jitter) in [
-            (8, vec![40.0, 10.0], 0.3),
-            (8, vec![40.0], 0.02),
-            (60, vec![500.0, 80.0], 0.1),
-        ] {
-            let a = scene(n, &strong, 1.0, jitter, 13);
-            let mut s = loaded(&a, n);
-            let mut v = vec![Z::new(0.0, 0.0); n * n];
-            s.solve(n, &mut v).unwrap();
-            let (vals, u) = reference(&a, n);
-            for c in 0..n {
-                // Same vector up to a phase where the eigenvalue is isolated.
-                let gap = (0..n)
-                    .filter(|&q| q != c)
-                    .map(|q| (vals[q] - vals[c]).abs())
-                    .fold(f64::INFINITY, f64::min);
-                let ov: Z = (0..n).map(|i| v[c * n + i].conj() * u[(i, c)]).sum();
-                let tol = 1e-10 * vals[0].abs() / gap;
-                assert!(
-                    (ov.norm() - 1.0).abs() < tol.max(1e-12),
-                    "n={n} vector {c}: |overlap| {} (gap {gap:e})",
-                    ov.norm()
-                );
-            }
-            for _ in 0..5 {
-                let st: Vec<Z> = (0..n)
-                    .map(|_| Z::new(rng.gen_range(-1.0..1.0), rng.gen_range(-1.0..1.0)))
-                    .collect();
-                let ns = strong.len();
-                let sum = |e: &dyn Fn(usize, usize) -> Z| -> f64 {
-                    (ns..n)
-                        .map(|c| (0..n).map(|i| st[i].conj() * e(i, c)).sum::<Z>().norm())
-                        .sum()
-                };
-                let mine = sum(&|i, c| v[c * n + i]);
-                let want = sum(&|i, c| u[(i, c)]);
-                assert!(
-                    (mine - want).abs() < 1e-9 * want,
-                    "n={n}: unsquared sum {mine} vs {want}"
-                );
-            }
-        }
-    }
-
-    #[test]
-    fn non_finite_input_is_an_error_not_a_panic() {
-        let mut s = Eigh::new(3);
-        s.matrix_mut().0[4] = f64::NAN;
-        let mut v = vec![Z::new(0.0, 0.0); 3];
-        assert!(s.solve(1, &mut v).is_err());
-    }
-}
+mod tests;

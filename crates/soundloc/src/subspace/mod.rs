@@ -21,7 +21,9 @@
 //! handed on in both precisions. Arrays of up to 16 microphones go through
 //! [`eigh_lanes`] (products and a full eigensolver, eight problems at once in vector
 //! lanes; ≈ 3× faster per 8 × 8 problem than one at a time), larger ones through the
-//! partial eigensolver [`eigh`] after [`whiten`]'s products.
+//! partial eigensolver [`eigh`] after [`whiten`]'s products, with its first step, the
+//! reduction to tridiagonal form, done for eight problems at once in vector lanes
+//! ([`tridiag_lanes`]; ≈ 32 against 58 µs per 60 × 60 problem one at a time).
 
 mod back_lanes;
 mod block;
@@ -37,6 +39,7 @@ pub mod simd;
 mod testing;
 pub mod tracking;
 mod tridiag;
+pub mod tridiag_lanes;
 mod v8;
 mod whiten;
 
@@ -46,6 +49,7 @@ use crate::{Error, Result};
 use eigh::Eigh;
 use eigh_lanes::EighLanes;
 use faer::c64;
+use tridiag_lanes::TridiagLanes;
 
 /// One bin's decomposition.
 #[derive(Debug, Clone, PartialEq)]
@@ -94,9 +98,11 @@ impl<T: Real> Decomposition<T> {
 pub struct Workspace {
     m: usize,
     products: whiten::Products,
-    /// Four eigensolvers: [`decompose_many`] runs up to four problems side by side (arrays
-    /// of more than 16 microphones).
-    eigh: [Eigh; 4],
+    /// Eigensolvers for arrays of more than 16 microphones: the products are formed in the
+    /// first, and a group's problems finish two at a time (`Eigh::finish_reduced_many`).
+    eigh: [Eigh; 2],
+    /// More than 16 microphones: the lane reduction every decomposition goes through.
+    wide: Option<TridiagLanes>,
     /// Up to 16 microphones: the lane solver every decomposition goes through.
     lanes: Option<EighLanes>,
 }
@@ -104,11 +110,13 @@ pub struct Workspace {
 impl Workspace {
     /// Scratch for M × M problems (any algorithm).
     pub fn new(m: usize) -> Self {
+        let small = m <= eigh_lanes::MAX_N;
         Workspace {
             m,
             products: whiten::Products::new(m),
-            eigh: std::array::from_fn(|_| Eigh::new(m)),
-            lanes: (m <= eigh_lanes::MAX_N).then(|| EighLanes::new(m)),
+            eigh: std::array::from_fn(|_| Eigh::new(if small { 0 } else { m })),
+            wide: (!small).then(|| TridiagLanes::new(m)),
+            lanes: small.then(|| EighLanes::new(m)),
         }
     }
     /// The matrix size this workspace was built for.
@@ -162,9 +170,9 @@ fn needs_full_svd<T: Real>(algorithm: Algorithm, ws: &Workspace, out: &Decomposi
 /// Decompose one bin: `r` is the scaled R_k (row-major M × M, f64), `w` the plan's
 /// whitening matrix W_k (row-major, f64) for the noise-aware algorithms. `out.dim` sets
 /// how many leading vectors are computed.
-/// Up to 16 microphones this is a lane group of one ([`decompose_group`], the same bits
-/// as in any group), which costs as much as a full group of eight: callers with many
-/// problems hand them over together.
+/// This is a lane group of one ([`decompose_group`], the same bits as in any group),
+/// which costs as much as a full group of eight: callers with many problems hand them
+/// over together.
 pub fn decompose<T: Real>(
     algorithm: Algorithm,
     r: &[c64],
@@ -172,12 +180,23 @@ pub fn decompose<T: Real>(
     ws: &mut Workspace,
     out: &mut Decomposition<T>,
 ) -> Result<()> {
-    if needs_full_svd(algorithm, ws, out) {
-        let w = w.ok_or_else(|| Error::Config("gsvd needs a noise correlation matrix".into()))?;
-        return gsvd::full_svd(r, w, out);
-    }
-    if ws.lanes.is_some() {
-        return decompose_group(algorithm, &mut [Item { r, w, out }], ws);
+    decompose_group(algorithm, &mut [Item { r, w, out }], ws)
+}
+
+/// One problem on its own, for a caller that never has more than one at a time (the
+/// approximate mode's exact refreshes, [`tracking`]): above 16 microphones through the
+/// one-problem solver ([`Eigh::solve`], an eighth of a lane group's work), whose results
+/// agree with [`decompose`]'s to rounding but not bit for bit; up to 16 microphones it is
+/// [`decompose`].
+pub fn decompose_alone<T: Real>(
+    algorithm: Algorithm,
+    r: &[c64],
+    w: Option<&[c64]>,
+    ws: &mut Workspace,
+    out: &mut Decomposition<T>,
+) -> Result<()> {
+    if ws.lanes.is_some() || needs_full_svd(algorithm, ws, out) {
+        return decompose(algorithm, r, w, ws, out);
     }
     let eigh = &mut ws.eigh[0];
     let value = load(algorithm, r, w, &mut ws.products, eigh)?;
@@ -186,10 +205,8 @@ pub fn decompose<T: Real>(
     Ok(())
 }
 
-/// N [`decompose`] calls at once — the same results, bit for bit — with the N eigenvalue
-/// iterations side by side ([`Eigh::solve_many`]; N at most 4; one lane group up to 16
-/// microphones). Two at a time: ≈ 10 % less time per decomposition at M = 60; four
-/// gained nothing more (2026-11-27, 2-core Zen 4 machine).
+/// N [`decompose`] calls at once — the same results, bit for bit — as one group
+/// ([`decompose_group`]).
 pub fn decompose_many<T: Real, const N: usize>(
     algorithm: Algorithm,
     r: [&[c64]; N],
@@ -197,40 +214,13 @@ pub fn decompose_many<T: Real, const N: usize>(
     ws: &mut Workspace,
     out: [&mut Decomposition<T>; N],
 ) -> Result<()> {
-    assert!(N <= ws.eigh.len());
-    if ws.lanes.is_some() {
-        let mut items: Vec<Item<'_, T>> = r
-            .into_iter()
-            .zip(w)
-            .zip(out)
-            .map(|((r, w), out)| Item { r, w, out })
-            .collect();
-        return decompose_group(algorithm, &mut items, ws);
-    }
-    if out.iter().any(|o| needs_full_svd(algorithm, ws, o)) {
-        for ((r, w), o) in r.into_iter().zip(w).zip(out) {
-            decompose(algorithm, r, w, ws, o)?;
-        }
-        return Ok(());
-    }
-    let mut values: [fn(f64) -> f64; N] = [|l| l; N];
-    for (i, v) in values.iter_mut().enumerate() {
-        *v = load(algorithm, r[i], w[i], &mut ws.products, &mut ws.eigh[i])?;
-    }
-    let mut out = out;
-    let mut eighs = ws.eigh.iter_mut();
-    let mut outs = out.iter_mut();
-    Eigh::solve_many::<N>(std::array::from_fn(|_| {
-        let (e, o) = (
-            eighs.next().expect("N ≤ 4 solvers"),
-            outs.next().expect("N outputs"),
-        );
-        (e, o.dim, &mut o.vectors64[..])
-    }))?;
-    for (i, o) in out.into_iter().enumerate() {
-        store(&ws.eigh[i], values[i], o);
-    }
-    Ok(())
+    let mut items: Vec<Item<'_, T>> = r
+        .into_iter()
+        .zip(w)
+        .zip(out)
+        .map(|((r, w), out)| Item { r, w, out })
+        .collect();
+    decompose_group(algorithm, &mut items, ws)
 }
 
 /// One problem of [`decompose_group`]: R, the whitening matrix, the result.
@@ -243,28 +233,95 @@ pub struct Item<'a, T: Real> {
     pub out: &'a mut Decomposition<T>,
 }
 
-/// Any number of [`decompose`] calls; for arrays of up to 16 microphones they run
-/// [`eigh_lanes::LANES`] at a time in vector lanes ([`eigh_lanes`]; each result is the
-/// same whichever problems share its group), larger ones in pairs ([`decompose_many`]).
+/// Any number of [`decompose`] calls, eight at a time in vector lanes: for arrays of up
+/// to 16 microphones the whole solve ([`eigh_lanes`]), for larger ones the reduction to
+/// tridiagonal form ([`tridiag_lanes`]), then the rest per problem ([`eigh`]). Each
+/// result is the same whichever problems share its group.
 pub fn decompose_group<T: Real>(
     algorithm: Algorithm,
     items: &mut [Item<'_, T>],
     ws: &mut Workspace,
 ) -> Result<()> {
-    let Some(mut lanes) = ws.lanes.take() else {
-        let mut it = items.chunks_mut(2);
-        for pair in &mut it {
-            match pair {
-                [a, b] => decompose_many(algorithm, [a.r, b.r], [a.w, b.w], ws, [&mut *a.out, &mut *b.out])?,
-                [a] => decompose(algorithm, a.r, a.w, ws, a.out)?,
+    if let Some(mut lanes) = ws.lanes.take() {
+        let result = lane_groups(algorithm, items, ws, &mut lanes);
+        ws.lanes = Some(lanes);
+        return result;
+    }
+    let mut wide = ws
+        .wide
+        .take()
+        .expect("a workspace has one of the two lane solvers");
+    let result = wide_groups(algorithm, items, ws, &mut wide);
+    ws.wide = Some(wide);
+    result
+}
+
+/// [`decompose_group`] for more than 16 microphones: per group of up to eight, each
+/// problem's matrix is formed ([`load`]) and loaded into the lanes, the group reduced
+/// together, and each problem finished (eigenvalues, vectors) two at a time.
+fn wide_groups<T: Real>(
+    algorithm: Algorithm,
+    items: &mut [Item<'_, T>],
+    ws: &mut Workspace,
+    wide: &mut TridiagLanes,
+) -> Result<()> {
+    let mut group: Vec<usize> = Vec::with_capacity(tridiag_lanes::LANES);
+    let mut value: fn(f64) -> f64 = |l| l;
+    let mut next = 0;
+    while next < items.len() {
+        wide.clear();
+        group.clear();
+        while next < items.len() && group.len() < tridiag_lanes::LANES {
+            let it = &mut items[next];
+            if needs_full_svd(algorithm, ws, it.out) {
+                let w =
+                    it.w.ok_or_else(|| Error::Config("gsvd needs a noise correlation matrix".into()))?;
+                gsvd::full_svd(it.r, w, it.out)?;
+            } else {
+                let eigh = &mut ws.eigh[0];
+                value = load(algorithm, it.r, it.w, &mut ws.products, eigh)?;
+                let (ar, ai) = eigh.matrix_mut();
+                wide.push(ar, ai)?;
+                group.push(next);
+            }
+            next += 1;
+        }
+        wide.reduce();
+        for (pair, lanes) in group.chunks(2).zip((0..).step_by(2)) {
+            let [e0, e1] = &mut ws.eigh;
+            match *pair {
+                [a, b] => {
+                    wide.store(lanes, e0);
+                    wide.store(lanes + 1, e1);
+                    let (x, y) = two_mut(items, a, b);
+                    Eigh::finish_reduced_many([
+                        (e0, x.out.dim, &mut x.out.vectors64[..]),
+                        (e1, y.out.dim, &mut y.out.vectors64[..]),
+                    ])?;
+                    store(e0, value, x.out);
+                    store(e1, value, y.out);
+                }
+                [a] => {
+                    wide.store(lanes, e0);
+                    let x = &mut items[a];
+                    Eigh::finish_reduced_many([(e0, x.out.dim, &mut x.out.vectors64[..])])?;
+                    store(e0, value, x.out);
+                }
                 _ => {}
             }
         }
-        return Ok(());
-    };
-    let result = lane_groups(algorithm, items, ws, &mut lanes);
-    ws.lanes = Some(lanes);
-    result
+    }
+    Ok(())
+}
+
+/// Two distinct items, mutably (a < b).
+fn two_mut<'s, 'a, T: Real>(
+    items: &'s mut [Item<'a, T>],
+    a: usize,
+    b: usize,
+) -> (&'s mut Item<'a, T>, &'s mut Item<'a, T>) {
+    let (lo, hi) = items.split_at_mut(b);
+    (&mut lo[a], &mut hi[0])
 }
 
 /// [`decompose_group`] through the lane solver.

@@ -36,7 +36,7 @@
 
 use super::block::{mul, mul_adjoint, norm2 as simd_norm2, orth_append, Block, Square};
 use super::simd::{self, dotc};
-use super::{decompose, Decomposition, Workspace};
+use super::{decompose_alone, Decomposition, Workspace};
 use crate::config::Algorithm;
 use crate::real::{Real, C};
 use crate::Result;
@@ -198,7 +198,7 @@ pub fn decompose_tracked<T: Real>(
     if exact.dim != p {
         *exact = Decomposition::new(m, p);
     }
-    decompose(win.algorithm, win.r, win.w, ws, exact)?;
+    decompose_alone(win.algorithm, win.r, win.w, ws, exact)?;
     out.values.clear();
     out.values.extend(exact.values.iter().map(|&v| T::of_f64(v)));
     out.vectors64.copy_from_slice(&exact.vectors64[..m * k]);
@@ -472,7 +472,7 @@ mod tests {
             )
             .unwrap();
             tracked += matches!(o, Outcome::Tracked(_)) as usize;
-            decompose(alg, &r, wopt, &mut ws, &mut ex).unwrap();
+            super::super::decompose(alg, &r, wopt, &mut ws, &mut ex).unwrap();
             for i in 0..m {
                 for j in 0..m {
                     let mut d = c64::new(0.0, 0.0);

@@ -8,6 +8,7 @@ use crate::{Error, Result};
 /// square-root free form (EISPACK `tqlrat`, the method of LAPACK `dsterf`'s QL branch).
 /// `e2` holds e[i]² for i < n − 1 on entry (its last element is set to 0; it is
 /// overwritten).
+#[cfg(test)]
 pub(super) fn ql_values(d: &mut [f64], e2: &mut [f64]) -> Result<()> {
     ql_values_many([(d, e2)])
 }
