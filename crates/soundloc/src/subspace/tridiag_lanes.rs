@@ -38,8 +38,11 @@ pub struct TridiagLanes {
     n: usize,
     /// Problems loaded (the other lanes repeat lane 0).
     used: usize,
-    /// The matrices' lower triangles, packed by rows; after the reduction column j below
-    /// the diagonal holds v_j.
+    /// The loaded problems' lower triangles, packed by rows, one after the other.
+    stage_re: Vec<f64>,
+    stage_im: Vec<f64>,
+    /// The matrices' lower triangles, packed by rows, in lanes; after the reduction column
+    /// j below the diagonal holds v_j.
     re: Vec<V>,
     im: Vec<V>,
     /// τ_j.
@@ -70,6 +73,8 @@ impl TridiagLanes {
         TridiagLanes {
             n,
             used: 0,
+            stage_re: vec![0.0; LANES * at(n, 0)],
+            stage_im: vec![0.0; LANES * at(n, 0)],
             re: v(at(n, 0)),
             im: v(at(n, 0)),
             tr: v(n),
@@ -111,8 +116,14 @@ impl TridiagLanes {
         let n = self.n;
         assert!(self.used < LANES, "tridiag_lanes: group full");
         assert!(ar.len() >= n * n && ai.len() >= n * n);
-        let finite = (0..n)
-            .all(|i| (0..=i).all(|c| ar[i * n + c].is_finite() && (c == i || ai[i * n + c].is_finite())));
+        // Row by row without early exits (the checks vectorise).
+        let finite = (0..n).all(|i| {
+            let row = i * n..i * n + i;
+            ar[row.start..=row.end]
+                .iter()
+                .chain(&ai[row])
+                .fold(true, |f, x| f & x.is_finite())
+        });
         if !finite {
             return Err(Error::numerical(
                 "decompose",
@@ -120,11 +131,16 @@ impl TridiagLanes {
             ));
         }
         let lane = self.used;
+        let size = at(n, 0);
+        let (sr, si) = (
+            &mut self.stage_re[lane * size..(lane + 1) * size],
+            &mut self.stage_im[lane * size..(lane + 1) * size],
+        );
         for i in 0..n {
-            for c in 0..=i {
-                self.re[at(i, c)][lane] = ar[i * n + c];
-                self.im[at(i, c)][lane] = if c == i { 0.0 } else { ai[i * n + c] };
-            }
+            let (row, dst) = (i * n, at(i, 0));
+            sr[dst..=dst + i].copy_from_slice(&ar[row..=row + i]);
+            si[dst..dst + i].copy_from_slice(&ai[row..row + i]);
+            si[dst + i] = 0.0;
         }
         self.used += 1;
         Ok(lane)
@@ -135,10 +151,12 @@ impl TridiagLanes {
         if self.used == 0 || self.n == 0 {
             return;
         }
-        for x in self.re.iter_mut().chain(self.im.iter_mut()) {
-            for l in self.used..LANES {
-                x[l] = x[0];
-            }
+        // The staged problems into the lanes: eight sequential reads per written entry.
+        let size = at(self.n, 0);
+        let src: [usize; LANES] = std::array::from_fn(|l| if l < self.used { l * size } else { 0 });
+        for k in 0..size {
+            self.re[k] = src.map(|o| self.stage_re[o + k]);
+            self.im[k] = src.map(|o| self.stage_im[o + k]);
         }
         reduce_lanes(self);
     }

@@ -17,9 +17,12 @@ fn reduce_all(rs: &[Vec<Z>], n: usize, run: impl Fn(&mut TridiagLanes)) -> Vec<E
         let ai: Vec<f64> = r.iter().map(|z| z.im).collect();
         s.push(&ar, &ai).unwrap();
     }
-    for x in s.re.iter_mut().chain(s.im.iter_mut()) {
-        for l in s.used..LANES {
-            x[l] = x[0];
+    // `reduce`'s transposition, then the reduction under test.
+    let size = at(n, 0);
+    for (k, (x, y)) in s.re.iter_mut().zip(s.im.iter_mut()).enumerate() {
+        for l in 0..LANES {
+            let o = if l < s.used { l * size } else { 0 };
+            (x[l], y[l]) = (s.stage_re[o + k], s.stage_im[o + k]);
         }
     }
     run(&mut s);
