@@ -1,22 +1,22 @@
 //! The CPU backend: one rayon pass over groups of used bins runs the per-bin stages back
 //! to back — the correlation (each stream's running sums between calls,
 //! [`crate::correlation::running`]: at PERIOD 1 a window costs two outer products per bin
-//! instead of W), the decompositions (in f64, [`crate::subspace::decompose_group`]: a
-//! pair's two problems side by side, eight at once in vector lanes up to 16 mics), the spectrum's contributions (fixed blocks of directions, every window of
+//! instead of W), the decompositions (in f64, [`crate::subspace::decompose_group`]: eight
+//! problems at once in vector lanes), the spectrum's contributions (fixed blocks of directions, every window of
 //! the batch through each block; [`crate::lanes`] for arrays up to 16 mics, faer products
 //! above) and the source count — then one pass over the windows sums the bins, converts to
 //! dB and finds the peaks. Never parallel inside faer (`Par::Seq`), so small problems do
 //! not pay for nested threading; a small array's window costs tens of µs, about what each
 //! hand-off between the pool's threads costs, hence one pass.
 //!
-//! Parallelism is per pair of bins (37 tasks at the 73 bins of HARK's defaults) while
-//! that gives four or more tasks per thread, per bin on larger pools; for MUSIC on arrays
-//! of up to 16 mics, per group of bins that fills the eigensolver's eight lanes
-//! ([`bins_per_task`]); where the tasks are
-//! still few for the pool (about eight parts per thread), each task's decompositions —
-//! most of a large array's work — run in parts of windows ([`pass`]), while the spectrum of
-//! a task's windows stays together (each bin's steering read once per call). Results are
-//! the same bits for any pool size (`music::tests`).
+//! Parallelism is per group of bins that fills the eigensolvers' eight lanes for MUSIC
+//! (one bin per task from eight windows on, eight bins for a lone window;
+//! [`bins_per_task`]), otherwise (SRP-PHAT, the approximate mode) per pair of bins while
+//! that gives four or more tasks per thread, per bin on larger pools. Where the tasks are
+//! still few for the pool (about eight parts per thread), each task's decompositions run
+//! in parts of windows that still fill a lane group ([`pass`]), and its spectrum bin by
+//! bin in parallel (a lone window's call). Results are the same bits for any pool size
+//! (`music::tests`).
 
 mod linger;
 mod pass;
@@ -124,8 +124,7 @@ impl<T: Real> CpuBackend<T> {
 /// thread), single bins on larger pools, where twice the tasks for the correlation and
 /// the spectrum are worth more.
 fn bins_per_task<T: Real>(plan: &Plan<T>, nb: usize, nw: usize, threads: usize) -> usize {
-    use crate::subspace::eigh_lanes::LANES;
-    if plan.config.algorithm.is_music() && !plan.config.subspace_tracking {
+    if lane_groups(plan) {
         LANES.div_ceil(nw.max(1))
     } else if nb.div_ceil(2) >= 4 * threads {
         2
@@ -133,6 +132,16 @@ fn bins_per_task<T: Real>(plan: &Plan<T>, nb: usize, nw: usize, threads: usize) 
         1
     }
 }
+
+/// Whether the call's decompositions run in lane groups ([`LANES`] problems at once,
+/// [`crate::subspace::decompose_group`]): the exact MUSIC path, any array.
+fn lane_groups<T: Real>(plan: &Plan<T>) -> bool {
+    plan.config.algorithm.is_music() && !plan.config.subspace_tracking
+}
+
+/// Problems per lane group (both lane solvers).
+const LANES: usize = crate::subspace::tridiag_lanes::LANES;
+const _: () = assert!(LANES == crate::subspace::eigh_lanes::LANES);
 
 fn ms(t: Instant) -> f64 {
     t.elapsed().as_secs_f64() * 1e3
@@ -311,6 +320,7 @@ impl<T: Real> CpuBackend<T> {
                 tracks: tracks.next().unwrap_or_default(),
             })
             .collect();
+        let ntasks = tasks.len();
         let nanos = StageNanos::default();
         let slots = &self.scratch;
         let lens: Vec<usize> = jobs
@@ -325,11 +335,18 @@ impl<T: Real> CpuBackend<T> {
             lens: &lens,
             nw,
             // Decompositions in parts of windows when the call's tasks are few for the
-            // pool: about eight parts per thread (one part, all windows, on small pools).
-            part_windows: nw.div_ceil((8 * threads).div_ceil(nb.div_ceil(per_task)).max(1)),
+            // pool: about eight parts per thread (one part, all windows, on small pools),
+            // each with enough problems to fill a lane group.
+            part_windows: nw
+                .div_ceil((8 * threads).div_ceil(ntasks).max(1))
+                .max(if lane_groups(plan) {
+                    LANES.div_ceil(per_task)
+                } else {
+                    1
+                }),
+            spread_bins: ntasks < 8 * threads,
         };
         linger::pass_starts();
-        let ntasks = tasks.len();
         tasks
             .into_par_iter()
             .try_for_each(|task| ctx.run(task, slots, &nanos))?;

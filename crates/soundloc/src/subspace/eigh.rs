@@ -18,8 +18,8 @@
 //!    memory traffic of full storage.
 //! 2. **Eigenvalues of T** by the rational (square-root free) implicit QL method
 //!    (EISPACK `tqlrat`), no vectors: O(n²), but a chain of dependent divisions (≈ 35 µs of
-//!    a ≈ 110 µs solve at n = 60); [`Eigh::solve_many`] runs several problems' chains side by
-//!    side (two at n = 60: ≈ 23 µs each, same results).
+//!    a ≈ 110 µs solve at n = 60); `Eigh::finish_reduced_many` runs several problems'
+//!    chains side by side (two at n = 60: ≈ 23 µs each, same results).
 //! 3. **The k largest eigenvectors of T** by inverse iteration, re-orthogonalised within
 //!    clusters of close eigenvalues (LAPACK `dstein`'s rules: clusters closer than
 //!    10⁻³‖T‖₁, equal eigenvalues perturbed apart by 10ε|λ|): O(n·k) plus the
@@ -123,29 +123,10 @@ impl Eigh {
         Eigh::finish_reduced_many([(self, k, vectors)])
     }
 
-    /// [`Eigh::solve`] for N matrices of one size at once (each problem: solver, k,
-    /// vectors), with the same results as N calls: the N eigenvalue iterations, chains of
-    /// dependent divisions, run side by side (`tridiag::ql_values_many`).
-    pub fn solve_many<const N: usize>(problems: [(&mut Eigh, usize, &mut [C<f64>]); N]) -> Result<()> {
-        let n = problems.first().map_or(0, |p| p.0.n);
-        if n == 0 || problems.iter().any(|p| p.0.n != n) {
-            for (e, k, v) in problems {
-                e.solve(k, v)?;
-            }
-            return Ok(());
-        }
-        for (_, k, v) in &problems {
-            assert!(*k <= n && v.len() >= n * k);
-        }
-        let mut problems = problems;
-        for p in problems.iter_mut() {
-            p.0.reduce()?;
-        }
-        Eigh::finish_reduced_many(problems)
-    }
-
     /// Steps 2–4 for N problems already reduced to T (by [`super::tridiag_lanes`], through
-    /// [`Eigh::reduced_mut`]): the same as the rest of [`Eigh::solve_many`].
+    /// [`Eigh::reduced_mut`]), with the same results as one at a time: the N eigenvalue
+    /// iterations, chains of dependent divisions, run side by side
+    /// (`tridiag::ql_values_many`).
     pub(super) fn finish_reduced_many<const N: usize>(
         problems: [(&mut Eigh, usize, &mut [C<f64>]); N],
     ) -> Result<()> {

@@ -1,8 +1,9 @@
 //! Eight f64 lanes, one type per instruction set: [`Avx512`] (one 512-bit register),
 //! [`Avx2`] (two 256-bit registers) and [`Scalar`] (a plain array, the baseline build).
 //! All do the same IEEE operations
-//! (add, subtract, multiply, divide, square root, compare, select; no fused
-//! multiply-add), so code written once over [`F8`] gives the same bits on any of them.
+//! (add, subtract, multiply, divide, square root, compare, select, and a fused
+//! multiply-add that only [`super::tridiag_lanes`] uses), so code written once over [`F8`]
+//! gives the same bits on any of them.
 
 use std::ops::{Add, Div, Mul, Neg, Sub};
 
@@ -28,9 +29,10 @@ pub(crate) trait F8:
     /// The mask as booleans.
     fn lanes(m: Self::Mask) -> [bool; 8];
     /// `self · a + b` with one rounding (fused multiply-add; the same bits on every
-    /// instruction set). The AVX2 lanes need the `fma` feature where this is used; the
-    /// baseline's `f64::mul_add` is slow without it. Code that promises plain IEEE
-    /// multiplies and adds (the solvers that predate it) does not call it.
+    /// instruction set, given a correctly rounded `fma` in the C library for the
+    /// baseline's `f64::mul_add`, as `simd.rs` assumes). The AVX2 lanes need the `fma`
+    /// feature enabled where this is used. Code that promises plain IEEE multiplies and
+    /// adds (the solvers that predate it) does not call it.
     fn mul_add(self, a: Self, b: Self) -> Self;
     /// `max(self, o)` as `self < o ? o : self`.
     #[inline(always)]

@@ -62,6 +62,8 @@ pub(super) struct Ctx<'a, 'j, T: Real> {
     pub(super) nw: usize,
     /// Windows per part of a task after its correlation (see [`Ctx::run`]).
     pub(super) part_windows: usize,
+    /// The spectrum stage of a task runs its bins in parallel (see [`Ctx::run`]).
+    pub(super) spread_bins: bool,
 }
 
 /// A task's windows `w0 …`: per bin of the task, their decompositions.
@@ -146,8 +148,28 @@ impl<T: Real> Ctx<'_, '_, T> {
             }
         }
 
-        // 3–4 over all the task's windows.
-        self.spectrum_and_count(&bins, r, decs, contrib, counts, &mut thread_scratch(slots), nanos);
+        // 3–4 over all the task's windows; bin by bin in parallel when the call's tasks
+        // are few for the pool (a lone window's call, where the spectrum is most of the
+        // time). Each bin's contributions are its own, so the split changes no result.
+        if self.spread_bins && bins.len() > 1 {
+            let d = plan.num_dirs;
+            let decs = &*decs;
+            // (SRP-PHAT has no decompositions: `decs` is empty.)
+            let per_bin: Vec<_> = contrib
+                .chunks_mut(nw * d)
+                .zip(counts.chunks_mut(nw))
+                .zip(r.chunks(nw * mm))
+                .take(bins.len())
+                .enumerate()
+                .collect();
+            per_bin.into_par_iter().for_each(|(i, ((cb, cn), rb))| {
+                let b = bins.start + i;
+                let dc = decs.get(i * nw..(i + 1) * nw).unwrap_or_default();
+                self.spectrum_and_count(&(b..b + 1), rb, dc, cb, cn, &mut thread_scratch(slots), nanos);
+            });
+        } else {
+            self.spectrum_and_count(&bins, r, decs, contrib, counts, &mut thread_scratch(slots), nanos);
+        }
         Ok(())
     }
 
