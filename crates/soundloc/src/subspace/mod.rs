@@ -270,22 +270,12 @@ fn wide_groups<T: Real>(
     let mut next = 0;
     while next < items.len() {
         wide.clear();
-        group.clear();
-        while next < items.len() && group.len() < tridiag_lanes::LANES {
-            let it = &mut items[next];
-            if needs_full_svd(algorithm, ws, it.out) {
-                let w =
-                    it.w.ok_or_else(|| Error::Config("gsvd needs a noise correlation matrix".into()))?;
-                gsvd::full_svd(it.r, w, it.out)?;
-            } else {
-                let eigh = &mut ws.eigh[0];
-                value = load(algorithm, it.r, it.w, &mut ws.products, eigh)?;
-                let (ar, ai) = eigh.matrix_mut();
-                wide.push(ar, ai)?;
-                group.push(next);
-            }
-            next += 1;
-        }
+        fill_group(algorithm, items, &mut next, &mut group, ws, |it, ws| {
+            let eigh = &mut ws.eigh[0];
+            value = load(algorithm, it.r, it.w, &mut ws.products, eigh)?;
+            let (ar, ai) = eigh.matrix_mut();
+            wide.push(ar, ai).map(drop)
+        })?;
         wide.reduce();
         for (pair, lanes) in group.chunks(2).zip((0..).step_by(2)) {
             let [e0, e1] = &mut ws.eigh;
@@ -310,6 +300,33 @@ fn wide_groups<T: Real>(
                 _ => {}
             }
         }
+    }
+    Ok(())
+}
+
+/// The next lane group from `items[*next..]`: up to eight problems, each loaded by `push`,
+/// their indices into `group`; GSVD's every-vector problems met on the way take the direct
+/// SVD instead (gsvd.rs says why) and stay out of the group.
+fn fill_group<T: Real>(
+    algorithm: Algorithm,
+    items: &mut [Item<'_, T>],
+    next: &mut usize,
+    group: &mut Vec<usize>,
+    ws: &mut Workspace,
+    mut push: impl FnMut(&mut Item<'_, T>, &mut Workspace) -> Result<()>,
+) -> Result<()> {
+    group.clear();
+    while *next < items.len() && group.len() < tridiag_lanes::LANES {
+        let it = &mut items[*next];
+        if needs_full_svd(algorithm, ws, it.out) {
+            let w =
+                it.w.ok_or_else(|| Error::Config("gsvd needs a noise correlation matrix".into()))?;
+            gsvd::full_svd(it.r, w, it.out)?;
+        } else {
+            push(it, ws)?;
+            group.push(*next);
+        }
+        *next += 1;
     }
     Ok(())
 }
@@ -343,19 +360,9 @@ fn lane_groups<T: Real>(
     let mut next = 0;
     while next < items.len() {
         lanes.clear(form);
-        group.clear();
-        while next < items.len() && group.len() < eigh_lanes::LANES {
-            let it = &mut items[next];
-            if needs_full_svd(algorithm, ws, it.out) {
-                let w =
-                    it.w.ok_or_else(|| Error::Config("gsvd needs a noise correlation matrix".into()))?;
-                gsvd::full_svd(it.r, w, it.out)?;
-            } else {
-                lanes.push(it.r, it.w)?;
-                group.push(next);
-            }
-            next += 1;
-        }
+        fill_group(algorithm, items, &mut next, &mut group, ws, |it, _| {
+            lanes.push(it.r, it.w).map(drop)
+        })?;
         if group.is_empty() {
             continue;
         }

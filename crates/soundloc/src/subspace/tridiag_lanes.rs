@@ -217,24 +217,10 @@ fn reduce_with<F: F8>(s: &mut TridiagLanes) {
             let (xr, xi) = (F::load(&s.re[x(i)]), F::load(&s.im[x(i)]));
             xnorm2 = xnorm2 + (xr * xr + xi * xi);
         }
-        // zlarfg; a column already reduced keeps H = I: τ = 0, β = α.
-        let reduced = F::and(xnorm2.eq(zero), ai.eq(zero));
-        let nrm = (ar * ar + ai * ai + xnorm2).sqrt();
-        let b = F::select(ar.lt(zero), nrm, -nrm);
-        // 1/(α − β) = conj(α − β)/|α − β|².
-        let (dr, di) = (ar - b, ai);
-        let den = dr * dr + di * di;
-        F::select(reduced, ar, b).store(&mut s.e[j]);
-        let (taur, taui) = (
-            F::select(reduced, zero, (b - ar) / b),
-            F::select(reduced, zero, -ai / b),
-        );
+        let (beta, (taur, taui), (scr, sci)) = reflector(ar, ai, xnorm2);
+        beta.store(&mut s.e[j]);
         taur.store(&mut s.tr[j]);
         taui.store(&mut s.ti[j]);
-        let (scr, sci) = (
-            F::select(reduced, zero, dr / den),
-            F::select(reduced, zero, -di / den),
-        );
         // v: 1, then x scaled; kept in column j (no longer needed as A).
         let (vr, vi) = (&mut s.vr[..len], &mut s.vi[..len]);
         vr[0] = [1.0; LANES];
@@ -296,6 +282,32 @@ fn reduce_with<F: F8>(s: &mut TridiagLanes) {
             rank2_rows::<F, 1>((&mut s.re, &mut s.im), [row(r)], r, vw);
         }
     }
+}
+
+/// LAPACK `zlarfg` in lanes, from α (the column's first entry below the diagonal) and
+/// ‖x₂…‖²: β = −sign(α_re)·‖(α, x)‖ (T's subdiagonal entry), τ = (β − α)/β, and the scale
+/// 1/(α − β) = conj(α − β)/|α − β|² of v = (1, x₂…/(α − β)). A column already reduced
+/// (x₂… = 0, α real) keeps H = I without a branch: β = α, τ = 0, scale 0 (the other
+/// values' 0/0 are discarded). Also [`super::eigh_lanes`]'s, with the same operations.
+#[inline(always)]
+pub(super) fn reflector<F: F8>(ar: F, ai: F, xnorm2: F) -> (F, (F, F), (F, F)) {
+    let zero = F::splat(0.0);
+    let reduced = F::and(xnorm2.eq(zero), ai.eq(zero));
+    let nrm = (ar * ar + ai * ai + xnorm2).sqrt();
+    let b = F::select(ar.lt(zero), nrm, -nrm);
+    let (dr, di) = (ar - b, ai);
+    let den = dr * dr + di * di;
+    (
+        F::select(reduced, ar, b),
+        (
+            F::select(reduced, zero, (b - ar) / b),
+            F::select(reduced, zero, -ai / b),
+        ),
+        (
+            F::select(reduced, zero, dr / den),
+            F::select(reduced, zero, -di / den),
+        ),
+    )
 }
 
 /// Rows r … r+R−1 of q = A₂₂ v (`start`: where each row's column 0 of A₂₂ sits; `v`:
