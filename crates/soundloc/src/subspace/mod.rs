@@ -205,24 +205,6 @@ pub fn decompose_alone<T: Real>(
     Ok(())
 }
 
-/// N [`decompose`] calls at once — the same results, bit for bit — as one group
-/// ([`decompose_group`]).
-pub fn decompose_many<T: Real, const N: usize>(
-    algorithm: Algorithm,
-    r: [&[c64]; N],
-    w: [Option<&[c64]>; N],
-    ws: &mut Workspace,
-    out: [&mut Decomposition<T>; N],
-) -> Result<()> {
-    let mut items: Vec<Item<'_, T>> = r
-        .into_iter()
-        .zip(w)
-        .zip(out)
-        .map(|((r, w), out)| Item { r, w, out })
-        .collect();
-    decompose_group(algorithm, &mut items, ws)
-}
-
 /// One problem of [`decompose_group`]: R, the whitening matrix, the result.
 pub struct Item<'a, T: Real> {
     /// The scaled R_k, row-major M × M.

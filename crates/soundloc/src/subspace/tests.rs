@@ -188,15 +188,18 @@ fn a_group_equals_single_decompositions() {
                     d
                 })
                 .collect();
-            let mut p: Vec<Decomposition<f64>> = (0..2).map(|_| Decomposition::new(m, k)).collect();
-            let [p0, p1] = &mut p[..] else { unreachable!() };
-            decompose_many(alg, [&rs[0], &rs[1]], [Some(&w); 2], &mut ws, [p0, p1]).unwrap();
-            let mut q: Vec<Decomposition<f64>> = (0..4).map(|_| Decomposition::new(m, k)).collect();
-            let [q0, q1, q2, q3] = &mut q[..] else {
-                unreachable!()
+            // The first two, then all four, as one group.
+            let group = |n: usize, ws: &mut Workspace| -> Vec<Decomposition<f64>> {
+                let mut out: Vec<Decomposition<f64>> = (0..n).map(|_| Decomposition::new(m, k)).collect();
+                let mut items: Vec<Item<'_, f64>> = rs
+                    .iter()
+                    .zip(out.iter_mut())
+                    .map(|(r, out)| Item { r, w: Some(&w), out })
+                    .collect();
+                decompose_group(alg, &mut items, ws).unwrap();
+                out
             };
-            let r4 = [&rs[0][..], &rs[1], &rs[2], &rs[3]];
-            decompose_many(alg, r4, [Some(&w); 4], &mut ws, [q0, q1, q2, q3]).unwrap();
+            let (p, q) = (group(2, &mut ws), group(4, &mut ws));
             for (i, a) in single.iter().enumerate() {
                 if i < 2 {
                     assert_eq!(bits(a), bits(&p[i]), "{alg:?} M {m} k {k}: pair, problem {i}");
