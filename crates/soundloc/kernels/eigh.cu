@@ -18,7 +18,7 @@
 //
 // Two kernels: form_h (modes 1–3, form_h.cuh) writes H to global memory, eigh reads it
 // (or R in mode 0) and does the rest; apart, the products' register tiles do not cap the
-// eigensolver's occupancy (at most 85 registers: three blocks per multiprocessor at M = 60).
+// eigensolver's occupancy (at most 85 registers).
 //
 // This is all the squared MUSIC denominator needs (the noise projector is I − E_s E_sᴴ,
 // spectrum.cu). Arithmetic: (16/3)·M³ real flops for the reduction and at most 2·8·M³ for
@@ -27,15 +27,15 @@
 // double keeps A Aᴴ's squared condition number harmless: the rounding of H is 1e-16·‖H‖,
 // below the f32 rounding of the inputs it is formed from.
 //
-// Threads: EH_THREADS (256, or 512 for tuning) = EH_TY × 16; the products (form_h.cuh)
-// use 4 (or 2) rows × 4 columns of registers per thread, so M ≤ 64. Shared memory
-// (dynamic, see `eigh_smem` / `form_h_smem` on the host): A (M × lda complex doubles,
-// lda = M | 1: odd, so column reads are conflict-free) and xd = 3·(M|1) (rounded up to
-// even) doubles after it, p (M), v (2 × M), τ (M), d, e, e² (M each), λ (Ns), 1 + 32 ints.
-// After the reduction A's storage holds the packed reflectors ((M−1)(M−2)/2 complex), then Z
-// (Ns rows of stride M|1) and the inverse-iteration scratch (3 rows of stride M|1 per
-// vector solved at once, at least one fits; between the solves it holds the
-// orthonormalisation's dot products, tridiag.cuh).
+// Threads: 128 or 256 per block (the two kernels at the end); the products (form_h.cuh)
+// take EH_THREADS = 256 = EH_TY × 16, 4 rows × 4 columns of registers per thread, so M ≤ 64.
+// Shared memory (dynamic, see `eigh_shape` / `form_h_smem` on the host): A's lower
+// triangle packed by columns (M(M+1)/2 complex doubles; column reads are contiguous), τ
+// (M complex), a work area of max(6M, Ns·(M|1) + scr_len) doubles — p and v (two buffers)
+// during the reduction; then Z (Ns rows of stride M|1) and the inverse-iteration scratch
+// (3 rows of stride M|1 per vector solved at once, at least one fits; between the solves
+// it holds the orthonormalisation's dot products, tridiag.cuh) —, d, e, e² (M each),
+// λ (Ns), 1 + 32 ints. After the reduction A holds the reflectors below its subdiagonal.
 //
 // R and W arrive in double whatever T is (the correlation hands R on unrounded).
 // Outputs as decompose.cu: E [blk][Ns][M] (rank order) in T and, when E64 is not null, the
@@ -44,13 +44,10 @@
 // = multisection rounds (diagnostics).
 #include "common.cuh"
 
-#ifndef EH_THREADS
 #define EH_THREADS 256
-#endif
 #define EH_MAXN 64
 #define EH_TY (EH_THREADS / 16)
 #define EH_RT (EH_MAXN / EH_TY)    // rows per thread in the products
-#define EH_PARTS (EH_THREADS / 64)  // threads per row in the matrix-vector product
 #ifndef EH_BTOL
 // Bisection stops at this fraction of ‖T‖ (then inverse iteration). Not 1e-10: values
 // near the noise floor are ~1e-4‖T‖ and close together, and shifts that far off left
@@ -94,13 +91,18 @@ __device__ __forceinline__ void rank2(zd& a, zd vr, zd wr, zd vc, zd wc) {
     a.im = fma(wr.re, vc.im, a.im);
 }
 
+// Column c of the packed lower triangle (column-major, columns of n − c entries):
+// entry (r, c), r ≥ c, is A[pcol(n, c) + r].
+__device__ __forceinline__ int pcol(int n, int c) { return c * (2 * n - c - 1) / 2; }
+
 // Reflector k (LAPACK zlarfg) from x = A(k+1:n, k), by one warp: H_kᴴ x = β e_1 with β
 // real, H_k = I − τ v vᴴ, v(0) = 1; v(1:) is stored in A(k+2:n, k) and all of v in vout.
-__device__ void make_reflector(zd* A, int lda, int n, int k, zd* tau, double* ee, zd* vout, int lane) {
+__device__ void make_reflector(zd* A, int n, int k, zd* tau, double* ee, zd* vout, int lane) {
     const int r0 = k + 1, m = n - r0;
-    const zd alpha = A[(size_t)k * lda + r0];
+    zd* col = A + pcol(n, k);
+    const zd alpha = col[r0];
     double s = 0.0;
-    for (int i = r0 + 1 + lane; i < n; i += 32) s += cnorm2(A[(size_t)k * lda + i]);
+    for (int i = r0 + 1 + lane; i < n; i += 32) s += cnorm2(col[i]);
     const double xn2 = warp_sum_d(s);
     if (xn2 == 0.0 && alpha.im == 0.0) {
         if (lane == 0) {
@@ -123,24 +125,28 @@ __device__ void make_reflector(zd* A, int lda, int n, int k, zd* tau, double* ee
         vout[0] = cx<double>(1.0, 0.0);
     }
     for (int i = r0 + 1 + lane; i < n; i += 32) {
-        const zd x = A[(size_t)k * lda + i];
+        const zd x = col[i];
         const zd v = cx<double>(x.re * sc.re - x.im * sc.im, x.re * sc.im + x.im * sc.re);
-        A[(size_t)k * lda + i] = v;  // kept for the back-transformation
+        col[i] = v;  // kept for the back-transformation
         vout[i - r0] = v;
     }
 }
 
 #include "form_h.cuh"
 
-template <typename T>
+// NT threads per block (EH_THREADS, or EH_NARROW for few vectors: see the kernels below);
+// scr_len doubles of inverse-iteration scratch (at least 3·(M|1) and Ns; the host's
+// `eigh_shape`).
+template <typename T, int NT>
 __device__ void eigh_impl(const zd* __restrict__ R, const zd* __restrict__ Hg, int M, int nb, int mode, int ns, int eigw,
-                          const T* __restrict__ weights, int mat0, cplx<T>* __restrict__ E, zd* __restrict__ E64,
-                          T* __restrict__ gain,
+                          const T* __restrict__ weights, int mat0, int scr_len, cplx<T>* __restrict__ E,
+                          zd* __restrict__ E64, T* __restrict__ gain,
                           float* __restrict__ bw, int* __restrict__ info, long long* __restrict__ prof) {
+    constexpr int PARTS = NT / 64;  // threads per row in the matrix-vector product
     SL_DYN_SMEM(sm);
-    const int n = M, lda = M | 1;
-    const int tid = threadIdx.x, nt = blockDim.x;
-    const int lane = tid & 31, warp = tid >> 5, nwarps = nt >> 5;
+    const int n = M;
+    const int tid = threadIdx.x, nt = NT;
+    const int lane = tid & 31, warp = tid >> 5, nwarps = NT >> 5;
     const int mat = mat0 + blockIdx.x;
     const int b = mat % nb;
     // Cycle counts at the phase boundaries (SOUNDLOC_CUDA_PROFILE=1 passes a buffer).
@@ -149,31 +155,30 @@ __device__ void eigh_impl(const zd* __restrict__ R, const zd* __restrict__ Hg, i
         if (prof != nullptr && tid == 0) prof[(size_t)mat * 8 + (i)] = clock64(); \
     } while (0)
     EH_PROF(0);
-    zd* A = reinterpret_cast<zd*>(sm);
-    // After the reduction A's storage (and xd doubles after it) is reused: the packed
-    // reflectors first, then the vectors of T (Ns rows of stride us, odd: conflict-free
-    // when each thread walks its own row), then the inverse-iteration scratch.
+    // A: the packed lower triangle (pcol), which after the reduction holds the reflectors
+    // below its subdiagonal; τ; then a work area that holds p and v (two buffers) during
+    // the reduction and the vectors of T (Ns rows of stride us, odd: conflict-free when
+    // each thread walks its own row) and the inverse-iteration scratch after it.
     const int us = n | 1;
-    const int xd = (3 * us + 1) & ~1;  // one solver's scratch guaranteed (even: keeps pv aligned)
-    double* F = reinterpret_cast<double*>(A);
-    zd* pv = reinterpret_cast<zd*>(F + 2 * (size_t)n * lda + xd);
+    const int npk = n * (n + 1) / 2;
+    const int wlen = (max(6 * n, ns * us + scr_len) + 1) & ~1;
+    zd* A = reinterpret_cast<zd*>(sm);
+    zd* tau = A + npk;
+    double* W = reinterpret_cast<double*>(tau + n);
+    zd* pv = reinterpret_cast<zd*>(W);
     zd* vv = pv + n;  // two buffers of n
-    zd* tau = vv + 2 * n;
-    double* dd = reinterpret_cast<double*>(tau + n);
+    double* zs = W;                      // Ns × us
+    double* scr = zs + (size_t)ns * us;  // vpp × 3 × us: 1/U diagonal, U's two superdiagonals
+    double* dd = W + wlen;
     double* ee = dd + n;  // off-diagonal β_k (real, signed)
     double* e2 = ee + n;  // β_k²
     double* lam = e2 + n;
     int* steps = reinterpret_cast<int*>(lam + ns);
     int* bfirst = steps + 1;  // per warp, multisection
-    const int npk = (n - 1) * (n - 2) / 2;   // packed reflector entries: v_k(k+2 … n−1)
-    const zd* Pk = reinterpret_cast<const zd*>(F);
-    double* zs = F + 2 * (size_t)npk;         // Ns × us
-    double* scr = zs + (size_t)ns * us;       // vpp × 3 × us: 1/U diagonal, U's two superdiagonals
-    const int avail = 2 * n * lda + xd - 2 * npk - ns * us;  // scratch doubles after Z
-    const int vpp = max(1, min(ns, avail / (3 * us)));
+    const int vpp = max(1, min(ns, scr_len / (3 * us)));
     // vectors per orthonormalisation step: their dot products with the ones before (≤ ns
     // each) fit the scratch
-    const int ob = max(1, min(EH_OB, avail / max(ns, 1)));
+    const int ob = max(1, min(EH_OB, scr_len / max(ns, 1)));
     const zd* Rm = R + (size_t)blockIdx.x * M * M;    // column-major, R_ik = Rm[k*M + i]
 
     // ---- H in A: R itself (mode 0) or the product form_h wrote. The reduction reads only
@@ -184,7 +189,7 @@ __device__ void eigh_impl(const zd* __restrict__ R, const zd* __restrict__ Hg, i
         if (i < j) continue;
         zd h = mode == 0 ? to_zd(Rm[idx]) : Hg[(size_t)blockIdx.x * n * n + idx];
         if (i == j) h.im = 0.0;
-        A[(size_t)j * lda + i] = h;
+        A[pcol(n, j) + i] = h;
     }
     __syncthreads();
     EH_PROF(1);
@@ -194,7 +199,7 @@ __device__ void eigh_impl(const zd* __restrict__ R, const zd* __restrict__ Hg, i
     // Look-ahead: warp 0 updates A22's first column itself and at once forms the next
     // reflector from it, while the other warps update the rest; one barrier fewer per step
     // and the reflector's latency hidden. v is double-buffered for that reason.
-    if (warp == 0) make_reflector(A, lda, n, 0, tau, ee, vv, lane);
+    if (warp == 0) make_reflector(A, n, 0, tau, ee, vv, lane);
     __syncthreads();
     for (int k = 0; k < n - 1; ++k) {
         const int m = n - k - 1;  // length of x = A(k+1 : n, k)
@@ -203,33 +208,33 @@ __device__ void eigh_impl(const zd* __restrict__ R, const zd* __restrict__ Hg, i
         zd* vnext = vv + ((k + 1) & 1) * n;
         const zd tk = tau[k];
         if (tk.re == 0.0 && tk.im == 0.0) {  // uniform: H_k = I, A22 unchanged
-            if (warp == 0 && k + 1 < n - 1) make_reflector(A, lda, n, k + 1, tau, ee, vnext, lane);
+            if (warp == 0 && k + 1 < n - 1) make_reflector(A, n, k + 1, tau, ee, vnext, lane);
             __syncthreads();
             continue;
         }
-        // p = τ A22 v; EH_PARTS consecutive lanes share a row (h_rc = conj(h_cr) above the
+        // p = τ A22 v; PARTS consecutive lanes share a row (h_rc = conj(h_cr) above the
         // diagonal: only the lower triangle is current).
         {
-            const int r = tid / EH_PARTS, part = tid - r * EH_PARTS;
+            const int r = tid / PARTS, part = tid - r * PARTS;
             zd s0 = czero<double>(), s1 = czero<double>();
             if (r < m) {
+                const zd* rowcol = A + pcol(n, r0 + r) + r0;  // A(r0 + c, r0 + r) = rowcol[c], c ≥ r
                 int c = part;
-                for (; c + EH_PARTS < m; c += 2 * EH_PARTS) {
-                    const int c1 = c + EH_PARTS;
-                    const zd h0 = c <= r ? A[(size_t)(r0 + c) * lda + r0 + r] : cconj(A[(size_t)(r0 + r) * lda + r0 + c]);
-                    const zd h1 =
-                        c1 <= r ? A[(size_t)(r0 + c1) * lda + r0 + r] : cconj(A[(size_t)(r0 + r) * lda + r0 + c1]);
+                for (; c + PARTS < m; c += 2 * PARTS) {
+                    const int c1 = c + PARTS;
+                    const zd h0 = c <= r ? A[pcol(n, r0 + c) + r0 + r] : cconj(rowcol[c]);
+                    const zd h1 = c1 <= r ? A[pcol(n, r0 + c1) + r0 + r] : cconj(rowcol[c1]);
                     cmac(s0, h0, v[c]);
                     cmac(s1, h1, v[c1]);
                 }
                 if (c < m) {
-                    const zd h0 = c <= r ? A[(size_t)(r0 + c) * lda + r0 + r] : cconj(A[(size_t)(r0 + r) * lda + r0 + c]);
+                    const zd h0 = c <= r ? A[pcol(n, r0 + c) + r0 + r] : cconj(rowcol[c]);
                     cmac(s0, h0, v[c]);
                 }
             }
             zd s = cadd(s0, s1);
-            s.re = group_sum<EH_PARTS>(s.re);
-            s.im = group_sum<EH_PARTS>(s.im);
+            s.re = group_sum<PARTS>(s.re);
+            s.im = group_sum<PARTS>(s.im);
             if (r < m && part == 0) pv[r] = cx<double>(tk.re * s.re - tk.im * s.im, tk.re * s.im + tk.im * s.re);
         }
         __syncthreads();
@@ -246,14 +251,15 @@ __device__ void eigh_impl(const zd* __restrict__ R, const zd* __restrict__ Hg, i
             // A22's first column (rows r ≥ 0), then the next reflector from it.
             const zd v0 = v[0], p0 = pv[0];
             const zd w0 = w_of(p0, g, v0);
+            zd* col = A + pcol(n, r0) + r0;
             for (int r = lane; r < m; r += 32) {
                 const zd vr = v[r], pr = pv[r];
                 const zd wr =
                     w_of(pr, g, vr);
-                rank2(A[(size_t)r0 * lda + r0 + r], vr, wr, v0, w0);
+                rank2(col[r], vr, wr, v0, w0);
             }
             __syncwarp();
-            if (k + 1 < n - 1) make_reflector(A, lda, n, k + 1, tau, ee, vnext, lane);
+            if (k + 1 < n - 1) make_reflector(A, n, k + 1, tau, ee, vnext, lane);
         } else {
             // The rest of A22's lower triangle: lane p takes rows p and m−1−p (balanced
             // lengths), warp q = 1, 2, … the columns c ≡ q (mod nwarps − 1), c ≥ 1; the
@@ -270,7 +276,7 @@ __device__ void eigh_impl(const zd* __restrict__ R, const zd* __restrict__ Hg, i
                     const zd vc = v[c], pc = pv[c];
                     const zd wc =
                         w_of(pc, g, vc);
-                    rank2(A[(size_t)(r0 + c) * lda + r0 + r], vr, wr, vc, wc);
+                    rank2(A[pcol(n, r0 + c) + r0 + r], vr, wr, vc, wc);
                 }
             }
         }
@@ -281,14 +287,14 @@ __device__ void eigh_impl(const zd* __restrict__ R, const zd* __restrict__ Hg, i
     double tn = 0.0;
     for (int i = lane; i < n; i += 32) {
         const double el = i > 0 ? fabs(ee[i - 1]) : 0.0, er = i < n - 1 ? fabs(ee[i]) : 0.0;
-        tn = fmax(tn, fabs(A[(size_t)i * lda + i].re) + el + er);
+        tn = fmax(tn, fabs(A[pcol(n, i) + i].re) + el + er);
     }
 #pragma unroll
     for (int off = 1; off < 32; off <<= 1) tn = fmax(tn, __shfl_xor_sync(0xffffffffu, tn, off));
     const double tscale = tn > 0.0 ? 1.0 / tn : 0.0;
     __syncthreads();  // every warp has its norm before ee is rescaled
     for (int i = tid; i < n; i += nt) {
-        dd[i] = A[(size_t)i * lda + i].re * tscale;
+        dd[i] = A[pcol(n, i) + i].re * tscale;
         if (i < n - 1) {
             ee[i] *= tscale;
             e2[i] = ee[i] * ee[i];
@@ -296,34 +302,6 @@ __device__ void eigh_impl(const zd* __restrict__ R, const zd* __restrict__ Hg, i
     }
     __syncthreads();
     EH_PROF(2);
-
-    // ---- pack the reflectors: v_k(i), i = k+2 … n−1, to Pk[off(k) + i − k − 2] with
-    // off(k) = k(2n−3−k)/2, freeing the rest of A's storage for Z and the solver scratch.
-    // Through registers: packed positions overlap earlier columns' entries.
-    {
-        constexpr int CMAX = (EH_MAXN * EH_MAXN / 2 + EH_THREADS - 1) / EH_THREADS;
-        zd tmp[CMAX];
-        const int c2 = 2 * n - 3;
-#pragma unroll
-        for (int c = 0; c < CMAX; ++c) {
-            const int p = tid + c * nt;
-            if (p < npk) {
-                int k = (int)floor(0.5 * ((double)c2 - sqrt((double)c2 * c2 - 8.0 * p)));
-                k = max(k, 0);
-                while (k > 0 && k * (c2 - k) / 2 > p) --k;
-                while ((k + 1) * (c2 - k - 1) / 2 <= p) ++k;
-                tmp[c] = A[(size_t)k * lda + k + 2 + (p - k * (c2 - k) / 2)];
-            }
-        }
-        __syncthreads();
-        zd* Pw = reinterpret_cast<zd*>(F);
-#pragma unroll
-        for (int c = 0; c < CMAX; ++c) {
-            const int p = tid + c * nt;
-            if (p < npk) Pw[p] = tmp[c];
-        }
-        __syncthreads();
-    }
 
     // ---- the top Ns eigenvalues of T (tridiag.cuh) ----
     tridiag_values(dd, e2, n, ns, tn > 0.0, lam, steps, bfirst);
@@ -352,12 +330,12 @@ __device__ void eigh_impl(const zd* __restrict__ R, const zd* __restrict__ Hg, i
         for (int k = n - 2; k >= 0 && jn > 0; --k) {
             const zd tk = tau[k];
             if (tk.re == 0.0 && tk.im == 0.0) continue;
-            const int off = k * (2 * n - 3 - k) / 2 - (k + 2);
+            const zd* col = A + pcol(n, k);  // v_k(i) = col[i], i ≥ k + 2
             zd v[2];
 #pragma unroll
             for (int h = 0; h < 2; ++h) {
                 const int i = lane + 32 * h;
-                v[h] = i == k + 1 ? cx<double>(1.0, 0.0) : (i > k + 1 && i < n ? Pk[off + i] : czero<double>());
+                v[h] = i == k + 1 ? cx<double>(1.0, 0.0) : (i > k + 1 && i < n ? col[i] : czero<double>());
             }
 #pragma unroll
             for (int j = 0; j < EH_BT; ++j) {
@@ -404,28 +382,41 @@ __device__ void eigh_impl(const zd* __restrict__ R, const zd* __restrict__ Hg, i
     }
 }
 
-#define SL_EIGH(NAME, FORM, T)                                                                                 \
+#define SL_FORM_H(FORM, T)                                                                                     \
     extern "C" __global__ void __launch_bounds__(EH_THREADS, EH_FORM_MINB)                                    \
         FORM(const zd* R, const zd* Wcm, const zd* Wrm, int M, int nb, int mode, int mat0, zd* Hg) {             \
         form_h_impl(R, Wcm, Wrm, M, nb, mode, mat0, Hg);                                                       \
-    }                                                                                                          \
-    extern "C" __global__ void __launch_bounds__(EH_THREADS, EH_MINB)                                         \
+    }
+#define SL_EIGH(NAME, T, NT, MINB)                                                                             \
+    extern "C" __global__ void __launch_bounds__(NT, MINB)                                                    \
         NAME(const zd* R, const zd* Hg, int M, int nb, int mode, int ns, int eigw, const T* weights, int mat0,   \
-             cplx<T>* E, zd* E64, T* gain, float* bw, int* info, long long* prof) {                           \
-        eigh_impl<T>(R, Hg, M, nb, mode, ns, eigw, weights, mat0, E, E64, gain, bw, info, prof);               \
+             int scr_len, cplx<T>* E, zd* E64, T* gain, float* bw, int* info, long long* prof) {              \
+        eigh_impl<T, NT>(R, Hg, M, nb, mode, ns, eigw, weights, mat0, scr_len, E, E64, gain, bw, info, prof);  \
     }
 
-// Three eigensolver blocks of 256 threads per multiprocessor (at most 85 registers; its
-// shared memory, ~64–66 KB at M = 60, allows three too); the products take two.
+// Two eigensolver sizes (the host's `eigh_shape` picks one): EH_THREADS = 256 threads,
+// three blocks per multiprocessor (at most 85 registers; ~35–75 KB of shared memory at
+// M = 60 depending on Ns), and EH_NARROW = 128 threads, six blocks (the same registers;
+// ~35 KB at Ns = 2): the reduction is bound by the latency of its steps, so more
+// matrices in flight per multiprocessor outweigh fewer threads on each. The products
+// (form_h) take two blocks of EH_THREADS.
+#define EH_NARROW 128
 #ifndef EH_MINB
-#define EH_MINB (EH_THREADS <= 256 ? 3 : 1)
+#define EH_MINB 3
+#endif
+#ifndef EH_NARROW_MINB
+#define EH_NARROW_MINB 6
 #endif
 #ifndef EH_FORM_MINB
-#define EH_FORM_MINB (EH_THREADS <= 256 ? 2 : 1)
+#define EH_FORM_MINB 2
 #endif
 #ifndef SL_NO_F32
-SL_EIGH(eigh_f32, form_h_f32, float)
+SL_FORM_H(form_h_f32, float)
+SL_EIGH(eigh_f32, float, EH_THREADS, EH_MINB)
+SL_EIGH(eigh_narrow_f32, float, EH_NARROW, EH_NARROW_MINB)
 #endif
 #ifndef SL_NO_F64
-SL_EIGH(eigh_f64, form_h_f64, double)
+SL_FORM_H(form_h_f64, double)
+SL_EIGH(eigh_f64, double, EH_THREADS, EH_MINB)
+SL_EIGH(eigh_narrow_f64, double, EH_NARROW, EH_NARROW_MINB)
 #endif

@@ -277,25 +277,11 @@ pub(crate) fn nvrtc_compile(source: &str, opts: &[String], cubin: bool) -> Resul
 
 fn options(arch: &str) -> Vec<String> {
     let mut o = vec![format!("--gpu-architecture={arch}"), "--std=c++17".to_string()];
-    let et = eigh_threads();
-    if et != 256 {
-        o.push(format!("-DEH_THREADS={et}"));
-    }
     // Developer hook for tuning runs (e.g. "-DSL_F32_MINB=3"); fixed for the process.
     if let Ok(extra) = std::env::var("SOUNDLOC_CUDA_NVRTC_OPTS") {
         o.extend(extra.split_whitespace().map(str::to_string));
     }
     o
-}
-
-/// Threads per block of the tridiagonal eigensolver (eigh.cu): 256, or 512 when
-/// `SOUNDLOC_CUDA_EIGH_THREADS=512` (a tuning hook, fixed for the process; the emulator
-/// libraries are built with 256).
-pub(crate) fn eigh_threads() -> usize {
-    match std::env::var("SOUNDLOC_CUDA_EIGH_THREADS").as_deref() {
-        Ok("512") => 512,
-        _ => 256,
-    }
 }
 
 /// Compile (or fetch from the process-wide cache, else from the on-disk cache in `disk`:

@@ -142,7 +142,7 @@ impl<T: Real> CudaBackend<T> {
                     &*self.gpu,
                     self.f.form_h,
                     [nmat, 1, 1],
-                    l.eigh_threads,
+                    FORM_H_THREADS,
                     l.form_h_smem,
                 )?;
         }
@@ -156,13 +156,20 @@ impl<T: Real> CudaBackend<T> {
             .i(usize::from(self.plan.config.eigenvalue_weight))
             .p(self.d_weights.ptr)
             .i(mat0)
+            .i(l.eigh_shape.scr_len)
             .p(self.d_e.ptr)
             .p(self.e64_out())
             .p(self.d_gain.ptr)
             .p(self.d_bw.ptr)
             .p(self.d_info.ptr)
             .p(if self.profile { self.d_prof.ptr } else { 0 })
-            .launch(&*self.gpu, self.f.eigh, [nmat, 1, 1], l.eigh_threads, l.eigh_smem)
+            .launch(
+                &*self.gpu,
+                self.f.eigh,
+                [nmat, 1, 1],
+                l.eigh_shape.threads,
+                l.eigh_shape.smem,
+            )
     }
 
     /// The Jacobi decomposition (decompose.cu) of this sub-batch's matrices.

@@ -36,8 +36,8 @@ pub(super) struct Layout {
     /// Whether the signal subspace comes from the tridiagonal eigensolver (eigh.cu)
     /// instead of the Jacobi kernel.
     pub(super) eigh: bool,
-    pub(super) eigh_threads: usize,
-    pub(super) eigh_smem: usize,
+    /// The eigensolver's block: threads, shared memory, scratch ([`eigh_shape`]).
+    pub(super) eigh_shape: EighShape,
     pub(super) form_h_smem: usize,
     pub(super) dec_threads: usize,
     pub(super) dec_smem: usize,
@@ -71,6 +71,71 @@ const SPEC_RD_MIN_NS: usize = 4;
 /// Directions per spectrum thread for deep subspaces (one H100, subspace 30 of 60 mics,
 /// 2026-11-27: 0.164 → 0.122 ms per localization against one direction per thread).
 const SPEC_RD_DEFAULT: usize = 4;
+
+/// The largest signal subspace for which the eigensolver runs in blocks of 128 threads
+/// (`eigh_narrow_*`, six per multiprocessor) instead of 256 (three).
+const EIGH_NARROW_MAX_NS: usize = 4;
+/// Shared memory per multiprocessor on the devices this backend tunes for (sm_80/sm_90:
+/// 164–228 KB; the larger figure: on smaller ones fewer blocks fit, nothing fails).
+const SM_SMEM: usize = 228 * 1024;
+
+/// The eigensolver's launch shape (eigh.cu).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) struct EighShape {
+    /// Threads per block: 128 (`eigh_narrow_*`) or 256 (`eigh_*`).
+    pub(super) threads: usize,
+    /// Dynamic shared memory per block, bytes.
+    pub(super) smem: usize,
+    /// Doubles of inverse-iteration scratch (eigh.cu `scr_len`).
+    pub(super) scr_len: usize,
+}
+
+impl EighShape {
+    /// The kernel's name for element type `t` ("f32" or "f64").
+    pub(super) fn kernel(&self, t: &str) -> String {
+        if self.threads == 128 {
+            format!("eigh_narrow_{t}")
+        } else {
+            format!("eigh_{t}")
+        }
+    }
+}
+
+/// Whether Ns signal vectors use the 128-thread eigensolver
+/// (`SOUNDLOC_CUDA_EIGH_THREADS=128|256` forces one, for A/B runs).
+fn eigh_narrow(ns: usize) -> bool {
+    match std::env::var("SOUNDLOC_CUDA_EIGH_THREADS").as_deref() {
+        Ok("128") => true,
+        Ok("256") => false,
+        _ => ns <= EIGH_NARROW_MAX_NS,
+    }
+}
+
+/// eigh.cu's shared memory for M = `m`, Ns = `ns`: the packed lower triangle (M(M+1)/2
+/// complex doubles), τ (M complex), the work area max(6M, Ns·(M|1) + scr_len) doubles
+/// (rounded up to even), d, e, e², λ, and 1 + 32 ints. The scratch holds as many
+/// inverse-iteration solves at once (3·(M|1) doubles each, at least one, at most Ns) as
+/// keep the block within its share of a multiprocessor (six blocks of 128 threads or three
+/// of 256), but never less than one solve and Ns dot products.
+pub(super) fn eigh_shape(m: usize, ns: usize, narrow: bool) -> EighShape {
+    let us = m | 1;
+    let blocks = if narrow { 6 } else { 3 };
+    let budget = SM_SMEM / blocks - 1024;
+    let smem_for = |scr_len: usize| {
+        let wlen = ((6 * m).max(ns * us + scr_len) + 1) & !1;
+        (m * (m + 1) / 2 + m) * 16 + (wlen + 3 * m + ns) * 8 + 33 * 4
+    };
+    let mut vpp = ns.max(1);
+    while vpp > 1 && smem_for(3 * us * vpp) > budget {
+        vpp -= 1;
+    }
+    let scr_len = (3 * us * vpp).max(ns);
+    EighShape {
+        threads: if narrow { 128 } else { 256 },
+        smem: smem_for(scr_len),
+        scr_len,
+    }
+}
 
 impl Layout {
     /// Threads of a spectrum block of `wg` windows.
@@ -132,17 +197,12 @@ pub(super) fn layout<T: Real>(plan: &Plan<T>, gpu: &dyn Gpu) -> Result<Layout> {
     };
     // The tridiagonal eigensolver whenever only the signal vectors are needed and its
     // register tiles cover M (SOUNDLOC_CUDA_DEC=jacobi keeps the Jacobi kernel, for A/B runs).
-    let eigh_threads = kernels::eigh_threads();
-    // eigh.cu: A (m × (m|1) complex; after the reduction also the packed reflectors, the
-    // vectors of T and the solver scratch), one solver's scratch after it, p, v (two), τ,
-    // d, e, e², λ, 1 + 32 ints.
-    let eigh_xd = (3 * (m | 1) + 1) & !1;
-    let eigh_smem = (m * (m | 1) + 4 * m) * 16 + (eigh_xd + 3 * m + ns) * 8 + 33 * 4;
+    let eigh_shape = eigh_shape(m, ns, eigh_narrow(ns));
     let form_h_smem = m * (m | 1) * 16;
     let eigh = squared
         && !srp
         && m <= 64
-        && eigh_smem <= optin
+        && eigh_shape.smem <= optin
         && std::env::var("SOUNDLOC_CUDA_DEC").map_or(true, |v| v != "jacobi");
     let groups = n / 2 * v.lpp as usize;
     let dec_threads = groups.div_ceil(32).clamp(1, 32) * 32;
@@ -216,8 +276,7 @@ pub(super) fn layout<T: Real>(plan: &Plan<T>, gpu: &dyn Gpu) -> Result<Layout> {
         ld,
         dec_smem_mode,
         eigh,
-        eigh_threads,
-        eigh_smem,
+        eigh_shape,
         form_h_smem,
         dec_threads,
         dec_smem,
@@ -234,4 +293,33 @@ pub(super) fn layout<T: Real>(plan: &Plan<T>, gpu: &dyn Gpu) -> Result<Layout> {
         peak_kout,
         peak_smem,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn eigh_shape_fits_its_share_and_always_has_one_solve() {
+        // Seed config (M = 60, Ns = 2): six narrow blocks per multiprocessor.
+        let s = eigh_shape(60, 2, true);
+        assert_eq!(s.threads, 128);
+        assert!(6 * (s.smem + 1024) <= SM_SMEM, "{s:?}");
+        assert_eq!(s.scr_len, 3 * 61 * 2, "both solves at once");
+        // The robust default's subspace (30 of 60): three wide blocks, several solves at once.
+        let s = eigh_shape(60, 30, false);
+        assert_eq!(s.threads, 256);
+        assert!(3 * (s.smem + 1024) <= SM_SMEM, "{s:?}");
+        assert!(s.scr_len >= 3 * 61 * 12, "{s:?}");
+        for m in 2..=64 {
+            let us = m | 1;
+            for ns in 1..m {
+                for narrow in [false, true] {
+                    let s = eigh_shape(m, ns, narrow);
+                    assert!(s.scr_len >= 3 * us && s.scr_len >= ns, "{m} {ns} {s:?}");
+                    assert!(s.scr_len <= 3 * us * ns.max(1), "{m} {ns} {s:?}");
+                }
+            }
+        }
+    }
 }

@@ -97,6 +97,8 @@ const STAGE_BYTES: usize = 16 << 20;
 const MAX_SWEEPS: i32 = 40;
 /// Default dynamic shared memory limit without opt-in.
 const SMEM_DEFAULT: usize = 48 * 1024;
+/// Threads of a form_h block (eigh.cu `EH_THREADS`: its register tiles are 16 columns wide).
+const FORM_H_THREADS: usize = 256;
 
 /// Name of CUDA device 0 and its capability, or why CUDA cannot be used.
 pub fn probe() -> std::result::Result<String, String> {
@@ -383,7 +385,7 @@ impl<T: Real> CudaBackend<T> {
                 format!("correlate_{t}")
             })?,
             decompose: self.gpu.function(&dec)?,
-            eigh: self.gpu.function(&format!("eigh_{t}"))?,
+            eigh: self.gpu.function(&l.eigh_shape.kernel(t))?,
             form_h: self.gpu.function(&format!("form_h_{t}"))?,
             spectrum: self.gpu.function(&if l.spec_rd == 4 {
                 format!("spectrum4_{t}")
@@ -395,7 +397,7 @@ impl<T: Real> CudaBackend<T> {
         for (f, s) in [
             (self.f.correlate, l.corr_smem),
             (self.f.decompose, l.dec_smem),
-            (self.f.eigh, l.eigh_smem),
+            (self.f.eigh, l.eigh_shape.smem),
             (self.f.form_h, l.form_h_smem),
             (
                 self.f.spectrum,
@@ -418,8 +420,8 @@ impl<T: Real> CudaBackend<T> {
         for (f, name, threads) in [
             (self.f.correlate, "correlate", l.corr_threads),
             (self.f.decompose, "decompose", l.dec_threads),
-            (self.f.eigh, "eigh", l.eigh_threads),
-            (self.f.form_h, "form_h", l.eigh_threads),
+            (self.f.eigh, "eigh", l.eigh_shape.threads),
+            (self.f.form_h, "form_h", FORM_H_THREADS),
             (self.f.spectrum, "spectrum", l.spec_threads(l.spec_wg)),
             (self.f.peaks, "peaks", 256),
         ] {
