@@ -31,8 +31,8 @@
 // take EH_THREADS = 256 = EH_TY × 16, 4 rows × 4 columns of registers per thread, so M ≤ 64.
 // Shared memory (dynamic, see `eigh_shape` / `form_h_smem` on the host): A's lower
 // triangle packed by columns (M(M+1)/2 complex doubles; column reads are contiguous), τ
-// (M complex), a work area of max(6M, Ns·(M|1) + scr_len) doubles — p and v (two buffers)
-// during the reduction; then Z (Ns rows of stride M|1) and the inverse-iteration scratch
+// (M complex), a work area of max(8M, Ns·(M|1) + scr_len) doubles — p, v (two buffers) and
+// the update's w during the reduction; then Z (Ns rows of stride M|1) and the inverse-iteration scratch
 // (3 rows of stride M|1 per vector solved at once, at least one fits; between the solves
 // it holds the orthonormalisation's dot products, tridiag.cuh) —, d, e, e² (M each),
 // λ (Ns), 1 + 32 ints. After the reduction A holds the reflectors below its subdiagonal.
@@ -59,6 +59,9 @@
 #endif
 #ifndef EH_OB
 #define EH_OB 4                     // vectors orthonormalised by one warp at once
+#endif
+#ifndef EH_UPD
+#define EH_UPD 2                    // columns per pass in the reduction's rank-2 update (4: more registers, slower)
 #endif
 
 typedef cplx<double> zd;
@@ -152,7 +155,7 @@ __device__ void eigh_impl(const zd* __restrict__ R, const zd* __restrict__ Hg, i
     // Cycle counts at the phase boundaries (SOUNDLOC_CUDA_PROFILE=1 passes a buffer).
 #define EH_PROF(i)                                                          \
     do {                                                                    \
-        if (prof != nullptr && tid == 0) prof[(size_t)mat * 8 + (i)] = clock64(); \
+        if (prof != nullptr && tid == 0) prof[(size_t)mat * 16 + (i)] = clock64(); \
     } while (0)
     EH_PROF(0);
     // A: the packed lower triangle (pcol), which after the reduction holds the reflectors
@@ -161,12 +164,13 @@ __device__ void eigh_impl(const zd* __restrict__ R, const zd* __restrict__ Hg, i
     // each thread walks its own row) and the inverse-iteration scratch after it.
     const int us = n | 1;
     const int npk = n * (n + 1) / 2;
-    const int wlen = (max(6 * n, ns * us + scr_len) + 1) & ~1;
+    const int wlen = (max(8 * n, ns * us + scr_len) + 1) & ~1;
     zd* A = reinterpret_cast<zd*>(sm);
     zd* tau = A + npk;
     double* W = reinterpret_cast<double*>(tau + n);
     zd* pv = reinterpret_cast<zd*>(W);
     zd* vv = pv + n;  // two buffers of n
+    zd* wv = vv + 2 * n;  // w_c = p_c − γ v_c of the update warps' columns
     double* zs = W;                      // Ns × us
     double* scr = zs + (size_t)ns * us;  // vpp × 3 × us: 1/U diagonal, U's two superdiagonals
     double* dd = W + wlen;
@@ -201,7 +205,16 @@ __device__ void eigh_impl(const zd* __restrict__ R, const zd* __restrict__ Hg, i
     // and the reflector's latency hidden. v is double-buffered for that reason.
     if (warp == 0) make_reflector(A, n, 0, tau, ee, vv, lane);
     __syncthreads();
+    // SOUNDLOC_CUDA_PROFILE with -DEH_PROFILE_STEPS (SOUNDLOC_CUDA_NVRTC_OPTS): cycles
+    // inside the steps, summed (slots 8–11); off, the compiler drops all of it.
+    long long pr_mv = 0, pr_w0 = 0, pr_w1 = 0, pr_bar = 0, pr_t = 0;
+#ifdef EH_PROFILE_STEPS
+    const bool pr_on = prof != nullptr && (tid == 0 || tid == 32);
+#else
+    constexpr bool pr_on = false;
+#endif
     for (int k = 0; k < n - 1; ++k) {
+        if (pr_on) pr_t = clock64();
         const int m = n - k - 1;  // length of x = A(k+1 : n, k)
         const int r0 = k + 1;
         const zd* v = vv + (k & 1) * n;
@@ -218,19 +231,32 @@ __device__ void eigh_impl(const zd* __restrict__ R, const zd* __restrict__ Hg, i
             const int r = tid / PARTS, part = tid - r * PARTS;
             zd s0 = czero<double>(), s1 = czero<double>();
             if (r < m) {
-                const zd* rowcol = A + pcol(n, r0 + r) + r0;  // A(r0 + c, r0 + r) = rowcol[c], c ≥ r
+                // h(c): one load from either triangle. Four columns per pass with every
+                // load issued first (the loads cannot be moved above the accumulation by
+                // the compiler otherwise); s0 and s1 take the columns in the same order
+                // as two per pass would.
+                const int rowcol = pcol(n, r0 + r) + r0;  // A(r0 + c, r0 + r) = A[rowcol + c], c ≥ r
+                const auto h = [&](int c) {
+                    const bool lo = c <= r;
+                    zd x = A[lo ? pcol(n, r0 + c) + r0 + r : rowcol + c];
+                    if (!lo) x.im = -x.im;
+                    return x;
+                };
                 int c = part;
+                for (; c + 3 * PARTS < m; c += 4 * PARTS) {
+                    const zd h0 = h(c), h1 = h(c + PARTS), h2 = h(c + 2 * PARTS), h3 = h(c + 3 * PARTS);
+                    const zd v0 = v[c], v1 = v[c + PARTS], v2 = v[c + 2 * PARTS], v3 = v[c + 3 * PARTS];
+                    cmac(s0, h0, v0);
+                    cmac(s1, h1, v1);
+                    cmac(s0, h2, v2);
+                    cmac(s1, h3, v3);
+                }
                 for (; c + PARTS < m; c += 2 * PARTS) {
-                    const int c1 = c + PARTS;
-                    const zd h0 = c <= r ? A[pcol(n, r0 + c) + r0 + r] : cconj(rowcol[c]);
-                    const zd h1 = c1 <= r ? A[pcol(n, r0 + c1) + r0 + r] : cconj(rowcol[c1]);
+                    const zd h0 = h(c), h1 = h(c + PARTS);
                     cmac(s0, h0, v[c]);
-                    cmac(s1, h1, v[c1]);
+                    cmac(s1, h1, v[c + PARTS]);
                 }
-                if (c < m) {
-                    const zd h0 = c <= r ? A[pcol(n, r0 + c) + r0 + r] : cconj(rowcol[c]);
-                    cmac(s0, h0, v[c]);
-                }
+                if (c < m) cmac(s0, h(c), v[c]);
             }
             zd s = cadd(s0, s1);
             s.re = group_sum<PARTS>(s.re);
@@ -238,6 +264,11 @@ __device__ void eigh_impl(const zd* __restrict__ R, const zd* __restrict__ Hg, i
             if (r < m && part == 0) pv[r] = cx<double>(tk.re * s.re - tk.im * s.im, tk.re * s.im + tk.im * s.re);
         }
         __syncthreads();
+        if (pr_on) {
+            const long long t = clock64();
+            pr_mv += t - pr_t;
+            pr_t = t;
+        }
         // γ = ½ τ̄ (vᴴ p), formed by every warp itself (no barrier).
         zd g;
         {
@@ -265,6 +296,9 @@ __device__ void eigh_impl(const zd* __restrict__ R, const zd* __restrict__ Hg, i
             // lengths), warp q = 1, 2, … the columns c ≡ q (mod nwarps − 1), c ≥ 1; the
             // row values stay in registers, the column values are broadcasts.
             const int nq = nwarps - 1;
+            // w of this warp's columns, once (not once per row that uses it).
+            for (int c = warp + lane * nq; c < m; c += 32 * nq) wv[c] = w_of(pv[c], g, v[c]);
+            __syncwarp();
 #pragma unroll
             for (int h = 0; h < 2; ++h) {
                 const int r = h == 0 ? lane : m - 1 - lane;
@@ -272,15 +306,44 @@ __device__ void eigh_impl(const zd* __restrict__ R, const zd* __restrict__ Hg, i
                 const zd vr = v[r], pr = pv[r];
                 const zd wr =
                     w_of(pr, g, vr);
-                for (int c = warp; c <= r; c += nq) {
-                    const zd vc = v[c], pc = pv[c];
-                    const zd wc =
-                        w_of(pc, g, vc);
-                    rank2(A[pcol(n, r0 + c) + r0 + r], vr, wr, vc, wc);
+                // EH_UPD columns per pass, loads first (see the matrix-vector product).
+                int c = warp;
+                for (; c + (EH_UPD - 1) * nq <= r; c += EH_UPD * nq) {
+                    int ix[EH_UPD];
+                    zd a[EH_UPD], vc[EH_UPD], wc[EH_UPD];
+#pragma unroll
+                    for (int j = 0; j < EH_UPD; ++j) {
+                        ix[j] = pcol(n, r0 + c + j * nq) + r0 + r;
+                        a[j] = A[ix[j]];
+                        vc[j] = v[c + j * nq];
+                        wc[j] = wv[c + j * nq];
+                    }
+#pragma unroll
+                    for (int j = 0; j < EH_UPD; ++j) {
+                        rank2(a[j], vr, wr, vc[j], wc[j]);
+                        A[ix[j]] = a[j];
+                    }
                 }
+                for (; c <= r; c += nq) rank2(A[pcol(n, r0 + c) + r0 + r], vr, wr, v[c], wv[c]);
             }
         }
+        if (pr_on) {
+            const long long t = clock64();
+            (tid == 0 ? pr_w0 : pr_w1) += t - pr_t;
+            pr_t = t;
+        }
         __syncthreads();
+        if (pr_on) pr_bar += clock64() - pr_t;
+    }
+    if (pr_on) {
+        long long* q = prof + (size_t)mat * 16 + 8;
+        if (tid == 0) {
+            q[0] = pr_mv;
+            q[1] = pr_w0;
+            q[3] = pr_bar;
+        } else {
+            q[2] = pr_w1;
+        }
     }
     // T is scaled to ‖T‖ ≈ 1 (Gershgorin) for what follows, so that one guard `tiny`
     // serves every matrix and reciprocals can start from single precision.

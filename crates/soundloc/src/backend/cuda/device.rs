@@ -65,6 +65,8 @@ pub(crate) trait Gpu: Send {
     fn set_max_smem(&self, f: Func, bytes: usize) -> Result<()>;
     /// The largest block `f` can be launched with (its launch bounds and registers).
     fn max_threads(&self, f: Func) -> Result<usize>;
+    /// Registers per thread and local (spilled) bytes per thread of `f` (diagnostics).
+    fn resources(&self, f: Func) -> Result<(usize, usize)>;
     /// Launch `f` (1-D blocks).
     ///
     /// # Safety
@@ -373,6 +375,19 @@ impl Gpu for CudaGpu {
         }
         .map(|v| v as usize)
         .map_err(|e| dev_err("cuFuncGetAttribute(max threads per block)", e))
+    }
+
+    fn resources(&self, f: Func) -> Result<(usize, usize)> {
+        let get = |a| {
+            // SAFETY: `f` from `function`.
+            unsafe { drv::function::get_function_attribute(f as sys::CUfunction, a) }
+                .map(|v| v as usize)
+                .map_err(|e| dev_err("cuFuncGetAttribute(registers, local bytes)", e))
+        };
+        Ok((
+            get(sys::CUfunction_attribute::CU_FUNC_ATTRIBUTE_NUM_REGS)?,
+            get(sys::CUfunction_attribute::CU_FUNC_ATTRIBUTE_LOCAL_SIZE_BYTES)?,
+        ))
     }
 
     unsafe fn launch(

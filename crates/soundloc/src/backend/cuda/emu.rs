@@ -126,6 +126,9 @@ impl Gpu for EmuGpu {
     fn max_threads(&self, _f: Func) -> Result<usize> {
         Ok(1024)
     }
+    fn resources(&self, _f: Func) -> Result<(usize, usize)> {
+        Ok((0, 0))
+    }
     unsafe fn launch(
         &self,
         f: Func,

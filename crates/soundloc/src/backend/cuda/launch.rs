@@ -97,13 +97,13 @@ impl<T: Real> CudaBackend<T> {
     /// Mean cycles per phase of eigh.cu over the last batch's matrices, on stderr
     /// (SOUNDLOC_CUDA_PROFILE=1; a tuning aid).
     pub(super) fn print_profile(&mut self, nmat: usize) -> Result<()> {
-        let mut t = vec![0i64; nmat * 8];
+        let mut t = vec![0i64; nmat * 16];
         // SAFETY: synchronous copy of the profile buffer after the stream is idle.
         unsafe {
             self.gpu.dtoh(
                 t.as_mut_ptr() as *mut u8,
                 self.d_prof.ptr,
-                nmat * 64,
+                nmat * 128,
                 Stream::Compute,
             )?
         };
@@ -116,9 +116,21 @@ impl<T: Real> CudaBackend<T> {
             "back-transform",
         ];
         let mut line = format!("soundloc cuda: eigh cycles per matrix ({nmat} matrices):");
+        let mean =
+            |f: &dyn Fn(&[i64]) -> i64| t.chunks(16).map(|c| f(c) as f64).sum::<f64>() / nmat.max(1) as f64;
         for (p, name) in names.iter().enumerate() {
-            let mean = t.chunks(8).map(|c| (c[p + 1] - c[p]) as f64).sum::<f64>() / nmat.max(1) as f64;
-            line.push_str(&format!(" {name} {mean:.0}"));
+            line.push_str(&format!(" {name} {:.0}", mean(&|c| c[p + 1] - c[p])));
+        }
+        // Inside the reduction, summed over its steps (eigh.cu's slots 8–11).
+        let steps = [
+            "matrix-vector",
+            "warp 0 column + reflector",
+            "warp 1 update",
+            "final barrier (warp 0)",
+        ];
+        line.push_str(" | reduction steps:");
+        for (p, name) in steps.iter().enumerate() {
+            line.push_str(&format!(" {name} {:.0}", mean(&|c| c[8 + p])));
         }
         let _ = writeln!(std::io::stderr(), "{line}");
         Ok(())

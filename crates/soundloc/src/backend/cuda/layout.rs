@@ -112,7 +112,7 @@ fn eigh_narrow(ns: usize) -> bool {
 }
 
 /// eigh.cu's shared memory for M = `m`, Ns = `ns`: the packed lower triangle (M(M+1)/2
-/// complex doubles), τ (M complex), the work area max(6M, Ns·(M|1) + scr_len) doubles
+/// complex doubles), τ (M complex), the work area max(8M, Ns·(M|1) + scr_len) doubles
 /// (rounded up to even), d, e, e², λ, and 1 + 32 ints. The scratch holds as many
 /// inverse-iteration solves at once (3·(M|1) doubles each, at least one, at most Ns) as
 /// keep the block within its share of a multiprocessor (six blocks of 128 threads or three
@@ -122,7 +122,7 @@ pub(super) fn eigh_shape(m: usize, ns: usize, narrow: bool) -> EighShape {
     let blocks = if narrow { 6 } else { 3 };
     let budget = SM_SMEM / blocks - 1024;
     let smem_for = |scr_len: usize| {
-        let wlen = ((6 * m).max(ns * us + scr_len) + 1) & !1;
+        let wlen = ((8 * m).max(ns * us + scr_len) + 1) & !1;
         (m * (m + 1) / 2 + m) * 16 + (wlen + 3 * m + ns) * 8 + 33 * 4
     };
     let mut vpp = ns.max(1);

@@ -426,6 +426,13 @@ impl<T: Real> CudaBackend<T> {
             (self.f.peaks, "peaks", 256),
         ] {
             let most = self.gpu.max_threads(f)?;
+            if self.debug {
+                let (regs, local) = self.gpu.resources(f)?;
+                let _ = writeln!(
+                    std::io::stderr(),
+                    "soundloc cuda: {name}: {threads} threads, {regs} registers, {local} local bytes per thread"
+                );
+            }
             if threads > most {
                 return Err(Error::Device(format!(
                     "internal: {name} is launched with {threads} threads but allows {most}"

@@ -69,7 +69,7 @@ impl<T: Real> CudaBackend<T> {
         self.ensure(Scratch::Bw, nw * nb * 4)?;
         self.ensure(Scratch::Info, nw * nb * 4)?;
         if self.profile && l.eigh {
-            self.ensure(Scratch::Prof, nw * nb * 64)?;
+            self.ensure(Scratch::Prof, nw * nb * 128)?;
         }
         if l.eigh && l.valmode != 0 {
             self.ensure(Scratch::H, nwb_max * nb * m * m * 16)?;
