@@ -38,8 +38,9 @@ for s in $steps; do
       done 2>&1 | tee "$OUT/bench.jsonl" ;;
     ab)
       # A/B of tuning knobs, batch 256 (AB_VARIANTS overrides): the Jacobi kernel instead of
-      # the tridiagonal eigensolver; bisection to full precision; 256-thread eigensolver blocks at Ns = 2.
-      for v in ${AB_VARIANTS:-SOUNDLOC_CUDA_DEC=jacobi SOUNDLOC_CUDA_NVRTC_OPTS=-DEH_MINB=3 SOUNDLOC_CUDA_NVRTC_OPTS=-DEH_BTOL=0.0 SOUNDLOC_CUDA_EIGH_THREADS=256}; do
+      # the tridiagonal eigensolver; five 128-thread eigensolver blocks per SM; bisection to full
+      # precision; 256-thread eigensolver blocks at Ns = 2.
+      for v in ${AB_VARIANTS:-SOUNDLOC_CUDA_DEC=jacobi SOUNDLOC_CUDA_NVRTC_OPTS=-DEH_NARROW_MINB=5 SOUNDLOC_CUDA_NVRTC_OPTS=-DEH_BTOL=0.0 SOUNDLOC_CUDA_EIGH_THREADS=256}; do
         echo "== $v"
         env "$v" "$C/soundloc" bench --device cuda --algorithm gsvd --algorithm gevd --batch ${AB_BATCH:-256} --repeats 10 --json
       done 2>&1 | tee "$OUT/ab.jsonl" ;;

@@ -18,7 +18,7 @@
 //
 // Two kernels: form_h (modes 1–3, form_h.cuh) writes H to global memory, eigh reads it
 // (or R in mode 0) and does the rest; apart, the products' register tiles do not cap the
-// eigensolver's occupancy (at most 85 registers).
+// eigensolver's occupancy (at most 80 registers).
 //
 // This is all the squared MUSIC denominator needs (the noise projector is I − E_s E_sᴴ,
 // spectrum.cu). Arithmetic: (16/3)·M³ real flops for the reduction and at most 2·8·M³ for
@@ -159,8 +159,8 @@ __device__ void eigh_impl(const zd* __restrict__ R, const zd* __restrict__ Hg, i
     } while (0)
     EH_PROF(0);
     // A: the packed lower triangle (pcol), which after the reduction holds the reflectors
-    // below its subdiagonal; τ; then a work area that holds p and v (two buffers) during
-    // the reduction and the vectors of T (Ns rows of stride us, odd: conflict-free when
+    // below its subdiagonal; τ; then a work area that holds p, v (two buffers) and w
+    // during the reduction and the vectors of T (Ns rows of stride us, odd: conflict-free when
     // each thread walks its own row) and the inverse-iteration scratch after it.
     const int us = n | 1;
     const int npk = n * (n + 1) / 2;
@@ -335,7 +335,9 @@ __device__ void eigh_impl(const zd* __restrict__ R, const zd* __restrict__ Hg, i
         __syncthreads();
         if (pr_on) pr_bar += clock64() - pr_t;
     }
-    if (pr_on) {
+    // Written whenever profiling (zeros without EH_PROFILE_STEPS: the host then leaves
+    // them out).
+    if (prof != nullptr && (tid == 0 || tid == 32)) {
         long long* q = prof + (size_t)mat * 16 + 8;
         if (tid == 0) {
             q[0] = pr_mv;
@@ -458,7 +460,7 @@ __device__ void eigh_impl(const zd* __restrict__ R, const zd* __restrict__ Hg, i
     }
 
 // Two eigensolver sizes (the host's `eigh_shape` picks one): EH_THREADS = 256 threads,
-// three blocks per multiprocessor (at most 85 registers; ~35–75 KB of shared memory at
+// three blocks per multiprocessor (at most 80 registers; ~35–75 KB of shared memory at
 // M = 60 depending on Ns), and EH_NARROW = 128 threads, six blocks (the same registers;
 // ~35 KB at Ns = 2): the reduction is bound by the latency of its steps, so more
 // matrices in flight per multiprocessor outweigh fewer threads on each. The products

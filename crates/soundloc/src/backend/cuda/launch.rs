@@ -128,9 +128,12 @@ impl<T: Real> CudaBackend<T> {
             "warp 1 update",
             "final barrier (warp 0)",
         ];
-        line.push_str(" | reduction steps:");
-        for (p, name) in steps.iter().enumerate() {
-            line.push_str(&format!(" {name} {:.0}", mean(&|c| c[8 + p])));
+        // Zeros unless the kernel was built with -DEH_PROFILE_STEPS.
+        if t.chunks(16).any(|c| c[8..12].iter().any(|&x| x != 0)) {
+            line.push_str(" | reduction steps:");
+            for (p, name) in steps.iter().enumerate() {
+                line.push_str(&format!(" {name} {:.0}", mean(&|c| c[8 + p])));
+            }
         }
         let _ = writeln!(std::io::stderr(), "{line}");
         Ok(())
