@@ -20,10 +20,13 @@
 //!    (EISPACK `tqlrat`), no vectors: O(n²), but a chain of dependent divisions (≈ 35 µs of
 //!    a ≈ 110 µs solve at n = 60); `Eigh::finish_reduced_many` runs several problems'
 //!    chains side by side (two at n = 60: ≈ 23 µs each, same results).
-//! 3. **The k largest eigenvectors of T** by inverse iteration, re-orthogonalised within
-//!    clusters of close eigenvalues (LAPACK `dstein`'s rules: clusters closer than
-//!    10⁻³‖T‖₁, equal eigenvalues perturbed apart by 10ε|λ|): O(n·k) plus the
-//!    cluster work.
+//! 3. **The k largest eigenvectors of T** by inverse iteration (LAPACK `dstein`'s shifts
+//!    and clusters: clusters closer than 10⁻³‖T‖₁, equal eigenvalues perturbed apart by
+//!    10ε|λ|): three rounds of solving every vector, eight shifts at once in vector lanes
+//!    ([`super::inverse_lanes`]: the solves are chains of dependent divisions), then
+//!    orthonormalising each vector against the earlier ones of its cluster, in rank
+//!    order. Orthonormalising between the rounds keeps the vectors of close values apart
+//!    (the GPU's eigensolver does the same). O(n·k) plus the cluster work.
 //! 4. **Back-transformation** x = Q z: O(n²·k); from eight vectors on in vector lanes
 //!    ([`super::back_lanes`]).
 //!
@@ -35,8 +38,9 @@
 //! and 415 µs (c64).
 
 use super::back_lanes::{self, BackLanes, Reflectors};
+use super::inverse_lanes::{self, TriLuLanes};
 use super::simd::{self, axpy, axpy_real, conj_axpy, dot_real, dotc, rank2_row};
-use super::tridiag::{ql_values_many, TriLu};
+use super::tridiag::ql_values_many;
 use crate::real::C;
 use crate::{Error, Result};
 
@@ -60,7 +64,10 @@ pub struct Eigh {
     yi: Vec<f64>,
     /// Shift and cluster start per wanted vector.
     shifts: Vec<(f64, usize)>,
-    lu: [TriLu; LOCKSTEP],
+    /// The factors of T − λI for each group of eight shifts.
+    lu: Vec<TriLuLanes>,
+    /// Eight vectors in lanes during a solve.
+    xl: Vec<inverse_lanes::V>,
     vr: Vec<f64>,
     vi: Vec<f64>,
     pr: Vec<f64>,
@@ -85,7 +92,8 @@ impl Eigh {
             yr: Vec::new(),
             yi: Vec::new(),
             shifts: Vec::new(),
-            lu: std::array::from_fn(|_| TriLu::new(n)),
+            lu: Vec::new(),
+            xl: Vec::new(),
             vr: vec![0.0; n],
             vi: vec![0.0; n],
             pr: vec![0.0; n],
@@ -219,34 +227,75 @@ impl Eigh {
             prev = lam;
             self.shifts.push((lam, cluster_start));
         }
-        // Then the vectors, in groups of up to LOCKSTEP whose later members each start a
-        // cluster of their own: those depend on no other vector, so their solves (chains
-        // of dependent divisions) run side by side; each vector's operations are the same
-        // as alone, so are its bits.
-        let mut c = 0;
-        while c < k {
-            let mut g = 1;
-            while g < LOCKSTEP && c + g < k && self.shifts[c + g].1 == c + g {
-                g += 1;
+        // A fixed, non-degenerate start per vector (dstein starts from random numbers).
+        for (c, x) in self.z.chunks_mut(n).enumerate() {
+            let mut s = 0x9e37_79b9_7f4a_7c15u64 ^ (c as u64).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+            for xi in x.iter_mut() {
+                s ^= s << 13;
+                s ^= s >> 7;
+                s ^= s << 17;
+                *xi = (s >> 11) as f64 / (1u64 << 53) as f64 - 0.5;
             }
-            let (done, rest) = self.z.split_at_mut(c * n);
-            let mut xs = rest.chunks_mut(n).take(g);
-            let x: [&mut [f64]; LOCKSTEP] = std::array::from_fn(|_| xs.next().unwrap_or_default());
-            for (v, lu) in self.lu.iter_mut().enumerate().take(g) {
-                lu.factor(d, e, self.shifts[c + v].0, tiny);
-            }
-            let [x0, x1, x2, x3] = x;
-            let shifts = &self.shifts;
-            let cluster0 = shifts[c].1;
-            iterate_group(&self.lu, [x0, x1, x2, x3], g, c, |x0| {
-                // Only the group's first vector may share a cluster with earlier ones.
-                for q in cluster0..c {
-                    let zq = &done[q * n..(q + 1) * n];
-                    let dot = dot_real(zq, x0);
-                    axpy_real(-dot, zq, x0);
+        }
+        // T − λI factored once per shift, eight shifts per factorisation (unused lanes
+        // repeat the group's last shift).
+        let groups = k.div_ceil(inverse_lanes::LANES);
+        if self.lu.len() < groups {
+            self.lu.resize_with(groups, TriLuLanes::default);
+        }
+        for (g, lu) in self.lu.iter_mut().enumerate().take(groups) {
+            let c0 = g * inverse_lanes::LANES;
+            let shifts = std::array::from_fn(|l| self.shifts[(c0 + l).min(k - 1)].0);
+            lu.factor(d, e, &shifts, tiny);
+        }
+        self.xl.resize(n, [0.0; inverse_lanes::LANES]);
+        for _ in 0..3 {
+            // Solve every vector (scaled to max 1 first), eight at a time; lanes past the
+            // last vector solve for zero.
+            for (g, lu) in self.lu.iter_mut().enumerate().take(groups) {
+                let c0 = g * inverse_lanes::LANES;
+                let cn = (k - c0).min(inverse_lanes::LANES);
+                for l in 0..inverse_lanes::LANES {
+                    if l >= cn {
+                        self.xl.iter_mut().for_each(|row| row[l] = 0.0);
+                        continue;
+                    }
+                    let x = &self.z[(c0 + l) * n..][..n];
+                    let mx = x.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+                    let s = if mx > 0.0 { 1.0 / mx } else { 1.0 };
+                    for (row, v) in self.xl.iter_mut().zip(x) {
+                        row[l] = v * s;
+                    }
                 }
-            });
-            c += g;
+                lu.solve(&mut self.xl);
+                for l in 0..cn {
+                    for (v, row) in self.z[(c0 + l) * n..][..n].iter_mut().zip(&self.xl) {
+                        *v = row[l];
+                    }
+                }
+            }
+            // Orthonormalise in rank order within each cluster.
+            for c in 0..k {
+                let (done, rest) = self.z.split_at_mut(c * n);
+                let x = &mut rest[..n];
+                for q in self.shifts[c].1..c {
+                    let zq = &done[q * n..(q + 1) * n];
+                    let dot = dot_real(zq, x);
+                    axpy_real(-dot, zq, x);
+                }
+                let nrm = dot_real(x, x).sqrt();
+                if nrm > 0.0 && nrm.is_finite() {
+                    let s = 1.0 / nrm;
+                    x.iter_mut().for_each(|v| *v *= s);
+                }
+            }
+        }
+        for (c, x) in self.z.chunks_mut(n).enumerate() {
+            let nrm = dot_real(x, x).sqrt();
+            if !(nrm > 0.0 && nrm.is_finite()) {
+                x.iter_mut().for_each(|v| *v = 0.0);
+                x[c.min(n - 1)] = 1.0;
+            }
         }
     }
 }
@@ -261,62 +310,6 @@ pub(super) struct Reduced<'a> {
     /// T's diagonal and subdiagonal (off[j] couples j and j+1).
     pub diag: &'a mut [f64],
     pub off: &'a mut [f64],
-}
-
-/// Vectors solved side by side in inverse iteration (see `tridiagonal_vectors`).
-const LOCKSTEP: usize = 4;
-
-/// Inverse iteration for the first `g` of `x` (vectors c, c+1, …; `lu[v]` factors T − λI
-/// for vector c+v): a fixed start, three rounds of max-normalisation, solve and (for the
-/// first vector only, `orth0`) re-orthogonalisation, then unit norm.
-fn iterate_group(
-    lu: &[TriLu; LOCKSTEP],
-    x: [&mut [f64]; LOCKSTEP],
-    g: usize,
-    c: usize,
-    mut orth0: impl FnMut(&mut [f64]),
-) {
-    let [x0, x1, x2, x3] = x;
-    let mut xs = [x0, x1, x2, x3];
-    for (v, x) in xs.iter_mut().enumerate().take(g) {
-        // A fixed, non-degenerate start (dstein starts from random numbers).
-        let mut s = 0x9e37_79b9_7f4a_7c15u64 ^ ((c + v) as u64).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-        for xi in x.iter_mut() {
-            s ^= s << 13;
-            s ^= s >> 7;
-            s ^= s << 17;
-            *xi = (s >> 11) as f64 / (1u64 << 53) as f64 - 0.5;
-        }
-    }
-    for _ in 0..3 {
-        for x in xs.iter_mut().take(g) {
-            let mx = x.iter().fold(0.0f64, |a, v| a.max(v.abs()));
-            if mx > 0.0 {
-                x.iter_mut().for_each(|v| *v /= mx);
-            }
-        }
-        let [x0, x1, x2, x3] = &mut xs;
-        match g {
-            1 => lu[0].solve(x0),
-            2 => TriLu::solve_many([&lu[0], &lu[1]], [&mut **x0, &mut **x1]),
-            3 => TriLu::solve_many([&lu[0], &lu[1], &lu[2]], [&mut **x0, &mut **x1, &mut **x2]),
-            _ => TriLu::solve_many(
-                [&lu[0], &lu[1], &lu[2], &lu[3]],
-                [&mut **x0, &mut **x1, &mut **x2, &mut **x3],
-            ),
-        }
-        orth0(x0);
-    }
-    for (v, x) in xs.iter_mut().enumerate().take(g) {
-        let nrm = dot_real(x, x).sqrt();
-        if nrm > 0.0 && nrm.is_finite() {
-            x.iter_mut().for_each(|v| *v /= nrm);
-        } else {
-            x.iter_mut().for_each(|v| *v = 0.0);
-            let n = x.len();
-            x[(c + v).min(n - 1)] = 1.0;
-        }
-    }
 }
 
 simd::dispatch!(

@@ -33,6 +33,7 @@ pub mod eigh_lanes;
 mod gevd;
 mod gevd_hark;
 mod gsvd;
+mod inverse_lanes;
 mod sevd;
 pub mod simd;
 #[cfg(test)]

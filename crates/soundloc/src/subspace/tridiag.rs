@@ -220,7 +220,10 @@ impl<'a> Ql<'a> {
 }
 
 /// LU factorisation with partial pivoting of a shifted tridiagonal T − λI (LAPACK
-/// `dgttrf`), for inverse iteration; zero pivots are replaced by a tiny value.
+/// `dgttrf`), for inverse iteration, one shift at a time; zero pivots are replaced by a
+/// tiny value. The reference for [`super::inverse_lanes`], which solves for eight shifts
+/// at once with the same bits in each.
+#[cfg(test)]
 pub(super) struct TriLu {
     dl: Vec<f64>,
     dd: Vec<f64>,
@@ -229,6 +232,7 @@ pub(super) struct TriLu {
     swap: Vec<bool>,
 }
 
+#[cfg(test)]
 impl TriLu {
     pub(super) fn new(n: usize) -> Self {
         TriLu {
@@ -276,35 +280,6 @@ impl TriLu {
         }
     }
 
-    /// [`TriLu::solve`] for N systems of one size at once, row by row side by side (their
-    /// chains of divisions overlap); each system's operations and results are those of
-    /// [`TriLu::solve`].
-    pub(super) fn solve_many<const N: usize>(lus: [&TriLu; N], mut xs: [&mut [f64]; N]) {
-        let n = xs[0].len();
-        if N > 1 && xs.iter().any(|x| x.len() != n) {
-            for (lu, x) in lus.iter().zip(xs.iter_mut()) {
-                lu.solve(x);
-            }
-            return;
-        }
-        for i in 0..n.saturating_sub(1) {
-            for (lu, x) in lus.iter().zip(xs.iter_mut()) {
-                if lu.swap[i] {
-                    let t = x[i];
-                    x[i] = x[i + 1];
-                    x[i + 1] = t - lu.dl[i] * x[i];
-                } else {
-                    x[i + 1] -= lu.dl[i] * x[i];
-                }
-            }
-        }
-        for i in (0..n).rev() {
-            for (lu, x) in lus.iter().zip(xs.iter_mut()) {
-                lu.back_step(x, i);
-            }
-        }
-    }
-
     /// Row i of the back substitution (with the rescale after an overflow).
     #[inline(always)]
     fn back_step(&self, x: &mut [f64], i: usize) {
@@ -331,7 +306,19 @@ impl TriLu {
 
     /// x ← (T − λI)⁻¹ x.
     pub(super) fn solve(&self, x: &mut [f64]) {
-        Self::solve_many([self], [x]);
+        let n = x.len();
+        for i in 0..n.saturating_sub(1) {
+            if self.swap[i] {
+                let t = x[i];
+                x[i] = x[i + 1];
+                x[i + 1] = t - self.dl[i] * x[i];
+            } else {
+                x[i + 1] -= self.dl[i] * x[i];
+            }
+        }
+        for i in (0..n).rev() {
+            self.back_step(x, i);
+        }
     }
 }
 
@@ -497,67 +484,9 @@ mod tests {
         }
     }
 
-    /// Solving two, three or four shifted systems side by side gives each the bits of
-    /// solving it alone — near-singular shifts (at an eigenvalue of T, tiny pivots)
-    /// included — and the solutions solve their systems.
+    /// A solve solves: (T − λI) x = b for a well-conditioned shift.
     #[test]
-    fn solving_side_by_side_equals_one_at_a_time() {
-        let mut rng = rand::rngs::StdRng::seed_from_u64(11);
-        let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
-        for n in (1..=70usize).chain([8; 10]).chain([60; 10]) {
-            let d: Vec<f64> = (0..n).map(|_| rng.gen_range(-2.0..2.0)).collect();
-            let e: Vec<f64> = (0..n.saturating_sub(1))
-                .map(|_| rng.gen_range(-1.0..1.0))
-                .collect();
-            let mut lus: Vec<TriLu> = (0..4).map(|_| TriLu::new(n)).collect();
-            let mut eig = d.clone();
-            let mut e2: Vec<f64> = e.iter().map(|x| x * x).chain([0.0]).collect();
-            ql_values(&mut eig, &mut e2).unwrap();
-            for (k, lu) in lus.iter_mut().enumerate() {
-                // Shifts: at an eigenvalue (nearly singular), next to one, and arbitrary.
-                let lam = match k {
-                    0 => eig[0],
-                    1 => eig[n / 2] + 1e-9,
-                    _ => rng.gen_range(-3.0..3.0),
-                };
-                lu.factor(&d, &e, lam, f64::EPSILON);
-            }
-            let rhs: Vec<Vec<f64>> = (0..4)
-                .map(|_| (0..n).map(|_| rng.gen_range(-1.0..1.0)).collect())
-                .collect();
-            let alone: Vec<Vec<f64>> = (0..4)
-                .map(|k| {
-                    let mut x = rhs[k].clone();
-                    lus[k].solve(&mut x);
-                    x
-                })
-                .collect();
-            let [mut a, mut b, mut c, mut dd] = [0, 1, 2, 3].map(|k| rhs[k].clone());
-            TriLu::solve_many([&lus[0], &lus[1]], [&mut a, &mut b]);
-            assert_eq!(
-                (bits(&a), bits(&b)),
-                (bits(&alone[0]), bits(&alone[1])),
-                "n {n}: two"
-            );
-            let [mut a, mut b] = [0, 1].map(|k| rhs[k].clone());
-            TriLu::solve_many([&lus[0], &lus[1], &lus[2]], [&mut a, &mut b, &mut c]);
-            assert_eq!(
-                (bits(&a), bits(&b), bits(&c)),
-                (bits(&alone[0]), bits(&alone[1]), bits(&alone[2])),
-                "n {n}: three"
-            );
-            let [mut a, mut b, mut c] = [0, 1, 2].map(|k| rhs[k].clone());
-            TriLu::solve_many(
-                [&lus[0], &lus[1], &lus[2], &lus[3]],
-                [&mut a, &mut b, &mut c, &mut dd],
-            );
-            assert_eq!(
-                [bits(&a), bits(&b), bits(&c), bits(&dd)].to_vec(),
-                alone.iter().map(|x| bits(x)).collect::<Vec<_>>(),
-                "n {n}: four"
-            );
-        }
-        // A solve solves: (T − λI) x = b for a well-conditioned shift.
+    fn a_shifted_solve_solves() {
         let (d, e) = (vec![4.0, 5.0, 6.0, 7.0], vec![1.0, -0.5, 0.25]);
         let mut lu = TriLu::new(4);
         lu.factor(&d, &e, 0.5, f64::EPSILON);
