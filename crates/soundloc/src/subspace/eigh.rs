@@ -26,7 +26,8 @@
 //!    ([`super::inverse_lanes`]: the solves are chains of dependent divisions), then
 //!    orthonormalising each vector against the earlier ones of its cluster, in rank
 //!    order. Orthonormalising between the rounds keeps the vectors of close values apart
-//!    (the GPU's eigensolver does the same). O(n·k) plus the cluster work.
+//!    (the GPU's eigensolver also orthonormalises between its rounds, against every earlier
+//!    vector). O(n·k) plus the cluster work.
 //! 4. **Back-transformation** x = Q z: O(n²·k); from eight vectors on in vector lanes
 //!    ([`super::back_lanes`]).
 //!
@@ -250,8 +251,8 @@ impl Eigh {
         }
         self.xl.resize(n, [0.0; inverse_lanes::LANES]);
         for _ in 0..3 {
-            // Solve every vector (scaled to max 1 first), eight at a time; lanes past the
-            // last vector solve for zero.
+            // Solve every vector (each of unit norm after the previous round, or its start),
+            // eight at a time; lanes past the last vector solve for zero.
             for (g, lu) in self.lu.iter_mut().enumerate().take(groups) {
                 let c0 = g * inverse_lanes::LANES;
                 let cn = (k - c0).min(inverse_lanes::LANES);
@@ -260,11 +261,8 @@ impl Eigh {
                         self.xl.iter_mut().for_each(|row| row[l] = 0.0);
                         continue;
                     }
-                    let x = &self.z[(c0 + l) * n..][..n];
-                    let mx = x.iter().fold(0.0f64, |a, v| a.max(v.abs()));
-                    let s = if mx > 0.0 { 1.0 / mx } else { 1.0 };
-                    for (row, v) in self.xl.iter_mut().zip(x) {
-                        row[l] = v * s;
+                    for (row, v) in self.xl.iter_mut().zip(&self.z[(c0 + l) * n..][..n]) {
+                        row[l] = *v;
                     }
                 }
                 lu.solve(&mut self.xl);
@@ -274,10 +272,14 @@ impl Eigh {
                     }
                 }
             }
-            // Orthonormalise in rank order within each cluster.
+            // Orthonormalise in rank order within each cluster (each vector scaled to max 1
+            // first, so that neither its dot products nor its norm can overflow: the earlier
+            // vectors are unit); a vector that vanishes or is not finite becomes e_c at
+            // once, before the later vectors of its cluster use it.
             for c in 0..k {
                 let (done, rest) = self.z.split_at_mut(c * n);
                 let x = &mut rest[..n];
+                scale_to_max_one(x);
                 for q in self.shifts[c].1..c {
                     let zq = &done[q * n..(q + 1) * n];
                     let dot = dot_real(zq, x);
@@ -287,15 +289,25 @@ impl Eigh {
                 if nrm > 0.0 && nrm.is_finite() {
                     let s = 1.0 / nrm;
                     x.iter_mut().for_each(|v| *v *= s);
+                } else {
+                    x.iter_mut().for_each(|v| *v = 0.0);
+                    x[c.min(n - 1)] = 1.0;
                 }
             }
         }
-        for (c, x) in self.z.chunks_mut(n).enumerate() {
-            let nrm = dot_real(x, x).sqrt();
-            if !(nrm > 0.0 && nrm.is_finite()) {
-                x.iter_mut().for_each(|v| *v = 0.0);
-                x[c.min(n - 1)] = 1.0;
-            }
+    }
+}
+
+/// x / max|x_i| where that max is positive and finite (exact powers aside, a rescaling:
+/// its direction is what inverse iteration keeps); otherwise x unchanged.
+fn scale_to_max_one(x: &mut [f64]) {
+    let mx = x.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+    if mx > 0.0 && mx.is_finite() {
+        let s = 1.0 / mx;
+        if s.is_finite() {
+            x.iter_mut().for_each(|v| *v *= s);
+        } else {
+            x.iter_mut().for_each(|v| *v /= mx);
         }
     }
 }

@@ -9,8 +9,9 @@
 //! chain; here eight chains run in one, and the lanes that pivot differently take their
 //! values by selects, not branches. The operations of each lane are plain IEEE
 //! subtractions, multiplications and divisions in the order of the one-shift form (the
-//! reference `TriLu` in the tests), so every lane's result has the same bits as that one
-//! shift alone, on every instruction set, whatever the other lanes hold.
+//! reference `TriLu` in the tests), so for finite T and shifts every lane's result has the
+//! same bits as that one shift alone, on every instruction set, whatever the other lanes
+//! hold. (Callers check T for finiteness; with a NaN the pivot choice could differ.)
 //!
 //! A pivot that is exactly zero becomes `tiny`. Where a back substitution overflows (a
 //! shift on an eigenvalue: the vector is all but found), that lane's vector is rescaled

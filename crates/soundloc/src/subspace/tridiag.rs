@@ -1,5 +1,6 @@
 //! The real symmetric tridiagonal problem that [`super::eigh`] reduces to: all eigenvalues
-//! (rational QL) and the shifted LU factorisation its inverse iteration solves with.
+//! (rational QL). Its inverse iteration solves with [`super::inverse_lanes`]; the one-shift
+//! factorisation here (`TriLu`) is the tests' reference for it.
 
 use crate::{Error, Result};
 

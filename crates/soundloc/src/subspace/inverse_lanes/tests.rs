@@ -2,9 +2,9 @@ use super::*;
 use crate::subspace::tridiag::{ql_values, TriLu};
 use rand::{Rng, SeedableRng};
 
-/// A random T of size n and eight shifts: some between its values, one exactly on a
-/// diagonal entry (a zero pivot where T is split there), one far outside, one on an
-/// eigenvalue of T (nearly singular) and one 1e-9 from another.
+/// A random T of size n (split at e[1] = 0) and eight shifts: some between its values, one
+/// exactly on its first diagonal entry (a zero numerator in the first pivot step), one far
+/// outside, one on an eigenvalue of T (nearly singular) and one 1e-9 from another.
 fn case(n: usize, seed: u64) -> (Vec<f64>, Vec<f64>, V) {
     let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
     let d: Vec<f64> = (0..n).map(|_| rng.gen_range(-1.0..1.0)).collect();
@@ -12,7 +12,7 @@ fn case(n: usize, seed: u64) -> (Vec<f64>, Vec<f64>, V) {
         .map(|_| rng.gen_range(-0.5..0.5))
         .collect();
     if n > 3 {
-        e[1] = 0.0; // T split: exact zero pivots become reachable
+        e[1] = 0.0; // T split in two
     }
     let mut shifts: V = std::array::from_fn(|_| rng.gen_range(-1.5..1.5));
     shifts[3] = d[0];
@@ -25,8 +25,40 @@ fn case(n: usize, seed: u64) -> (Vec<f64>, Vec<f64>, V) {
     (d, e, shifts)
 }
 
-/// Each lane's factors and solution have the bits of the one-shift solver, on the lane
-/// type this CPU has and on the baseline, whatever the other lanes hold.
+/// Factor and solve with the lane type `isa` ("scalar", "avx2", "avx512f"); None where
+/// this CPU lacks it.
+fn by_type(isa: &str, d: &[f64], e: &[f64], shifts: &V, tiny: f64, x0: &[V]) -> Option<Vec<V>> {
+    #[cfg(target_arch = "x86_64")]
+    let has = match isa {
+        "avx2" => std::arch::is_x86_feature_detected!("avx2"),
+        "avx512f" => std::arch::is_x86_feature_detected!("avx512f"),
+        _ => true,
+    };
+    #[cfg(not(target_arch = "x86_64"))]
+    let has = isa == "scalar";
+    if !has {
+        println!("SKIPPED every_lane_equals_the_one_shift_solver_bit_for_bit ({isa}): not on this CPU");
+        return None;
+    }
+    let mut lu = TriLuLanes::default();
+    lu.fill(d, e, shifts);
+    let mut x = x0.to_vec();
+    let run = |lu: &mut TriLuLanes, x: Option<&mut [V]>| match isa {
+        // SAFETY: reached only where the CPU has AVX2 (checked above).
+        #[cfg(target_arch = "x86_64")]
+        "avx2" => unsafe { run_avx2(lu, x, tiny) },
+        // SAFETY: reached only where the CPU has AVX-512F (checked above).
+        #[cfg(target_arch = "x86_64")]
+        "avx512f" => unsafe { run_avx512(lu, x, tiny) },
+        _ => run_with::<v8::Scalar>(lu, x, tiny),
+    };
+    run(&mut lu, None);
+    run(&mut lu, Some(&mut x));
+    Some(x)
+}
+
+/// Each lane's solution has the bits of the one-shift solver, on every lane type this CPU
+/// has (AVX-512, AVX2) and on the baseline, whatever the other lanes hold.
 #[test]
 fn every_lane_equals_the_one_shift_solver_bit_for_bit() {
     for n in [1, 2, 3, 5, 16, 60] {
@@ -41,12 +73,11 @@ fn every_lane_equals_the_one_shift_solver_bit_for_bit() {
             lu.factor(&d, &e, &shifts, tiny);
             let mut x = x0.clone();
             lu.solve(&mut x);
-            // The baseline lanes.
-            let mut base = TriLuLanes::default();
-            base.fill(&d, &e, &shifts);
-            run_with::<v8::Scalar>(&mut base, None, tiny);
-            let mut xb = x0.clone();
-            run_with::<v8::Scalar>(&mut base, Some(&mut xb), 0.0);
+            // Each lane type by name: the baseline, and the vector types this CPU has.
+            let typed: Vec<(&str, Vec<V>)> = ["scalar", "avx2", "avx512f"]
+                .into_iter()
+                .filter_map(|isa| by_type(isa, &d, &e, &shifts, tiny, &x0).map(|x| (isa, x)))
+                .collect();
             for l in 0..LANES {
                 let mut one = TriLu::new(n);
                 one.factor(&d, &e, shifts[l], tiny);
@@ -58,11 +89,13 @@ fn every_lane_equals_the_one_shift_solver_bit_for_bit() {
                         y[i].to_bits(),
                         "n {n} seed {seed} lane {l} row {i}"
                     );
-                    assert_eq!(
-                        xb[i][l].to_bits(),
-                        y[i].to_bits(),
-                        "baseline: n {n} seed {seed} lane {l}"
-                    );
+                    for (isa, xt) in &typed {
+                        assert_eq!(
+                            xt[i][l].to_bits(),
+                            y[i].to_bits(),
+                            "{isa}: n {n} seed {seed} lane {l}"
+                        );
+                    }
                 }
             }
             // The far shift (lane 5) is well conditioned: its solution solves its system.
