@@ -165,6 +165,51 @@ fn raw_pcm_on_stdin_equals_the_file() {
     assert_eq!(o.status.code(), Some(2));
 }
 
+/// `cat rec.raw | soundloc localize -`: a pipe that delivers audio far ahead of real
+/// time is read like a file, however small the live queue; nothing is dropped.
+#[test]
+fn a_file_piped_faster_than_real_time_loses_nothing() {
+    let (audio, geo, _) = common::ring_scene("cli-stream", "long-", 6);
+    // PERIOD 1: the localizer falls far behind a producer that writes everything at once.
+    let opts = ["--grid", "ring:5", "--period", "1", "--device", "cpu"];
+    let bytes = s16le(&audio, 0..audio.num_samples());
+    let raw = tmp("long.raw");
+    std::fs::write(&raw, &bytes).unwrap();
+    let o = bin()
+        .args(["localize"])
+        .arg(&raw)
+        .args(RAW_S16_RING)
+        .arg("--geometry")
+        .arg(&geo)
+        .args(opts)
+        .arg("-q")
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let want = String::from_utf8(o.stdout).unwrap();
+    assert!(want.lines().count() > 1000, "{} results", want.lines().count());
+    let mut child = spawn_piped(
+        bin()
+            .args(["localize", "-"])
+            .args(RAW_S16_RING)
+            .arg("--geometry")
+            .arg(&geo)
+            .args(opts)
+            .args(["--max-buffer", "0.25"]),
+    );
+    let mut stdin = child.stdin.take().unwrap();
+    let writer = std::thread::spawn(move || {
+        stdin.write_all(&bytes).unwrap();
+    });
+    let o = child.wait_with_output().unwrap();
+    writer.join().unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    assert!(!err.contains("input gap"), "{err}");
+    assert!(err.contains("faster than real time"), "{err}");
+    assert_eq!(String::from_utf8(o.stdout).unwrap(), want, "{err}");
+}
+
 #[test]
 fn tcp_listen_and_connect_equal_the_file_and_a_cut_frame_is_reported() {
     let (audio, geo, wav) = scene();

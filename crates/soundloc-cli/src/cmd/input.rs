@@ -6,7 +6,11 @@
 //!   (the queue applies back-pressure; nothing is lost);
 //! - live inputs (a pipe, a socket, a microphone) never wait for the localizer: when the
 //!   queue holds `--max-buffer` seconds the newest block is dropped and counted, and the
-//!   localizer is told about the gap (whole windows skipped, times kept true, a warning).
+//!   localizer is told about the gap (whole windows skipped, times kept true, a warning);
+//! - but a pipe or socket that delivers audio well ahead of real time (`cat rec.wav |`,
+//!   a file sent over the network) is a file in disguise: when the queue fills that far
+//!   ahead ([`faster_than_real_time`]) the input is read like a file from then on,
+//!   nothing dropped (and stderr says so).
 
 use anyhow::{bail, Context};
 use clap::ValueEnum;
@@ -61,7 +65,8 @@ pub struct InputArgs {
     #[arg(long, requires = "raw")]
     pub rate: Option<u32>,
     /// Live input: audio buffered while the localizer is behind, seconds; beyond it whole
-    /// blocks are dropped (and counted).
+    /// blocks are dropped (and counted). A pipe or socket more than a quarter of this ahead
+    /// of real time (a file being piped) is read like a file instead: nothing dropped.
     #[arg(long, default_value_t = 10.0)]
     pub max_buffer: f64,
     /// Read a file at real-time speed (as if it were being recorded), e.g. to review it
@@ -217,8 +222,22 @@ pub fn spawn_reader(
         stop_on_ctrl_c(tx.clone());
     }
     let pace = (realtime && !live).then_some(fmt.sample_rate_hz as f64);
+    let live = live.then_some(max_buffer_s);
     std::thread::spawn(move || reader_loop(&mut *source, &tx, block, live, pace));
     (fmt, rx)
+}
+
+/// Whether a live input that has delivered `frames` frames at `rate_hz` in `elapsed` is
+/// ahead of real time by more than a quarter of the queue (`max_buffer_s`): no capture
+/// gets that far ahead (a pipe holds a fraction of a second), so the producer is reading
+/// a file at least ≈ 4/3 of real time, and waiting for the localizer loses nothing.
+pub fn faster_than_real_time(
+    frames: u64,
+    rate_hz: u32,
+    elapsed: std::time::Duration,
+    max_buffer_s: f64,
+) -> bool {
+    frames as f64 / rate_hz.max(1) as f64 - elapsed.as_secs_f64() > 0.25 * max_buffer_s
 }
 
 static INTERRUPTED: AtomicBool = AtomicBool::new(false);
@@ -250,14 +269,17 @@ pub fn stop_on_ctrl_c(tx: SyncSender<Msg>) {
     });
 }
 
+/// `live`: the input's `--max-buffer` (seconds) where it is live.
 fn reader_loop(
     source: &mut dyn AudioSource,
     tx: &SyncSender<Msg>,
     block: usize,
-    live: bool,
+    live: Option<f64>,
     pace_hz: Option<f64>,
 ) {
-    let nch = source.format().channels;
+    let rate = source.format().sample_rate_hz;
+    // Live until the queue first fills ahead of real time (module docs).
+    let mut live = live;
     let mut gap = 0u64;
     let start = std::time::Instant::now();
     let mut frames = 0u64;
@@ -283,22 +305,95 @@ fn reader_loop(
             }
             Ok(n) => {
                 frames += n as u64;
-                let msg = Msg::Block { data: buf, gap };
-                if live {
+                let mut msg = Msg::Block { data: buf, gap };
+                if let Some(max_buffer_s) = live {
                     match tx.try_send(msg) {
-                        Ok(()) => gap = 0,
-                        Err(TrySendError::Full(_)) => gap += n as u64,
+                        Ok(()) => {
+                            gap = 0;
+                            continue;
+                        }
+                        Err(TrySendError::Full(m))
+                            if gap == 0
+                                && faster_than_real_time(frames, rate, start.elapsed(), max_buffer_s) =>
+                        {
+                            let note = format!(
+                                "the input arrives faster than real time ({:.1} s of audio in {:.1} s): read like a file, nothing dropped",
+                                frames as f64 / rate.max(1) as f64,
+                                start.elapsed().as_secs_f64()
+                            );
+                            if tx.send(Msg::Note(note)).is_err() {
+                                return;
+                            }
+                            live = None;
+                            msg = m;
+                        }
+                        Err(TrySendError::Full(_)) => {
+                            gap += n as u64;
+                            continue;
+                        }
                         Err(TrySendError::Disconnected(_)) => return,
                     }
-                } else if tx.send(msg).is_err() {
+                }
+                if tx.send(msg).is_err() {
                     return;
                 }
-                debug_assert!(nch > 0);
             }
             Err(e) => {
                 let _ = tx.send(Msg::Failed(e));
                 return;
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::faster_than_real_time;
+    use std::time::Duration;
+
+    #[test]
+    fn a_capture_stays_live_and_a_piped_file_does_not() {
+        let s = |x: f64| (x * 16000.0) as u64;
+        // A capture 30 s in, 0.3 s ahead (what sat in its pipe when the run began).
+        assert!(!faster_than_real_time(
+            s(30.3),
+            16000,
+            Duration::from_secs(30),
+            10.0
+        ));
+        // A capture behind a slow localizer: never ahead at all.
+        assert!(!faster_than_real_time(
+            s(29.0),
+            16000,
+            Duration::from_secs(30),
+            10.0
+        ));
+        // `cat rec.wav |`: 10 s of audio in 50 ms.
+        assert!(faster_than_real_time(
+            s(10.0),
+            16000,
+            Duration::from_millis(50),
+            10.0
+        ));
+        // A piped file behind a localizer slower than real time: 12 s of audio in 2 s.
+        assert!(faster_than_real_time(
+            s(12.0),
+            16000,
+            Duration::from_secs(2),
+            10.0
+        ));
+        // The line: a quarter of the queue ahead is still live, a little more is not.
+        assert!(!faster_than_real_time(
+            s(12.0),
+            16000,
+            Duration::from_secs(10),
+            8.0
+        ));
+        assert!(faster_than_real_time(
+            s(12.1),
+            16000,
+            Duration::from_secs(10),
+            8.0
+        ));
     }
 }
