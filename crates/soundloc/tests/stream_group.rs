@@ -115,6 +115,20 @@ fn a_group_gives_every_stream_its_own_results_bit_for_bit() {
             g.add(options.clone()).unwrap();
         }
         let mut outs = vec![Output::default(); 3];
+        // A call with one bad block (a NaN in the last stream's) is refused whole, naming
+        // that stream: no stream takes its block (the results below would shift).
+        let mut bad: Vec<Vec<Vec<f32>>> = audio
+            .iter()
+            .map(|a| a.iter().map(|c| c[..1000].to_vec()).collect())
+            .collect();
+        bad[2][5][500] = f32::NAN;
+        let blocks: Vec<Block<'_>> = bad.iter().map(|p| Block::Planar(p)).collect();
+        let e = g.push_all(&blocks, &mut outs).expect_err("a NaN is refused");
+        assert!(
+            e.to_string()
+                .contains("stream 2: sample 500 of input channel 5 is NaN"),
+            "{e}"
+        );
         in_ticks(&audio, |blocks| g.push_all(blocks, &mut outs).unwrap());
         for i in 0..3 {
             g.flush(i, &mut outs).unwrap();

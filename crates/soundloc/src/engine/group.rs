@@ -118,6 +118,17 @@ impl<T: Real> StreamGroup<T> {
                 self.streams.len()
             )));
         }
+        // Every block is checked before any is taken: a rejected call leaves every stream
+        // as it was, and the error names the stream.
+        for (i, (s, b)) in self.streams.iter().zip(blocks).enumerate() {
+            s.check(b).map_err(|e| match e {
+                Error::Numerical { stage, message } => Error::Numerical {
+                    stage,
+                    message: format!("stream {i}: {message}"),
+                },
+                e => Error::Mismatch(format!("stream {i}: {e}")),
+            })?;
+        }
         self.streams
             .par_iter_mut()
             .zip(blocks.par_iter())

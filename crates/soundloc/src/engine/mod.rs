@@ -287,6 +287,26 @@ impl<T: Real> Engine<T> {
 
     /// Push a block of any length; results of windows it completes are appended to `out`.
     pub fn push(&mut self, block: Block<'_>, out: &mut Output) -> Result<()> {
+        let (idx, len) = self.check(&block)?;
+        if self.map.is_none() {
+            self.map = Some((block.channels(), idx.clone()));
+        }
+        // With a CPU backend the rest runs on a thread of the pool: the parallel stages of
+        // a small push then start from inside it, so the caller hands off once per push
+        // instead of once per stage, and not at all where it is a worker itself
+        // (`crate::pool`; `Backend::runs_on_pool` says why not for devices).
+        if self.backend.as_ref().is_some_and(|b| b.runs_on_pool()) {
+            rayon::scope(|_| self.push_checked(&block, &idx, len, out))
+        } else {
+            self.push_checked(&block, &idx, len, out)
+        }
+    }
+
+    /// [`push`](Self::push)'s checks of `block`, which change nothing: the stream must be
+    /// open, the channel count the earlier blocks' (or one the options can map), every
+    /// sample finite and within what the precision's correlations hold. Returns the
+    /// channels to take and the block's length.
+    pub(crate) fn check(&self, block: &Block<'_>) -> Result<(Arc<[usize]>, usize)> {
         if self.finished {
             return Err(Error::Config(
                 "push after flush: call reset to start a new stream".into(),
@@ -301,11 +321,7 @@ impl<T: Real> Engine<T> {
                     "audio block has {n_in} channels, earlier blocks had {n}"
                 )))
             }
-            None => {
-                let idx: Arc<[usize]> = self.options.channels.resolve(n_in)?.into();
-                self.map = Some((n_in, idx.clone()));
-                idx
-            }
+            None => self.options.channels.resolve(n_in)?.into(),
         };
         // The whole block is checked before any of it is taken: a rejected push leaves
         // the stream as it was.
@@ -331,15 +347,7 @@ impl<T: Real> Engine<T> {
                 ),
             ));
         }
-        // With a CPU backend the rest runs on a thread of the pool: the parallel stages of
-        // a small push then start from inside it, so the caller hands off once per push
-        // instead of once per stage, and not at all where it is a worker itself
-        // (`crate::pool`; `Backend::runs_on_pool` says why not for devices).
-        if self.backend.as_ref().is_some_and(|b| b.runs_on_pool()) {
-            rayon::scope(|_| self.push_checked(&block, &idx, len, out))
-        } else {
-            self.push_checked(&block, &idx, len, out)
-        }
+        Ok((idx, len))
     }
 
     /// [`push`](Self::push) after the checks: `len` samples of `block`, channels `idx`.
