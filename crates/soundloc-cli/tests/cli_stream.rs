@@ -568,6 +568,14 @@ fn outputs_never_replace_inputs_or_each_other() {
             vec!["--spectrum".to_string(), s(&dir.join("spec.npy"))],
             "is a directory",
         ),
+        (
+            vec!["--plot".to_string(), "/dev/null".to_string()],
+            "--plot (a PNG written by name): not a regular file",
+        ),
+        (
+            vec!["--spectrum".to_string(), "/dev/null".to_string()],
+            "not a regular file (a pipe or device)",
+        ),
     ] {
         let o = bin()
             .arg("localize")

@@ -248,6 +248,22 @@ impl Sinks {
                 outputs.push((p, what));
             }
         }
+        // Outputs written by name, not as a stream: a pipe or device cannot take them
+        // (the others write one there directly, e.g. `-o /dev/stdout`).
+        for (p, what) in [
+            (
+                a.spectrum.as_deref(),
+                "--spectrum (two files: the .npy and its .json)",
+            ),
+            (a.plot.as_deref(), "--plot (a PNG written by name)"),
+        ] {
+            if let Some(p) = p.filter(|p| std::fs::metadata(p).is_ok_and(|m| !m.is_file())) {
+                bail!(
+                    "{}: {what}: not a regular file (a pipe or device); name a file",
+                    p.display()
+                );
+            }
+        }
         // A noise-CM text pair is two files (the imaginary one found by name).
         let cm_files = a
             .noise_cm

@@ -42,18 +42,20 @@ impl AtomicFile {
     /// Like [`create`](Self::create), with `suffix` appended to the temporary file's name
     /// (e.g. `".png"` for a library that picks the format from the extension).
     pub fn create_with_suffix(path: impl AsRef<Path>, suffix: &str) -> Result<Self> {
-        let target = resolve_links(path.as_ref());
-        if let Ok(meta) = std::fs::metadata(&target) {
+        let path = path.as_ref();
+        // The kernel follows links here, magic ones too (/dev/stdout, /dev/fd/N → a pipe,
+        // whose link text `pipe:[N]` names no file).
+        if let Ok(meta) = std::fs::metadata(path) {
             if !meta.is_file() {
                 if meta.is_dir() {
                     return Err(Error::io(
-                        &target,
+                        path,
                         io::Error::new(io::ErrorKind::InvalidInput, "is a directory"),
                     ));
                 }
                 if !suffix.is_empty() {
                     return Err(Error::io(
-                        &target,
+                        path,
                         io::Error::new(
                             io::ErrorKind::InvalidInput,
                             "not a regular file (this output is written by name)",
@@ -63,15 +65,16 @@ impl AtomicFile {
                 // A device, FIFO or socket: write it directly.
                 let f = OpenOptions::new()
                     .write(true)
-                    .open(&target)
-                    .map_err(|e| Error::io(&target, e))?;
+                    .open(path)
+                    .map_err(|e| Error::io(path, e))?;
                 return Ok(AtomicFile {
-                    target,
+                    target: path.to_path_buf(),
                     temp: PathBuf::new(),
                     file: Some(BufWriter::new(f)),
                 });
             }
         }
+        let target = resolve_links(path);
         let name = target.file_name().ok_or_else(|| {
             Error::io(
                 &target,
@@ -365,6 +368,32 @@ mod tests {
         f.commit().unwrap();
         assert_eq!(std::fs::read(&target).unwrap(), b"by path");
         std::fs::remove_dir_all(&d).unwrap();
+    }
+
+    /// `-o /dev/stdout | cat`, `-o >(wc -l)`: a magic link to an anonymous pipe, whose
+    /// link text (`pipe:[N]`) names no file.
+    #[test]
+    fn an_anonymous_pipe_through_proc_fd_is_written() {
+        use std::io::Read;
+        use std::os::fd::AsRawFd;
+        let (mut reader, writer) = std::io::pipe().unwrap();
+        let path = format!("/proc/self/fd/{}", writer.as_raw_fd());
+        if !Path::new(&path).exists() {
+            println!("SKIPPED an_anonymous_pipe_through_proc_fd_is_written: no /proc/self/fd");
+            return;
+        }
+        let mut f = AtomicFile::create(&path).unwrap();
+        f.write_all(b"through the pipe").unwrap();
+        f.commit().unwrap();
+        drop(writer);
+        let mut got = String::new();
+        reader.read_to_string(&mut got).unwrap();
+        assert_eq!(got, "through the pipe");
+        // Written by name (a PNG through its own temporary file): refused, named.
+        let (_r, w) = std::io::pipe().unwrap();
+        let path = format!("/proc/self/fd/{}", w.as_raw_fd());
+        let e = AtomicFile::create_with_suffix(&path, ".png").unwrap_err();
+        assert!(e.to_string().contains("not a regular file"), "{e}");
     }
 
     #[test]
