@@ -69,8 +69,8 @@
 //! PREROLL_LENGTH frames.
 //!
 //! ## [`summarize`]
-//! One [`SourceSummary`] per id: first/last frame and time, mean direction (mean of unit
-//! vectors, converted back to azimuth/elevation), maximum power, number of results.
+//! One [`SourceSummary`] per id: first/last frame and time, mean direction (the circular
+//! mean of the azimuths, the mean of the elevations), maximum power, number of results.
 
 use std::collections::{BTreeMap, HashSet, VecDeque};
 
@@ -483,9 +483,11 @@ pub struct SourceSummary {
     pub start_s: f64,
     /// `time_s` of the last result holding the id, seconds.
     pub end_s: f64,
-    /// Azimuth of the mean unit direction vector, degrees.
+    /// Circular mean of the azimuths (the azimuth of the mean horizontal unit vector,
+    /// so 170° and −170° average to 180°), degrees.
     pub mean_azimuth_deg: f64,
-    /// Elevation of the mean unit direction vector, degrees.
+    /// Mean of the elevations, degrees: always within the elevations seen (the elevation
+    /// of the mean 3-D unit vector would rise toward the pole as the azimuths spread).
     pub mean_elevation_deg: f64,
     /// Largest power over the source's results, dB.
     pub max_power_db: f64,
@@ -497,7 +499,9 @@ pub struct SourceSummary {
 pub fn summarize(results: &[LocalizationResult]) -> Vec<SourceSummary> {
     struct Acc {
         s: SourceSummary,
+        /// Σ cos az, Σ sin az, Σ el (radians), and how many directions.
         sum: [f64; 3],
+        n: usize,
     }
     let mut acc: BTreeMap<i64, Acc> = BTreeMap::new();
     for r in results {
@@ -517,6 +521,7 @@ pub fn summarize(results: &[LocalizationResult]) -> Vec<SourceSummary> {
                     num_results: 0,
                 },
                 sum: [0.0; 3],
+                n: 0,
             });
             if r.frame < a.s.start_frame {
                 a.s.start_frame = r.frame;
@@ -531,18 +536,23 @@ pub fn summarize(results: &[LocalizationResult]) -> Vec<SourceSummary> {
             }
             a.s.num_results += 1;
             if v.iter().all(|c| c.is_finite()) {
-                for (acc_k, v_k) in a.sum.iter_mut().zip(v) {
-                    *acc_k += v_k;
+                let [x, y, z] = v;
+                let h = x.hypot(y);
+                if h > 0.0 {
+                    a.sum[0] += x / h;
+                    a.sum[1] += y / h;
                 }
+                a.sum[2] += z.atan2(h);
+                a.n += 1;
             }
         }
     }
     acc.into_values()
         .map(|mut a| {
-            let [x, y, z] = a.sum;
-            let az = y.atan2(x).to_degrees();
+            let [c, s, el] = a.sum;
+            let az = s.atan2(c).to_degrees();
             a.s.mean_azimuth_deg = if az <= -180.0 { az + 360.0 } else { az };
-            a.s.mean_elevation_deg = z.atan2((x * x + y * y).sqrt()).to_degrees();
+            a.s.mean_elevation_deg = (el / a.n.max(1) as f64).to_degrees();
             a.s
         })
         .collect()
