@@ -98,6 +98,15 @@ def test_bad_input_raises():
         d.locate_sources(X)
     with pytest.raises(ValueError, match="far"):
         soundloc.doa.MUSIC(L, FS, NFFT, mode="near")
+    # Sizes and rates that would divide by zero are refused up front.
+    for kw, what in [(dict(fs=0), "fs must be"), (dict(nfft=0), "nfft must be"),
+                     (dict(c=-1.0), "c must be"), (dict(num_src=0), "num_src must be"),
+                     (dict(dim=3, n_grid=0), "n_grid must be")]:
+        args = dict(L=L, fs=FS, nfft=NFFT) | kw
+        with pytest.raises(ValueError, match=what):
+            soundloc.doa.MUSIC(**args)
+    with pytest.raises(ValueError, match="num_src must be"):
+        d.locate_sources(np.ones((4, NFFT // 2 + 1, 10), complex), num_src=0)
 
 
 def test_views_and_dtypes_give_the_same_result():

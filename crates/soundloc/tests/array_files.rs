@@ -228,6 +228,22 @@ fn tf_zip_round_trip_and_layout() {
     // Restricted bins cannot be written as a TF zip.
     let part = tf.restrict_bins(16..89).unwrap();
     assert!(err_text(write_tf_zip(&part, &tmp("part.zip"))).contains("257 bins"));
+    // Nothing the readers would refuse is written: no sampling rate, a non-finite value.
+    let mut no_rate = tf.clone();
+    no_rate.sample_rate_hz = 0;
+    let msg = err_text(write_tf_zip(&no_rate, &tmp("no-rate.zip")));
+    assert!(
+        msg.contains("no-rate.zip") && msg.contains("sampling rate"),
+        "{msg}"
+    );
+    let mut nan = tf.clone();
+    nan.data[7].im = f32::NAN;
+    let msg = err_text(write_tf_zip(&nan, &tmp("nan.zip")));
+    assert!(
+        msg.contains("nan.zip") && msg.contains("value 7 is not finite"),
+        "{msg}"
+    );
+    assert!(!tmp("no-rate.zip").exists() && !tmp("nan.zip").exists());
 
     let Some(d) = data("tf_zip_round_trip_and_layout") else {
         return;
@@ -534,6 +550,12 @@ fn geometry_files() {
     assert!(err_text(Geometry::load(&p)).ends_with("mic 1: same position as mic 0 ([0.1, 0.0, 0.0])"));
     std::fs::write(&p, "mics = [[nan, 0, 0]]\n").unwrap();
     assert!(err_text(Geometry::load(&p)).contains("mic 0: position [NaN, 0.0, 0.0] is not finite"));
+    std::fs::write(&p, "mics = [[0.1, 0, 0], [0, 1e300, 0]]\n").unwrap();
+    let msg = err_text(Geometry::load(&p));
+    assert!(
+        msg.starts_with(&format!("{}: mic 1: position", p.display())) && msg.contains("beyond"),
+        "{msg}"
+    );
 }
 
 #[test]

@@ -279,6 +279,17 @@ fn noise_cm_zip_errors_name_the_file() {
     let d = tmp_dir("cm-zip-bad");
     let good = d.join("good.zip");
     random_cm(2, 8, 4).write_zip(&good).unwrap();
+    // A K the readers would refuse is not written, in either format.
+    let mut nan = random_cm(2, 8, 4);
+    nan.data[4 + 2 + 1].re = f64::NAN; // M = 2: bin 1, row 1, column 1
+    let msg = err_text(nan.write_zip(&d.join("nan.zip")));
+    assert!(
+        msg.contains("nan.zip") && msg.contains("bin 1, entry (1, 1) is not finite"),
+        "{msg}"
+    );
+    let msg = err_text(nan.write_text_pair(&d.join("nan_r"), &d.join("nan_i")));
+    assert!(msg.contains("nan_r") && msg.contains("not finite"), "{msg}");
+    assert!(!d.join("nan.zip").exists() && !d.join("nan_r").exists());
     // Truncated archive.
     let bytes = std::fs::read(&good).unwrap();
     let cut = d.join("cut.zip");

@@ -217,6 +217,28 @@ fn a_localizer_group_from_a_spec_equals_one_localizer_per_stream() {
         assert!(outs[i].spectrum.as_ref().unwrap().db == alone.spectrum.as_ref().unwrap().db);
     }
     assert!(outs[0].results != outs[1].results, "the scenes differ");
+    // A silent noise recording gives a zero K: the error names the recording, for a group
+    // and for one localizer alike.
+    let silent = dir.join("silent.wav");
+    soundloc::audio::Audio {
+        sample_rate_hz: fs,
+        channels: vec![vec![0.0; 8000]; 8],
+    }
+    .write_wav(&silent, soundloc::audio::SampleFormat::Int16)
+    .unwrap();
+    spec.noise = NoiseSource::Recording { path: silent.clone() };
+    let e = LocalizerGroup::new(&spec, 2).err().expect("zero K refused");
+    assert!(
+        e.to_string()
+            .contains(&format!("{}: noise correlation matrix K", silent.display())),
+        "{e}"
+    );
+    let e = Localizer::new(&spec).err().expect("zero K refused");
+    assert!(
+        e.to_string()
+            .contains(&format!("{}: noise correlation matrix K", silent.display())),
+        "{e}"
+    );
     // A noise range of each stream's own input would give each its own K: refused.
     spec.noise = NoiseSource::Range {
         start_s: 0.0,

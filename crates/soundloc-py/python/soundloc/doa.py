@@ -65,6 +65,16 @@ class _DOA:
             raise ValueError("The dimension must be 2 or 3.")
         if nfft % 2:
             raise ValueError("Signal length must be even.")
+        if not (np.isfinite(fs) and fs > 0):
+            raise ValueError(f"fs must be a positive sampling rate in Hz, got {fs}")
+        if int(nfft) < 4:
+            raise ValueError(f"nfft must be an even FFT length of at least 4, got {nfft}")
+        if not (np.isfinite(c) and c > 0):
+            raise ValueError(f"c must be a positive speed of sound in m/s, got {c}")
+        if int(num_src) < 1:
+            raise ValueError(f"num_src must be at least 1, got {num_src}")
+        if n_grid is not None and int(n_grid) < 1:
+            raise ValueError(f"n_grid must be at least 1, got {n_grid}")
         self.L = L if L.shape[0] == 3 else np.vstack([L, np.zeros((1, L.shape[1]))])
         self.M = L.shape[1]
         self.fs, self.nfft, self.c = int(fs), int(nfft), float(c)
@@ -104,6 +114,8 @@ class _DOA:
     def locate_sources(self, X, num_src=None, freq_range=(500.0, 4000.0), freq_bins=None, freq_hz=None):
         """Localize from X, the rfft of each microphone: (M, nfft/2 + 1, snapshots)."""
         if num_src is not None:
+            if int(num_src) < 1:
+                raise ValueError(f"num_src must be at least 1, got {num_src}")
             self.num_src = int(num_src)
         X = np.asarray(X)
         if (X.dtype != np.complex128 or not X.flags.aligned

@@ -33,6 +33,10 @@ pub struct Geometry {
 /// Two microphones closer than this (metres) are "the same position".
 pub const DUPLICATE_TOLERANCE_M: f64 = 1e-6;
 
+/// Largest coordinate a microphone may have, metres: far past any array (a value from a
+/// corrupt file is caught before its squares overflow).
+pub const MAX_COORD_M: f64 = 1e6;
+
 impl Geometry {
     /// Number of microphones.
     pub fn num_mics(&self) -> usize {
@@ -47,7 +51,8 @@ impl Geometry {
         Ok(g)
     }
 
-    /// Check positions: at least one mic, all finite, no two closer than 1 µm.
+    /// Check positions: at least one mic, all finite and within [`MAX_COORD_M`] of the
+    /// origin, no two closer than 1 µm.
     pub fn validate(&self, what: &Path) -> Result<()> {
         if self.mics.is_empty() {
             return Err(Error::format(what, "no microphones"));
@@ -67,6 +72,12 @@ impl Geometry {
                 return Err(Error::format(
                     what,
                     format!("mic {i}: position {p:?} is not finite"),
+                ));
+            }
+            if p.iter().any(|v| v.abs() > MAX_COORD_M) {
+                return Err(Error::format(
+                    what,
+                    format!("mic {i}: position {p:?} m lies beyond ±{MAX_COORD_M:e} m (metres expected)"),
                 ));
             }
         }

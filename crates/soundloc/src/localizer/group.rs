@@ -26,7 +26,6 @@ use crate::engine::{make_backend, Output, StreamGroup, StreamOptions};
 use crate::input::Block;
 use crate::noise::policy::{InitialNoise, NoiseUpdate};
 use crate::noise::NoiseMatrices;
-use crate::plan::Plan;
 use crate::{Error, Result};
 use std::sync::Arc;
 
@@ -81,12 +80,12 @@ impl LocalizerGroup {
         let cache = spec.tf_cache.dir();
         let inner = match spec.precision {
             Precision::F32 => {
-                let plan = Arc::new(Plan::<f32>::new(&p.config, &p.tf, k.as_ref())?);
+                let plan = Arc::new(super::plan_for::<f32>(&p.config, &p.tf, k.as_ref(), spec)?);
                 let backend = make_backend(plan.clone(), spec.device, cache.as_deref())?;
                 Inner::F32(StreamGroup::with_backend(plan, backend))
             }
             Precision::F64 => {
-                let plan = Arc::new(Plan::<f64>::new(&p.config, &p.tf, k.as_ref())?);
+                let plan = Arc::new(super::plan_for::<f64>(&p.config, &p.tf, k.as_ref(), spec)?);
                 let backend = make_backend(plan.clone(), spec.device, cache.as_deref())?;
                 Inner::F64(StreamGroup::with_backend(plan, backend))
             }

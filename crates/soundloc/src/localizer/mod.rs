@@ -551,7 +551,7 @@ fn engine<T: Real>(
         InitialNoise::Given(k) => k.as_ref(),
         InitialNoise::Range(..) => None,
     };
-    let plan = Arc::new(Plan::<T>::new(config, tf, k)?);
+    let plan = Arc::new(plan_for::<T>(config, tf, k, spec)?);
     tracing::debug!(
         "plan ready: {} bins, {} directions",
         plan.num_bins(),
@@ -563,6 +563,29 @@ fn engine<T: Real>(
     let mut e = Engine::new(plan, backend, options)?;
     e.set_cpu_fallback(device == DeviceChoice::Auto);
     Ok(e)
+}
+
+/// The plan for `config`, `tf` and K `k`; where K comes from a file of `spec`'s (a noise
+/// recording or correlation file), an error with K names that file.
+pub(crate) fn plan_for<T: Real>(
+    config: &LocalizeConfig,
+    tf: &TransferFunctions,
+    k: Option<&NoiseMatrices>,
+    spec: &LocalizerSpec,
+) -> Result<Plan<T>> {
+    Plan::<T>::new(config, tf, k).map_err(|e| match (e, &spec.noise) {
+        (
+            Error::Numerical {
+                stage: "noise",
+                message,
+            },
+            NoiseSource::Recording { path } | NoiseSource::CorrelationFile { path },
+        ) if k.is_some() => Error::Numerical {
+            stage: "noise",
+            message: format!("{}: {message}", path.display()),
+        },
+        (e, _) => e,
+    })
 }
 
 /// K from a noise recording, through the input's channel map.

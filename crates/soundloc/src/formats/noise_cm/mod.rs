@@ -214,6 +214,23 @@ impl NoiseCm {
                 self.num_mics
             )));
         }
+        // Only what the readers take back.
+        if let Some(i) = self
+            .data
+            .iter()
+            .position(|z| !(z.re.is_finite() && z.im.is_finite()))
+        {
+            let (b, r) = (
+                i / (self.num_mics * self.num_mics),
+                i % (self.num_mics * self.num_mics),
+            );
+            return Err(Error::Config(format!(
+                "{}: K at bin {b}, entry ({}, {}) is not finite",
+                path.display(),
+                r / self.num_mics,
+                r % self.num_mics
+            )));
+        }
         Ok(())
     }
 

@@ -187,6 +187,7 @@ impl NoiseCm {
 
     /// Writes the HARK ≥ 2.1 zip (atomically; values rounded to f32).
     pub fn write_zip(&self, path: &Path) -> Result<()> {
+        self.validate_shape(path)?;
         hark_zip::write_zip_entries(path, &self.zip_entries()?)
     }
 }
