@@ -134,7 +134,8 @@ pub struct RunArgs {
     #[arg(long)]
     pub resample: bool,
     /// TF_CHANNEL_SELECTION: TF channels to use, comma-separated (0-based). Applied to the
-    /// audio too when it has the TF's full channel count.
+    /// audio, a --noise recording and a --noise-cm file too when they have the TF's full
+    /// channel count.
     #[arg(long, value_delimiter = ',')]
     pub channels: Vec<usize>,
     /// ChannelSelector: input channels to keep, comma-separated (0-based), applied to the

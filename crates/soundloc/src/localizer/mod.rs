@@ -26,16 +26,14 @@ use crate::array::tf_cache::TfCache;
 use crate::array::{Geometry, Grid, TransferFunctions};
 use crate::backend::{DeviceChoice, StageTimes};
 use crate::config::{Algorithm, LocalizeConfig, Precision};
-use crate::engine::{make_backend, Engine, Localization, Output, StreamOptions, TrackingSpec};
-use crate::input::{Block, ChannelMap};
-use crate::noise::policy::{InitialNoise, NoiseUpdate};
+use crate::engine::{Engine, Localization, Output, TrackingSpec};
+use crate::input::Block;
+use crate::noise::policy::NoiseUpdate;
 use crate::noise::NoiseMatrices;
-use crate::plan::Plan;
-use crate::real::Real;
 use crate::{Error, Result};
+use prepare::{engine, prepare};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
-use std::sync::Arc;
 
 /// Run `$e` on `$self.inner` whatever its precision: the `Inner` enum (F32 | F64) of the
 /// module that calls it (an engine here, a stream group in `group.rs`).
@@ -55,6 +53,7 @@ macro_rules! dispatch {
 }
 
 mod group;
+mod prepare;
 pub use group::LocalizerGroup;
 
 /// Where the microphone positions and steering vectors come from.
@@ -462,147 +461,6 @@ impl Localizer {
     pub fn localize(&mut self, channels: &[Vec<f32>]) -> Result<Localization> {
         dispatch!(mut self, e => e.localize(channels))
     }
-}
-
-/// What a spec resolves to once its transfer functions are in memory: the analysis, the
-/// TFs of the microphones used, a stream's options (K, updates, tracking, channel map)
-/// and the notes to show.
-pub(crate) struct Prepared {
-    pub config: LocalizeConfig,
-    pub tf: TransferFunctions,
-    pub options: StreamOptions,
-    pub notes: Vec<String>,
-}
-
-/// Resolve `spec` against transfer functions of all microphones (before
-/// `spec.channels`) and, optionally, K (`noise`, replacing `spec.noise`).
-pub(crate) fn prepare(
-    spec: &LocalizerSpec,
-    tf: TransferFunctions,
-    noise: Option<NoiseMatrices>,
-) -> Result<Prepared> {
-    let full_mics = tf.num_mics;
-    let tf = if spec.channels.is_empty() {
-        tf
-    } else {
-        tf.select_channels(&spec.channels)?
-    };
-    let (analysis, note) = spec.resolved_analysis(tf.num_mics);
-    let algorithm = analysis.algorithm;
-    let config = LocalizeConfig {
-        sample_rate_hz: tf.sample_rate_hz,
-        ..analysis
-    };
-    let channels = ChannelMap {
-        input_channels: spec.input_channels.clone(),
-        tf_channels: spec.channels.clone(),
-        full_mics,
-        mics: tf.num_mics,
-    };
-    let mut notes: Vec<String> = note.into_iter().collect();
-    let initial_noise = match (noise, &spec.noise) {
-        _ if !algorithm.uses_noise() => InitialNoise::Given(None),
-        (Some(k), _) => InitialNoise::Given(Some(k)),
-        (None, NoiseSource::None) => InitialNoise::Given(None),
-        (None, NoiseSource::Range { start_s, end_s }) => InitialNoise::Range(*start_s, *end_s),
-        (None, NoiseSource::Recording { path }) => InitialNoise::Given(Some(noise_from_recording(
-            path,
-            &config,
-            &channels,
-            spec.resample,
-        )?)),
-        (None, NoiseSource::CorrelationFile { path }) => {
-            use crate::formats::noise_cm::{Expected, NoiseCm};
-            let expected = Expected {
-                num_mics: Some(tf.num_mics),
-                nfft: Some(config.nfft),
-            };
-            InitialNoise::Given(Some(
-                NoiseCm::load(path, expected)?.to_noise_matrices(config.bin_range())?,
-            ))
-        }
-    };
-    if !algorithm.uses_noise() && spec.noise != NoiseSource::None {
-        notes.push(format!("{} ignores the noise matrix", algorithm.name()));
-    }
-    let options = StreamOptions {
-        initial_noise,
-        noise_update: spec.noise_update.clone(),
-        tracking: spec.tracking,
-        channels,
-        want_spectrum: spec.spectrum,
-    };
-    Ok(Prepared {
-        config,
-        tf,
-        options,
-        notes,
-    })
-}
-
-fn engine<T: Real>(
-    config: &LocalizeConfig,
-    tf: &TransferFunctions,
-    spec: &LocalizerSpec,
-    options: StreamOptions,
-) -> Result<Engine<T>> {
-    let device = spec.device;
-    let k = match &options.initial_noise {
-        InitialNoise::Given(k) => k.as_ref(),
-        InitialNoise::Range(..) => None,
-    };
-    let plan = Arc::new(plan_for::<T>(config, tf, k, spec)?);
-    tracing::debug!(
-        "plan ready: {} bins, {} directions",
-        plan.num_bins(),
-        plan.num_dirs
-    );
-    // Compiled GPU kernels are kept where the prepared TFs are (none with the cache off).
-    let backend = make_backend(plan.clone(), device, spec.tf_cache.dir().as_deref())?;
-    tracing::debug!("backend ready: {}", backend.device_name());
-    let mut e = Engine::new(plan, backend, options)?;
-    e.set_cpu_fallback(device == DeviceChoice::Auto);
-    Ok(e)
-}
-
-/// The plan for `config`, `tf` and K `k`; where K comes from a file of `spec`'s (a noise
-/// recording or correlation file), an error with K names that file.
-pub(crate) fn plan_for<T: Real>(
-    config: &LocalizeConfig,
-    tf: &TransferFunctions,
-    k: Option<&NoiseMatrices>,
-    spec: &LocalizerSpec,
-) -> Result<Plan<T>> {
-    Plan::<T>::new(config, tf, k).map_err(|e| match (e, &spec.noise) {
-        (
-            Error::Numerical {
-                stage: "noise",
-                message,
-            },
-            NoiseSource::Recording { path } | NoiseSource::CorrelationFile { path },
-        ) if k.is_some() => Error::Numerical {
-            stage: "noise",
-            message: format!("{}: {message}", path.display()),
-        },
-        (e, _) => e,
-    })
-}
-
-/// K from a noise recording, through the input's channel map.
-fn noise_from_recording(
-    path: &Path,
-    config: &LocalizeConfig,
-    channels: &ChannelMap,
-    resample: bool,
-) -> Result<NoiseMatrices> {
-    let ctx = |e: Error| Error::Mismatch(format!("{}: {e}", path.display()));
-    let mut audio = crate::audio::read_audio(path)?;
-    if resample && audio.sample_rate_hz != config.sample_rate_hz {
-        audio = crate::audio::resample::resample_audio(&audio, config.sample_rate_hz).map_err(ctx)?;
-    }
-    let idx = channels.resolve(audio.num_channels()).map_err(ctx)?;
-    let picked: Vec<Vec<f32>> = idx.iter().map(|&c| audio.channels[c].clone()).collect();
-    crate::noise::estimate(config, audio.sample_rate_hz, &picked, None).map_err(ctx)
 }
 
 #[cfg(test)]

@@ -134,6 +134,27 @@ impl NoiseCm {
         NoiseCm { num_mics, nfft, data }
     }
 
+    /// K of the microphones `channels` only (indices into this K's, in that order): the
+    /// noise statistics of a subset of the array are the sub-matrices.
+    pub fn select_channels(&self, channels: &[usize], path: &Path) -> Result<NoiseCm> {
+        let m = self.num_mics;
+        if let Some(&c) = channels.iter().find(|&&c| c >= m) {
+            return Err(Error::Mismatch(format!(
+                "{}: channel {c} selected, the matrices hold {m} microphones (0..{m})",
+                path.display()
+            )));
+        }
+        let n = channels.len();
+        let mut data = Vec::with_capacity(self.num_bins() * n * n);
+        for k in 0..self.num_bins() {
+            let kk = &self.data[k * m * m..(k + 1) * m * m];
+            for &i in channels {
+                data.extend(channels.iter().map(|&j| kk[i * m + j]));
+            }
+        }
+        NoiseCm::new(n, self.nfft, data)
+    }
+
     /// Number of bins, N/2 + 1.
     pub fn num_bins(&self) -> usize {
         self.nfft / 2 + 1

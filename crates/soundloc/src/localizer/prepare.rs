@@ -1,0 +1,244 @@
+//! A spec resolved against its transfer functions: the analysis, the microphones used,
+//! K (from a recording, a correlation file or the caller), the stream's options, and the
+//! plan and engine built from them.
+
+use super::{LocalizerSpec, NoiseSource};
+use crate::array::TransferFunctions;
+use crate::backend::DeviceChoice;
+use crate::config::LocalizeConfig;
+use crate::engine::{make_backend, Engine, StreamOptions};
+use crate::input::ChannelMap;
+use crate::noise::policy::InitialNoise;
+use crate::noise::NoiseMatrices;
+use crate::plan::Plan;
+use crate::real::Real;
+use crate::{Error, Result};
+use std::path::Path;
+use std::sync::Arc;
+
+/// What a spec resolves to once its transfer functions are in memory: the analysis, the
+/// TFs of the microphones used, a stream's options (K, updates, tracking, channel map)
+/// and the notes to show.
+pub(crate) struct Prepared {
+    pub config: LocalizeConfig,
+    pub tf: TransferFunctions,
+    pub options: StreamOptions,
+    pub notes: Vec<String>,
+}
+
+/// Resolve `spec` against transfer functions of all microphones (before
+/// `spec.channels`) and, optionally, K (`noise`, replacing `spec.noise`).
+pub(crate) fn prepare(
+    spec: &LocalizerSpec,
+    tf: TransferFunctions,
+    noise: Option<NoiseMatrices>,
+) -> Result<Prepared> {
+    let full_mics = tf.num_mics;
+    let tf = if spec.channels.is_empty() {
+        tf
+    } else {
+        tf.select_channels(&spec.channels)?
+    };
+    let (analysis, note) = spec.resolved_analysis(tf.num_mics);
+    let algorithm = analysis.algorithm;
+    let config = LocalizeConfig {
+        sample_rate_hz: tf.sample_rate_hz,
+        ..analysis
+    };
+    let channels = ChannelMap {
+        input_channels: spec.input_channels.clone(),
+        tf_channels: spec.channels.clone(),
+        full_mics,
+        mics: tf.num_mics,
+    };
+    let mut notes: Vec<String> = note.into_iter().collect();
+    let initial_noise = match (noise, &spec.noise) {
+        _ if !algorithm.uses_noise() => InitialNoise::Given(None),
+        (Some(k), _) => InitialNoise::Given(Some(k)),
+        (None, NoiseSource::None) => InitialNoise::Given(None),
+        (None, NoiseSource::Range { start_s, end_s }) => InitialNoise::Range(*start_s, *end_s),
+        (None, NoiseSource::Recording { path }) => InitialNoise::Given(Some(noise_from_recording(
+            path,
+            &config,
+            &channels,
+            spec.resample,
+        )?)),
+        (None, NoiseSource::CorrelationFile { path }) => {
+            use crate::formats::noise_cm::{Expected, NoiseCm};
+            let expected = Expected {
+                num_mics: None,
+                nfft: Some(config.nfft),
+            };
+            let cm = NoiseCm::load(path, expected)?;
+            // K of the whole array with --channels picking some of it: their sub-matrices.
+            let cm = if cm.num_mics == tf.num_mics {
+                cm
+            } else if !spec.channels.is_empty() && cm.num_mics == full_mics {
+                cm.select_channels(&spec.channels, path)?
+            } else {
+                let whole = if spec.channels.is_empty() {
+                    String::new()
+                } else {
+                    format!(" (or the array's {full_mics} before the channel selection)")
+                };
+                return Err(Error::Mismatch(format!(
+                    "{}: {m} × {m} matrices, expected {} microphones{whole}",
+                    path.display(),
+                    tf.num_mics,
+                    m = cm.num_mics
+                )));
+            };
+            InitialNoise::Given(Some(cm.to_noise_matrices(config.bin_range())?))
+        }
+    };
+    if !algorithm.uses_noise() && spec.noise != NoiseSource::None {
+        notes.push(format!("{} ignores the noise matrix", algorithm.name()));
+    }
+    let options = StreamOptions {
+        initial_noise,
+        noise_update: spec.noise_update.clone(),
+        tracking: spec.tracking,
+        channels,
+        want_spectrum: spec.spectrum,
+    };
+    Ok(Prepared {
+        config,
+        tf,
+        options,
+        notes,
+    })
+}
+
+pub(crate) fn engine<T: Real>(
+    config: &LocalizeConfig,
+    tf: &TransferFunctions,
+    spec: &LocalizerSpec,
+    options: StreamOptions,
+) -> Result<Engine<T>> {
+    let device = spec.device;
+    let k = match &options.initial_noise {
+        InitialNoise::Given(k) => k.as_ref(),
+        InitialNoise::Range(..) => None,
+    };
+    let plan = Arc::new(plan_for::<T>(config, tf, k, spec)?);
+    tracing::debug!(
+        "plan ready: {} bins, {} directions",
+        plan.num_bins(),
+        plan.num_dirs
+    );
+    // Compiled GPU kernels are kept where the prepared TFs are (none with the cache off).
+    let backend = make_backend(plan.clone(), device, spec.tf_cache.dir().as_deref())?;
+    tracing::debug!("backend ready: {}", backend.device_name());
+    let mut e = Engine::new(plan, backend, options)?;
+    e.set_cpu_fallback(device == DeviceChoice::Auto);
+    Ok(e)
+}
+
+/// The plan for `config`, `tf` and K `k`; where K comes from a file of `spec`'s (a noise
+/// recording or correlation file), an error with K names that file.
+pub(crate) fn plan_for<T: Real>(
+    config: &LocalizeConfig,
+    tf: &TransferFunctions,
+    k: Option<&NoiseMatrices>,
+    spec: &LocalizerSpec,
+) -> Result<Plan<T>> {
+    Plan::<T>::new(config, tf, k).map_err(|e| match (e, &spec.noise) {
+        (
+            Error::Numerical {
+                stage: "noise",
+                message,
+            },
+            NoiseSource::Recording { path } | NoiseSource::CorrelationFile { path },
+        ) if k.is_some() => Error::Numerical {
+            stage: "noise",
+            message: format!("{}: {message}", path.display()),
+        },
+        (e, _) => e,
+    })
+}
+
+/// K from a noise recording, through the input's channel map.
+fn noise_from_recording(
+    path: &Path,
+    config: &LocalizeConfig,
+    channels: &ChannelMap,
+    resample: bool,
+) -> Result<NoiseMatrices> {
+    let ctx = |e: Error| Error::Mismatch(format!("{}: {e}", path.display()));
+    let mut audio = crate::audio::read_audio(path)?;
+    if resample && audio.sample_rate_hz != config.sample_rate_hz {
+        audio = crate::audio::resample::resample_audio(&audio, config.sample_rate_hz).map_err(ctx)?;
+    }
+    let idx = channels.resolve(audio.num_channels()).map_err(ctx)?;
+    let picked: Vec<Vec<f32>> = idx.iter().map(|&c| audio.channels[c].clone()).collect();
+    crate::noise::estimate(config, audio.sample_rate_hz, &picked, None).map_err(ctx)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::array::grid::GridSpec;
+    use crate::formats::noise_cm::NoiseCm;
+    use num_complex::Complex;
+
+    /// A noise-CM file of the whole array with `channels` picking some microphones: K is
+    /// their sub-matrices (rows and columns in the selection's order); a file of another
+    /// size is refused, naming it.
+    #[test]
+    fn a_whole_array_noise_file_gives_the_selected_channels_sub_matrices() {
+        let geo = crate::array::Geometry::circle(8, 0.0365, 0.0);
+        let grid = crate::array::Grid::ring(30.0, 0.0, 1.0);
+        let tf = crate::array::freefield::free_field(&geo, &grid, 512, 16000, 0..257, 343.0).unwrap();
+        // Hermitian, diagonally dominant: K_k(i, j) = (10 + k) δ_ij + 0.01 (i + j) + 0.01 i (i − j) √−1.
+        let k_of = |m: usize| -> NoiseCm {
+            let mut data = Vec::new();
+            for k in 0..257 {
+                for i in 0..m {
+                    for j in 0..m {
+                        let d = if i == j { 10.0 + k as f64 } else { 0.0 };
+                        data.push(Complex::new(
+                            d + 0.01 * (i + j) as f64,
+                            0.01 * (i as f64 - j as f64),
+                        ));
+                    }
+                }
+            }
+            NoiseCm::new(m, 512, data).unwrap()
+        };
+        let dir = crate::audio::tests::temp_dir("prepare-cm");
+        let whole = dir.join("K8.zip");
+        k_of(8).write_zip(&whole).unwrap();
+        let mut spec = LocalizerSpec::free_field(
+            geo.mics.clone(),
+            GridSpec::Ring {
+                step_deg: 30.0,
+                elevation_deg: 0.0,
+            },
+        );
+        spec.channels = vec![6, 1, 3];
+        spec.noise = NoiseSource::CorrelationFile { path: whole.clone() };
+        let p = prepare(&spec, tf.clone(), None).unwrap();
+        // (The zip holds f32: compare with the file as read.)
+        let read = NoiseCm::load(&whole, Default::default()).unwrap();
+        let want = read
+            .select_channels(&[6, 1, 3], &whole)
+            .unwrap()
+            .to_noise_matrices(p.config.bin_range())
+            .unwrap();
+        assert!(matches!(&p.options.initial_noise, InitialNoise::Given(Some(k)) if *k == want));
+        // Entry (0, 1) of the selection is the file's (6, 1).
+        let k0 = &want.data[..9];
+        assert!((k0[1] - Complex::new(0.07, 0.05)).norm() < 1e-8, "{}", k0[1]);
+        // A file of neither size: refused, named.
+        let five = dir.join("K5.zip");
+        k_of(5).write_zip(&five).unwrap();
+        spec.noise = NoiseSource::CorrelationFile { path: five.clone() };
+        let e = prepare(&spec, tf, None).err().expect("5 × 5 refused").to_string();
+        assert!(
+            e.contains(&five.display().to_string())
+                && e.contains("5 × 5 matrices, expected 3 microphones (or the array's 8"),
+            "{e}"
+        );
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+}
