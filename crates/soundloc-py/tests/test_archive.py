@@ -77,3 +77,7 @@ def test_errors_are_reported_per_recording(recordings, tmp_path):
     assert rows[1]["error"] == "" and rows[1]["results"] > 0
     with pytest.raises(ValueError, match="would write"):
         localize_files([paths[0], d / "x" / paths[0].name], tmp_path / "dup", **KW)
+    # One path, as a str or a Path, is one recording (not a list of its characters).
+    for one in (str(paths[0]), paths[0]):
+        (row,) = localize_files(one, tmp_path / "one", overwrite=True, **KW)
+        assert row["error"] == "" and row["results"] > 0, row

@@ -100,6 +100,14 @@ def test_write_tf_noise_cm_and_source_log(tmp_path):
         soundloc.write_noise_cm(tmp_path / "k2.zip", k, format="text")
     with pytest.raises(ValueError, match="shape"):
         soundloc.write_noise_cm(tmp_path / "k3.zip", k[:, :, :4])
+    # What the readers would refuse is not written.
+    kn = k.copy()
+    kn[3, 1, 2] = np.nan
+    with pytest.raises(ValueError, match=r"bin 3, entry \(1, 2\) is not finite"):
+        soundloc.write_noise_cm(tmp_path / "nan.zip", kn)
+    with pytest.raises(ValueError, match="sampling rate"):
+        soundloc.write_tf(tmp_path / "fs0.zip", tf, d, MICS, 512, 0)
+    assert not (tmp_path / "nan.zip").exists() and not (tmp_path / "fs0.zip").exists()
 
     # Source logs from a Results object: the directions and ids come back.
     res = soundloc.Localizer(geometry=MICS, grid="ring:5", device="cpu", track=True).localize(

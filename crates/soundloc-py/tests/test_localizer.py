@@ -193,6 +193,13 @@ def test_bad_input_raises_the_right_exception(tmp_path):
         localizer(num_sources=8)
     with pytest.raises(ValueError, match="no array"):
         soundloc.Localizer()
+    # Negative counts and indices are bad values (not OverflowError).
+    with pytest.raises(ValueError, match="num_sources: must not be negative"):
+        localizer(num_sources=-1)
+    with pytest.raises(ValueError, match="channels: must not be negative"):
+        localizer(channels=[0, -1])
+    with pytest.raises(ValueError, match="streams must be at least 1"):
+        soundloc.StreamGroup(0, geometry=MICS, grid="ring:5", device="cpu")
 
 
 def test_fortran_order_and_strided_arrays_read_in_logical_order():

@@ -151,11 +151,22 @@ class Results:
         return pd.DataFrame(rows)
 
 
+def _spec_of(kwargs):
+    # A negative count or index is a bad value, not a numeric overflow.
+    try:
+        return _spec(**kwargs)
+    except OverflowError as e:
+        bad = [k for k, v in kwargs.items()
+               if (isinstance(v, int) and not isinstance(v, bool) and v < 0)
+               or (isinstance(v, (list, tuple)) and any(isinstance(x, int) and x < 0 for x in v))]
+        raise ValueError(f"{', '.join(bad) or 'an argument'}: must not be negative ({e})") from None
+
+
 class Localizer:
     """A stateful localizer; see the module docstring for the arguments."""
 
     def __init__(self, **kwargs):
-        spec = _spec(**kwargs)
+        spec = _spec_of(kwargs)
         self._spec_json = spec.to_json()
         self._n = _Native(spec)
 
@@ -208,7 +219,9 @@ class StreamGroup:
     """
 
     def __init__(self, streams, **kwargs):
-        self._n = _Group(_spec(**kwargs), int(streams))
+        if int(streams) < 1:
+            raise ValueError(f"streams must be at least 1, got {streams}")
+        self._n = _Group(_spec_of(kwargs), int(streams))
 
     def __len__(self):
         return len(self._n)

@@ -65,7 +65,9 @@ def localize_files(paths, out_dir, *, fmt="jsonl", overwrite=False, ray=False, c
     """
     if fmt not in ("jsonl", "csv"):
         raise ValueError(f"fmt {fmt!r}: expected 'jsonl' or 'csv'")
-    paths = [str(p) for p in paths]
+    # One path (a str or os.PathLike) is a list of one, not of its characters.
+    paths = [os.fspath(paths)] if isinstance(paths, (str, bytes, os.PathLike)) else [os.fspath(p) for p in paths]
+    paths = [os.fsdecode(p) for p in paths]
     outs = [result_path(p, out_dir, fmt) for p in paths]
     dup = {o for o in outs if outs.count(o) > 1}
     if dup:
