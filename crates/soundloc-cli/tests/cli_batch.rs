@@ -113,4 +113,22 @@ fn a_broken_input_fails_alone_and_names_itself() {
         .output()
         .unwrap();
     assert!(!o.status.success() && String::from_utf8_lossy(&o.stderr).contains("would both write"));
+    // A folder where a result would go is that recording's failure, not a result that
+    // exists (a rerun must not count it as done).
+    let out_dir2 = tmp(TAG, "out-folder");
+    std::fs::create_dir_all(out_dir2.join("good.jsonl")).unwrap();
+    let o = bin()
+        .args(["batch", "--grid", "ring:5", "--geometry"])
+        .arg(&geo)
+        .arg(&good)
+        .arg("--out-dir")
+        .arg(&out_dir2)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("is a directory") && err.contains("0 skipped") && err.contains("1 failed"),
+        "{err}"
+    );
 }

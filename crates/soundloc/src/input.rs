@@ -221,6 +221,18 @@ impl ChannelMap {
                     n.saturating_sub(1)
                 )));
             }
+            // One channel feeding two microphones makes every correlation matrix singular.
+            if let Some((i, &c)) = self
+                .input_channels
+                .iter()
+                .enumerate()
+                .find(|(i, c)| self.input_channels[..*i].contains(c))
+            {
+                return Err(Error::Mismatch(format!(
+                    "input channel {c} is selected twice (positions {} and {i} of the input-channel list)",
+                    self.input_channels.iter().position(|x| *x == c).unwrap_or(0)
+                )));
+            }
             self.input_channels.clone()
         };
         if !self.tf_channels.is_empty() && idx.len() != self.tf_channels.len() {
@@ -308,6 +320,15 @@ mod tests {
         };
         assert_eq!(m.resolve(5).unwrap(), vec![1, 3]);
         assert!(m.resolve(3).unwrap_err().to_string().contains("input channel 3"));
+        let twice = ChannelMap {
+            input_channels: vec![1, 2, 1, 4],
+            ..m.clone()
+        };
+        let e = twice.resolve(5).unwrap_err().to_string();
+        assert!(
+            e.contains("input channel 1 is selected twice (positions 0 and 2"),
+            "{e}"
+        );
         let m = ChannelMap {
             input_channels: vec![],
             tf_channels: vec![0, 2],
