@@ -284,6 +284,67 @@ fn tcp_listen_and_connect_equal_the_file_and_a_cut_frame_is_reported() {
     assert!(String::from_utf8_lossy(&o.stderr).contains("connecting"));
 }
 
+/// A sender that resets the connection (a crash, a network drop) ends the stream as a
+/// close would: what arrived is localized, every output is completed, exit 0, a warning.
+#[test]
+fn a_reset_connection_ends_the_input_and_keeps_the_outputs() {
+    use std::os::fd::AsRawFd;
+    let (audio, geo, wav) = scene();
+    let want = from_file(&wav, &geo);
+    let out = tmp("reset.jsonl");
+    let _ = std::fs::remove_file(&out);
+    let mut child = bin()
+        .args(["localize", "tcp-listen:127.0.0.1:0"])
+        .args(RAW_S16_RING)
+        .arg("--geometry")
+        .arg(&geo)
+        .args(&OPTS[..8])
+        .arg("-o")
+        .arg(&out)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut err = BufReader::new(child.stderr.take().unwrap());
+    let mut line = String::new();
+    let port = loop {
+        line.clear();
+        assert!(
+            err.read_line(&mut line).unwrap() > 0,
+            "soundloc exited before listening"
+        );
+        if let Some(p) = line.trim().strip_prefix("soundloc: waiting for a sender on tcp:") {
+            break p.rsplit(':').next().unwrap().parse::<u16>().unwrap();
+        }
+    };
+    let mut s = TcpStream::connect(("127.0.0.1", port)).unwrap();
+    s.write_all(&s16le(&audio, 0..audio.num_samples())).unwrap();
+    // Let it all be read, then close with SO_LINGER 0: a reset instead of a close.
+    std::thread::sleep(Duration::from_millis(500));
+    let linger = libc::linger {
+        l_onoff: 1,
+        l_linger: 0,
+    };
+    // SAFETY: a valid socket and a correctly sized option value.
+    let rc = unsafe {
+        libc::setsockopt(
+            s.as_raw_fd(),
+            libc::SOL_SOCKET,
+            libc::SO_LINGER,
+            &linger as *const libc::linger as *const libc::c_void,
+            std::mem::size_of::<libc::linger>() as libc::socklen_t,
+        )
+    };
+    assert_eq!(rc, 0);
+    drop(s);
+    let mut rest = String::new();
+    err.read_to_string(&mut rest).unwrap();
+    let o = child.wait_with_output().unwrap();
+    assert!(o.status.success(), "{rest}");
+    assert!(rest.contains("the sender went away"), "{rest}");
+    assert_eq!(std::fs::read_to_string(&out).unwrap(), want, "{rest}");
+}
+
 /// `soundloc listen` through ALSA: a capture PCM of ALSA's `file` plugin (over the `null`
 /// device) plays the scene's samples as a microphone would deliver them.
 #[test]

@@ -278,6 +278,8 @@ fn reader_loop(
     pace_hz: Option<f64>,
 ) {
     let rate = source.format().sample_rate_hz;
+    // A pipe, socket or device (even once read like a file).
+    let stream = live.is_some();
     // Live until the queue first fills ahead of real time (module docs).
     let mut live = live;
     let mut gap = 0u64;
@@ -338,12 +340,28 @@ fn reader_loop(
                     return;
                 }
             }
+            // A sender that goes away abruptly (a reset connection, a crashed writer) ends a
+            // stream as a close would: what arrived is localized and every output completed.
+            Err(e) if stream && frames > 0 && connection_lost(&e) => {
+                let note =
+                    format!("{e}: the sender went away; the input ends here (what arrived is localized)");
+                if tx.send(Msg::Note(note)).is_ok() {
+                    let _ = tx.send(Msg::End { gap });
+                }
+                return;
+            }
             Err(e) => {
                 let _ = tx.send(Msg::Failed(e));
                 return;
             }
         }
     }
+}
+
+/// Whether a read failed because the other end went away (not because of the data).
+fn connection_lost(e: &soundloc::Error) -> bool {
+    use std::io::ErrorKind::{BrokenPipe, ConnectionAborted, ConnectionReset};
+    matches!(e, soundloc::Error::Io { err, .. } if matches!(err.kind(), ConnectionReset | ConnectionAborted | BrokenPipe))
 }
 
 #[cfg(test)]
