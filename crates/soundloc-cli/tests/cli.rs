@@ -334,6 +334,33 @@ fn failed_run_leaves_no_output_file() {
     assert!(leftovers.is_empty(), "temp files left: {leftovers:?}");
 }
 
+/// Sizes the benchmark cannot build, and counts of zero, are refused before any work
+/// (they aborted on a failed allocation, or printed NaN figures).
+#[test]
+fn bench_refuses_sizes_it_cannot_build() {
+    for (args, want) in [
+        (
+            vec!["--mics", "100000"],
+            "--mics 100000: must be between 1 and 1024",
+        ),
+        (
+            vec!["--directions", "1000000"],
+            "--directions 1000000: must be between 2",
+        ),
+        (
+            vec!["--mics", "1024", "--directions", "100000"],
+            "more than this benchmark builds",
+        ),
+        (vec!["--stream", "--seconds", "nan"], "--seconds NaN"),
+        (vec!["--stream", "--streams", "0"], "--streams 0"),
+        (vec!["--batch", "0"], "--batch 0"),
+        (vec!["--repeats", "0"], "--repeats 0"),
+    ] {
+        let o = bin().arg("bench").args(&args).output().unwrap();
+        assert_clean_failure(&o, &[want]);
+    }
+}
+
 #[test]
 fn cuda_without_a_gpu_is_a_clear_error() {
     let o = bin()

@@ -330,7 +330,51 @@ fn run_accuracy(a: &Args) -> anyhow::Result<ExitCode> {
     Ok(ExitCode::SUCCESS)
 }
 
+/// Sizes the benchmark can build on an ordinary machine (its random steering alone is
+/// mics × directions × 73 bins complex values).
+fn check_sizes(a: &Args) -> anyhow::Result<()> {
+    use anyhow::bail;
+    use soundloc::array::{MAX_DIRECTIONS, MAX_MICS};
+    if !(1..=MAX_MICS).contains(&a.mics) {
+        bail!("--mics {}: must be between 1 and {MAX_MICS}", a.mics);
+    }
+    if !(2..=MAX_DIRECTIONS).contains(&a.directions) {
+        bail!(
+            "--directions {}: must be between 2 and {MAX_DIRECTIONS}",
+            a.directions
+        );
+    }
+    const MAX_STEERING_BYTES: f64 = 4.0 * (1u64 << 30) as f64;
+    let bytes = a.mics as f64 * a.directions as f64 * 73.0 * 8.0;
+    if bytes > MAX_STEERING_BYTES {
+        bail!(
+            "--mics {} × --directions {}: {:.1} GiB of steering vectors, more than this benchmark builds (4 GiB)",
+            a.mics,
+            a.directions,
+            bytes / (1u64 << 30) as f64
+        );
+    }
+    for (v, what) in [
+        (a.batch, "--batch"),
+        (a.repeats, "--repeats"),
+        (a.window, "--window"),
+        (a.period, "--period"),
+    ] {
+        if v == 0 {
+            bail!("{what} 0: must be at least 1");
+        }
+    }
+    if let Some(&0) = a.streams.iter().find(|&&n| n == 0) {
+        bail!("--streams 0: must be at least 1");
+    }
+    if !(a.seconds.is_finite() && a.seconds > 0.0 && a.seconds <= 3600.0) {
+        bail!("--seconds {}: must be more than 0 and at most 3600", a.seconds);
+    }
+    Ok(())
+}
+
 pub fn run(a: Args) -> anyhow::Result<ExitCode> {
+    check_sizes(&a)?;
     let algs = if a.algorithms.is_empty() {
         vec![AlgorithmArg::Gsvd, AlgorithmArg::Gevd]
     } else {
