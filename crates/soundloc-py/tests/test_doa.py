@@ -85,6 +85,18 @@ def test_finds_known_directions_in_3d():
         assert abs(np.degrees(d.colatitude_recon[0]) - 70.0) <= 5.0, name
 
 
+def test_sphere_grid_angles_are_pyroomacoustics_own():
+    """dim=3 without angles: the Fibonacci sphere's points and angles as pyroomacoustics'
+    GridSphere gives them (azimuth in (-pi, pi]), so azimuth_recon can be compared."""
+    L = np.vstack([pra.circular_2D_array([0, 0], 6, 0.0, 0.05), np.zeros(6)])
+    for n in (7, 2000):
+        ours = soundloc.doa.MUSIC(L, FS, NFFT, dim=3, n_grid=n).grid
+        ref = pra.doa.algorithms["MUSIC"](L, FS, NFFT, dim=3, n_grid=n).grid
+        np.testing.assert_array_equal(ours.azimuth, ref.azimuth)
+        np.testing.assert_array_equal(ours.colatitude, ref.colatitude)
+        assert ours.azimuth.min() < 0 < ours.azimuth.max() <= np.pi
+
+
 def test_bad_input_raises():
     L = pra.circular_2D_array([0, 0], 4, 0.0, 0.05)
     d = soundloc.doa.MUSIC(L, FS, NFFT)

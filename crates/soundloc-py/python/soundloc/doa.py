@@ -88,11 +88,14 @@ class _DOA:
                 azimuth = np.linspace(0, 2 * np.pi, n, endpoint=False)
             else:
                 n = 180 * 90 if n_grid is None else int(n_grid)
-                # The Fibonacci sphere of pyroomacoustics' GridSphere, point for point.
-                i = np.arange(n)
-                z = (i * (2.0 / n) - 1) + 1.0 / n
-                phi = i * np.pi * (3.0 - np.sqrt(5.0))
-                self.grid = _Grid(np.mod(phi, 2 * np.pi), np.arccos(z))
+                # The Fibonacci sphere of pyroomacoustics' GridSphere, point for point, and
+                # its angles as it computes them (azimuth in (−π, π]).
+                offset = 2.0 / n
+                z = (np.arange(n) * offset - 1) + offset / 2
+                rho = np.sqrt(1.0 - z ** 2)
+                phi = np.arange(n) * (np.pi * (3.0 - np.sqrt(5.0)))
+                x, y = np.cos(phi) * rho, np.sin(phi) * rho
+                self.grid = _Grid(np.arctan2(y, x), np.arctan2(np.linalg.norm(np.stack([x, y]), axis=0), z))
         if not hasattr(self, "grid"):
             azimuth = np.asarray(azimuth, dtype=float)
             if dim == 2:
