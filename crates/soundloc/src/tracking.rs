@@ -135,9 +135,19 @@ impl TrackerConfig {
                 self.min_src_interval_deg
             )));
         }
+        // Ids go out as 32-bit integers (HARK's streams and logs, ODAS): room for 10⁹ more.
+        if self.min_id.abs() > MAX_MIN_ID {
+            return Err(Error::Config(format!(
+                "tracker MIN_ID must be within ±{MAX_MIN_ID} (ids are 32-bit integers in HARK's and ODAS's outputs), got {}",
+                self.min_id
+            )));
+        }
         Ok(())
     }
 }
+
+/// Largest |`min_id`| a tracker takes.
+pub const MAX_MIN_ID: i64 = 1_000_000_000;
 
 /// HARK SourceIntervalExtender parameters.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, serde::Deserialize)]

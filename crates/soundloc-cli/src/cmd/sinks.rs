@@ -508,7 +508,7 @@ impl Sinks {
         let el: Vec<f64> = (0..grid.len()).map(|d| grid.elevation_deg(d)).collect();
         if let Some(table) = &self.spectrum {
             if let Some(p) = &a.spectrum {
-                write_spectrum(p, table, &az, &el)?;
+                write_spectrum(p, table, &az, &el, loc.config().algorithm)?;
                 super::localize::note(a.quiet, &format!("spectrum written to {}", p.display()));
             }
             if let Some(p) = &a.plot {
@@ -542,11 +542,23 @@ impl Sinks {
     }
 }
 
-fn write_spectrum(path: &Path, table: &SpectrumTable, az: &[f64], el: &[f64]) -> anyhow::Result<()> {
+fn write_spectrum(
+    path: &Path,
+    table: &SpectrumTable,
+    az: &[f64],
+    el: &[f64],
+    algorithm: soundloc::Algorithm,
+) -> anyhow::Result<()> {
     let rows = table.frames.len();
     write_atomically(path, |w| write_npy_f32(w, rows, table.num_dirs, &table.db))?;
+    let what = if algorithm.is_music() {
+        "MUSIC spectrum"
+    } else {
+        "steered response power (SRP-PHAT)"
+    };
     let meta = serde_json::json!({
-        "description": "dB MUSIC spectrum 10*log10(P+1), rows = results, columns = directions",
+        "description": format!("dB {what} 10*log10(P+1), {} summed over the bins, rows = results, columns = directions", algorithm.name()),
+        "algorithm": algorithm.name(),
         "shape": [rows, table.num_dirs],
         "frames": table.frames,
         "times_s": table.times_s,
