@@ -43,7 +43,8 @@ impl PySpec {
 #[pyo3(signature = (*, tf=None, geometry=None, grid=None, algorithm=None, num_sources=2, max_peaks=-1,
     window=50, period=50, window_type="future", freq_range=None, nfft=512, hop=160, fs=None,
     noise=None, noise_range=None, noise_cm=None, noise_segments=None, noise_preceding=None,
-    track=false, tracker_thresh_db=0.0, device="auto", precision="f32", channels=None,
+    track=false, tracker_thresh_db=0.0, tracker_pause_length=None, tracker_min_src_interval_deg=None,
+    tracker_min_id=None, preroll=0, device="auto", precision="f32", channels=None,
     input_channels=None, spectrum=true, grid_radius=1.0, speed_of_sound=343.0, channels_first=false,
     subspace_dim=None, normalize_bins=false, refine=false, subspace_tracking=false, resample=false,
     diagonal_loading=0.0))]
@@ -69,6 +70,10 @@ pub(crate) fn spec(
     noise_preceding: Option<(usize, usize)>,
     track: bool,
     tracker_thresh_db: f64,
+    tracker_pause_length: Option<f64>,
+    tracker_min_src_interval_deg: Option<f64>,
+    tracker_min_id: Option<i64>,
+    preroll: usize,
     device: &str,
     precision: &str,
     channels: Option<Vec<usize>>,
@@ -168,13 +173,25 @@ pub(crate) fn spec(
         (None, Some((frames, gap))) => NoiseUpdate::Preceding { frames, gap },
         (None, None) => NoiseUpdate::Fixed,
     };
-    spec.tracking = track.then(|| TrackingSpec {
-        tracker: soundloc::tracking::TrackerConfig {
-            thresh_db: tracker_thresh_db,
-            ..Default::default()
-        },
-        preroll: 0,
-    });
+    let given = tracker_pause_length.is_some()
+        || tracker_min_src_interval_deg.is_some()
+        || tracker_min_id.is_some()
+        || preroll > 0
+        || tracker_thresh_db != 0.0;
+    if given && !track {
+        return Err(PyValueError::new_err(
+            "tracker_* and preroll set the tracker: give track=True too",
+        ));
+    }
+    let d = soundloc::tracking::TrackerConfig::default();
+    let tracker = soundloc::tracking::TrackerConfig {
+        thresh_db: tracker_thresh_db,
+        pause_length: tracker_pause_length.unwrap_or(d.pause_length),
+        min_src_interval_deg: tracker_min_src_interval_deg.unwrap_or(d.min_src_interval_deg),
+        min_id: tracker_min_id.unwrap_or(d.min_id),
+    };
+    tracker.validate().map_err(err)?;
+    spec.tracking = track.then_some(TrackingSpec { tracker, preroll });
     spec.device = parse::<DeviceChoice>("device", device)?;
     spec.precision = parse::<Precision>("precision", precision)?;
     spec.spectrum = spectrum;

@@ -37,6 +37,36 @@ def scene(seconds=2.0, seed=1, snr_db=20.0, fs=FS):
     return np.clip(np.round(x), -32768, 32767).astype(np.int16)
 
 
+def test_tracker_options_equal_the_cli(tmp_path):
+    """The tracker's options from Python give what the CLI's flags give (ids, preroll)."""
+    x = scene(seconds=2.0, seed=7)
+    wav = tmp_path / "rec.wav"
+    write_wav(wav, x)
+    geo = tmp_path / "array.toml"
+    geo.write_text("mics = [" + ", ".join("[%r, %r, %r]" % tuple(float(v) for v in m) for m in MICS) + "]\n")
+    out = subprocess.run(
+        [str(cli()), "localize", str(wav), "--geometry", str(geo), "--grid", "ring:5", "--device", "cpu", "-q",
+         "--period", "10", "--track", "--thresh", "3", "--pause-length", "300", "--min-src-interval", "15",
+         "--min-id", "7", "--preroll", "20"],
+        check=True, capture_output=True, text=True,
+    ).stdout
+    lines = [json.loads(l) for l in out.splitlines()]
+    r = localizer(period=10, track=True, tracker_thresh_db=3.0, tracker_pause_length=300.0,
+                  tracker_min_src_interval_deg=15.0, tracker_min_id=7, preroll=20).localize(x, FS)
+    assert len(lines) == len(r) > 0
+    ids = [[s["id"] for s in l["sources"]] for l in lines]
+    assert min(i for row in ids for i in row) == 7
+    for i, l in enumerate(lines):
+        assert l["frame"] == r.frames[i]
+        assert [s["id"] for s in l["sources"]] == [int(v) for v in r.ids[i][: len(l["sources"])]]
+    with pytest.raises(ValueError, match="track=True"):
+        localizer(preroll=10)
+    with pytest.raises(ValueError, match="MIN_ID"):
+        localizer(track=True, tracker_min_id=2**31)
+    with pytest.raises(TypeError, match=r"Localizer\(\) got an unexpected keyword argument 'thresh'"):
+        localizer(track=True, thresh=25)
+
+
 def angle(a, b):
     return abs((a - b + 180) % 360 - 180)
 

@@ -30,7 +30,11 @@ Arguments (HARK LocalizeMUSIC name / pyroomacoustics name):
         hop (ADVANCE).
     noise: (samples, channels) noise-only array; noise_range: (t0, t1) seconds of the input;
         noise_cm: HARK noise-CM file; noise_segments / noise_preceding: online K updates.
-    track: SourceTracker ids; device: "auto"|"cpu"|"cuda"; precision: "f32"|"f64".
+    track: SourceTracker ids, with tracker_thresh_db (THRESH), tracker_pause_length
+        (PAUSE_LENGTH, frames), tracker_min_src_interval_deg (MIN_SRC_INTERVAL), tracker_min_id
+        (MIN_ID) and preroll (SourceIntervalExtender's PREROLL_LENGTH, frames; delays results);
+        as the CLI's --thresh, --pause-length, --min-src-interval, --min-id, --preroll.
+    device: "auto"|"cpu"|"cuda"; precision: "f32"|"f64".
     channels (TF_CHANNEL_SELECTION), input_channels (ChannelSelector); diagonal_loading: K + δ·(tr K / M)·I
         (a K that is not positive definite is otherwise an error).
     channels_first: arrays are (channels, samples) instead of (samples, channels).
@@ -155,6 +159,9 @@ def _spec_of(kwargs):
     # A negative count or index is a bad value, not a numeric overflow.
     try:
         return _spec(**kwargs)
+    except TypeError as e:
+        # The binding's keyword function is an implementation detail: name the class.
+        raise TypeError(str(e).replace("spec()", "Localizer()")) from None
     except OverflowError as e:
         bad = [k for k, v in kwargs.items()
                if (isinstance(v, int) and not isinstance(v, bool) and v < 0)
