@@ -362,6 +362,33 @@ fn bench_refuses_sizes_it_cannot_build() {
 }
 
 #[test]
+fn demo_refuses_an_snr_it_cannot_render() {
+    for snr in ["200", "nan", "-1e6"] {
+        let o = bin().args(["demo", "--snr", snr]).output().unwrap();
+        assert_clean_failure(&o, &["--snr", "between -60 and 60 dB"]);
+    }
+}
+
+/// An input that ends before its first byte (an empty pipe, a peer that hangs up at
+/// once) says so, rather than calling itself an empty file.
+#[test]
+fn an_empty_stream_says_no_data() {
+    let geo = tmp("empty-stream.toml");
+    std::fs::write(
+        &geo,
+        "mics = [[0.05, 0, 0], [-0.05, 0, 0], [0, 0.05, 0], [0, -0.05, 0]]\n",
+    )
+    .unwrap();
+    let o = bin()
+        .args(["localize", "-", "--grid", "ring:5", "--geometry"])
+        .arg(&geo)
+        .stdin(std::process::Stdio::null())
+        .output()
+        .unwrap();
+    assert_clean_failure(&o, &["no data: the input ended before its first byte"]);
+}
+
+#[test]
 fn cuda_without_a_gpu_is_a_clear_error() {
     let o = bin()
         .args([

@@ -55,6 +55,11 @@ def test_group_refuses_what_it_cannot_share():
         g.push_all([scene(seconds=0.1)])
     with pytest.raises(ValueError, match="no stream 5"):
         g.push(5, scene(seconds=0.1))
+    for bad in (-1, 1.5):
+        with pytest.raises(ValueError, match=f"no stream {bad}"):
+            g.push(bad, scene(seconds=0.1))
+        with pytest.raises(ValueError, match=f"no stream {bad}"):
+            g.flush(bad)
     with pytest.raises(ValueError, match="channels"):
         g.push_all([scene(seconds=0.1), scene(seconds=0.1)[:, :4]])
 

@@ -42,6 +42,10 @@ pub struct Args {
 }
 
 pub fn run(a: Args) -> anyhow::Result<ExitCode> {
+    // Beyond this the talkers or the rotors vanish below f32 rounding of the other.
+    if !(a.snr.is_finite() && a.snr.abs() <= 60.0) {
+        anyhow::bail!("--snr {}: must be between -60 and 60 dB", a.snr);
+    }
     let mut scenes: Vec<DemoScene> = Vec::new();
     if matches!(a.scene, SceneArg::Ring8 | SceneArg::All) {
         scenes.push(ring8_drone(a.snr, a.seed)?);

@@ -239,7 +239,7 @@ class StreamGroup:
 
     def push(self, i, block, channels_first=None) -> None:
         """Queue a block into stream ``i``; its windows run at the next run/push_all/flush."""
-        self._n.push(i, block, channels_first=channels_first)
+        self._n.push(self._index(i), block, channels_first=channels_first)
 
     def run(self) -> List[Results]:
         """Run every waiting window; one :class:`Results` per stream."""
@@ -251,11 +251,16 @@ class StreamGroup:
 
     def flush(self, i) -> Results:
         """End stream ``i``'s input: its last results."""
-        return Results(**self._n.flush(i))
+        return Results(**self._n.flush(self._index(i)))
 
     def reset(self, i) -> None:
         """Start stream ``i`` again."""
-        self._n.reset(i)
+        self._n.reset(self._index(i))
+
+    def _index(self, i):
+        if int(i) != i or not 0 <= int(i) < len(self):
+            raise ValueError(f"no stream {i} in a group of {len(self)}")
+        return int(i)
 
     def directions(self) -> dict:
         """The grid: unit vectors (D, 3), azimuth_deg (D,), elevation_deg (D,)."""

@@ -72,7 +72,12 @@ fn open_reader<R: Read + Send + 'static>(
     let mut magic = [0u8; 4];
     let got = read_full(&mut r, &mut magic).map_err(|e| Error::io(name, e))?;
     if got == 0 {
-        return Err(Error::format(name, "empty file"));
+        let what = if greedy {
+            "empty file"
+        } else {
+            "no data: the input ended before its first byte"
+        };
+        return Err(Error::format(name, what));
     }
     let r = std::io::Cursor::new(magic[..got].to_vec()).chain(r);
     if got == 4 && &magic == b"RIFF" {
