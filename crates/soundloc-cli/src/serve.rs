@@ -8,14 +8,15 @@
 //! counted (the page shows the count), and a client whose socket accepts nothing for
 //! [`WRITE_TIMEOUT`] is disconnected. A page that connects late first receives the
 //! `hello` and the last [`HISTORY`] results and spectra, so a finished file can still be
-//! reviewed.
+//! reviewed. At most [`MAX_CLIENTS`] connections are served at once (one thread each);
+//! more are answered 503 and closed.
 
 use anyhow::Context;
 use soundloc::output::live;
 use std::collections::VecDeque;
 use std::io::{Read, Write};
 use std::net::{SocketAddr, TcpListener, TcpStream};
-use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
 use std::sync::mpsc::{sync_channel, Receiver, SyncSender, TrySendError};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
@@ -28,6 +29,8 @@ const SCRIPT: &str = include_str!("../assets/view.js");
 pub const CLIENT_QUEUE: usize = 512;
 /// Results (with their spectra) replayed to a page that connects late.
 pub const HISTORY: usize = 450;
+/// Connections served at once (pages, scripts, WebSockets): one thread each.
+pub const MAX_CLIENTS: usize = 64;
 /// A client socket that accepts nothing for this long is disconnected.
 pub const WRITE_TIMEOUT: Duration = Duration::from_secs(5);
 /// Longest HTTP request head read.
@@ -85,11 +88,26 @@ impl LiveServer {
         std::thread::Builder::new()
             .name("soundloc view".into())
             .spawn(move || {
-                for conn in l.incoming().flatten() {
-                    let s = s.clone();
-                    let _ = std::thread::Builder::new()
+                let active = Arc::new(AtomicUsize::new(0));
+                for mut conn in l.incoming().flatten() {
+                    if active.load(Ordering::Acquire) >= MAX_CLIENTS {
+                        let _ = conn.set_write_timeout(Some(Duration::from_secs(1)));
+                        let _ = conn.write_all(
+                            b"HTTP/1.1 503 Service Unavailable\r\nContent-Length: 0\r\nConnection: close\r\n\r\n",
+                        );
+                        continue;
+                    }
+                    active.fetch_add(1, Ordering::AcqRel);
+                    let (s, mine) = (s.clone(), active.clone());
+                    let spawned = std::thread::Builder::new()
                         .name("soundloc view client".into())
-                        .spawn(move || handle(conn, &s));
+                        .spawn(move || {
+                            handle(conn, &s);
+                            mine.fetch_sub(1, Ordering::AcqRel);
+                        });
+                    if spawned.is_err() {
+                        active.fetch_sub(1, Ordering::AcqRel);
+                    }
                 }
             })?;
         Ok(LiveServer {
@@ -263,4 +281,38 @@ fn websocket(conn: TcpStream, state: &Mutex<State>) {
         }
     }
     let _ = ws.close(None);
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Idle connections beyond [`MAX_CLIENTS`] get a 503 at once instead of a thread each.
+    #[test]
+    fn connections_beyond_the_cap_are_refused() {
+        let v = LiveServer::bind("127.0.0.1:0").unwrap();
+        let idle: Vec<TcpStream> = (0..MAX_CLIENTS)
+            .map(|_| TcpStream::connect(v.local_addr()).unwrap())
+            .collect();
+        let mut extra = TcpStream::connect(v.local_addr()).unwrap();
+        extra.set_read_timeout(Some(Duration::from_secs(4))).unwrap();
+        let mut got = String::new();
+        let _ = extra.read_to_string(&mut got);
+        assert!(got.starts_with("HTTP/1.1 503"), "{got:?}");
+        // A served client that leaves frees its place.
+        drop(idle);
+        let t = Instant::now();
+        loop {
+            let mut c = TcpStream::connect(v.local_addr()).unwrap();
+            c.set_read_timeout(Some(Duration::from_secs(4))).unwrap();
+            c.write_all(b"GET / HTTP/1.1\r\nHost: x\r\n\r\n").unwrap();
+            let mut page = String::new();
+            let _ = c.read_to_string(&mut page);
+            if page.starts_with("HTTP/1.1 200") {
+                break;
+            }
+            assert!(t.elapsed() < Duration::from_secs(20), "{page:?}");
+            std::thread::sleep(Duration::from_millis(100));
+        }
+    }
 }
