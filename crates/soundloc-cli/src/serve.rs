@@ -102,8 +102,15 @@ impl LiveServer {
                     let spawned = std::thread::Builder::new()
                         .name("soundloc view client".into())
                         .spawn(move || {
+                            // The place is given back however the client ends (a panic too).
+                            struct Place(Arc<AtomicUsize>);
+                            impl Drop for Place {
+                                fn drop(&mut self) {
+                                    self.0.fetch_sub(1, Ordering::AcqRel);
+                                }
+                            }
+                            let _place = Place(mine);
                             handle(conn, &s);
-                            mine.fetch_sub(1, Ordering::AcqRel);
                         });
                     if spawned.is_err() {
                         active.fetch_sub(1, Ordering::AcqRel);

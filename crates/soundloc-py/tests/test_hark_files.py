@@ -103,8 +103,15 @@ def test_write_tf_noise_cm_and_source_log(tmp_path):
     # What the readers would refuse is not written.
     kn = k.copy()
     kn[3, 1, 2] = np.nan
-    with pytest.raises(ValueError, match=r"bin 3, entry \(1, 2\) is not finite"):
+    with pytest.raises(ValueError, match=r"K at bin 3: K\(1, 2\) = NaN.* is not finite"):
         soundloc.write_noise_cm(tmp_path / "nan.zip", kn)
+    kh = k.copy()
+    kh[5, 0, 1] += 1.0  # no longer Hermitian
+    with pytest.raises(ValueError, match="K at bin 5: not Hermitian"):
+        soundloc.write_noise_cm(tmp_path / "kh.zip", kh)
+    with pytest.raises(ValueError, match="beyond single precision"):
+        soundloc.write_noise_cm(tmp_path / "big.zip", k * 1e38)
+    assert not any((tmp_path / f).exists() for f in ("kh.zip", "big.zip"))
     with pytest.raises(ValueError, match="sampling rate"):
         soundloc.write_tf(tmp_path / "fs0.zip", tf, d, MICS, 512, 0)
     assert not (tmp_path / "nan.zip").exists() and not (tmp_path / "fs0.zip").exists()

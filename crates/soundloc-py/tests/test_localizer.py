@@ -224,10 +224,12 @@ def test_bad_input_raises_the_right_exception(tmp_path):
     with pytest.raises(ValueError, match="no array"):
         soundloc.Localizer()
     # Negative counts and indices are bad values (not OverflowError).
-    with pytest.raises(ValueError, match="num_sources: must not be negative"):
+    with pytest.raises(ValueError, match="num_sources: must be a non-negative integer"):
         localizer(num_sources=-1)
-    with pytest.raises(ValueError, match="channels: must not be negative"):
-        localizer(channels=[0, -1])
+    with pytest.raises(ValueError, match="^channels: must be a non-negative integer"):
+        localizer(channels=[0, -1], max_peaks=-1)
+    with pytest.raises(ValueError, match="^nfft: must be a non-negative integer"):
+        localizer(nfft=2 ** 64)
     with pytest.raises(ValueError, match="streams must be at least 1"):
         soundloc.StreamGroup(0, geometry=MICS, grid="ring:5", device="cpu")
 

@@ -136,7 +136,7 @@ impl TrackerConfig {
             )));
         }
         // Ids go out as 32-bit integers (HARK's streams and logs, ODAS): room for 10⁹ more.
-        if self.min_id.abs() > MAX_MIN_ID {
+        if self.min_id.unsigned_abs() > MAX_MIN_ID as u64 {
             return Err(Error::Config(format!(
                 "tracker MIN_ID must be within ±{MAX_MIN_ID} (ids are 32-bit integers in HARK's and ODAS's outputs), got {}",
                 self.min_id

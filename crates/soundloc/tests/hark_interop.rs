@@ -284,7 +284,7 @@ fn noise_cm_zip_errors_name_the_file() {
     nan.data[4 + 2 + 1].re = f64::NAN; // M = 2: bin 1, row 1, column 1
     let msg = err_text(nan.write_zip(&d.join("nan.zip")));
     assert!(
-        msg.contains("nan.zip") && msg.contains("bin 1, entry (1, 1) is not finite"),
+        msg.contains("nan.zip") && msg.contains("K at bin 1: K(1, 1) = NaN") && msg.contains("is not finite"),
         "{msg}"
     );
     let msg = err_text(nan.write_text_pair(&d.join("nan_r"), &d.join("nan_i")));

@@ -434,7 +434,7 @@ fn tracker_config_defaults_and_validation() {
     };
     assert!(bad.validate().unwrap_err().to_string().contains("THRESH"));
     // Ids leave as 32-bit integers: a MIN_ID near i32's or i64's end is refused up front.
-    for min_id in [2_147_483_647, i64::MAX, -2_000_000_000] {
+    for min_id in [2_147_483_647, i64::MAX, i64::MIN, -2_000_000_000] {
         let bad = TrackerConfig { min_id, ..c };
         assert!(
             bad.validate().unwrap_err().to_string().contains("MIN_ID"),

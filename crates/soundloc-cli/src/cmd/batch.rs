@@ -138,8 +138,8 @@ pub fn run(mut a: Args) -> anyhow::Result<ExitCode> {
     let quiet = a.run.quiet;
     let (mut done, mut skipped, mut failed) = (0usize, 0usize, Vec::new());
     for (p, out) in jobs {
-        // Only a result file counts as done: a folder (or anything else) at its name is an
-        // error of that recording's, as writing the result there would be.
+        // Only a result file counts as done: a folder at its name is an error of that
+        // recording's, as writing the result there would be.
         if out.is_dir() {
             eprintln!(
                 "soundloc: error: {}: the result path {} is a directory",

@@ -65,8 +65,9 @@ pub struct InputArgs {
     #[arg(long, requires = "raw")]
     pub rate: Option<u32>,
     /// Live input: audio buffered while the localizer is behind, seconds; beyond it whole
-    /// blocks are dropped (and counted). A pipe or socket more than a quarter of this ahead
-    /// of real time (a file being piped) is read like a file instead: nothing dropped.
+    /// blocks are dropped (and counted). A pipe or socket more than a quarter of this (and
+    /// at least 1 s) ahead of real time (a file being piped) is read like a file instead:
+    /// nothing dropped.
     #[arg(long, default_value_t = 10.0)]
     pub max_buffer: f64,
     /// Read a file at real-time speed (as if it were being recorded), e.g. to review it
@@ -194,7 +195,8 @@ pub fn catch_up(rx: &Receiver<Msg>, data: &mut Vec<f32>, max: usize, held: &mut 
 const FILE_BLOCK: usize = 1 << 15;
 
 /// Start reading `source` on its own thread. Live inputs drop blocks beyond
-/// `max_buffer_s` seconds of queued audio; `realtime` paces a file at real-time speed.
+/// `max_buffer_s` seconds of queued audio (unless they turn out to arrive faster than real
+/// time: [`faster_than_real_time`]); `realtime` paces a file at real-time speed.
 /// Ctrl-C ends the input of live, paced or `serving` sessions (see [`stop_on_ctrl_c`]).
 pub fn spawn_reader(
     mut source: Box<dyn AudioSource>,
@@ -228,17 +230,22 @@ pub fn spawn_reader(
 }
 
 /// Whether a live input that has delivered `frames` frames at `rate_hz` in `elapsed` is
-/// ahead of real time by more than a quarter of the queue (`max_buffer_s`): no capture
-/// gets that far ahead (a pipe holds a fraction of a second), so the producer is reading
-/// a file at least ≈ 4/3 of real time, and waiting for the localizer loses nothing.
+/// ahead of real time by more than [`AHEAD_S`] or a quarter of the queue (`max_buffer_s`),
+/// whichever is more: a capture is ahead only by what sat in its pipe or socket when the
+/// run began (a fraction of a second), so the producer is delivering faster than real time
+/// (a file being piped), and waiting for the localizer loses nothing. (With a queue under
+/// 4 s such a producer may be dropped from before it gets that far ahead.)
 pub fn faster_than_real_time(
     frames: u64,
     rate_hz: u32,
     elapsed: std::time::Duration,
     max_buffer_s: f64,
 ) -> bool {
-    frames as f64 / rate_hz.max(1) as f64 - elapsed.as_secs_f64() > 0.25 * max_buffer_s
+    frames as f64 / rate_hz.max(1) as f64 - elapsed.as_secs_f64() > (0.25 * max_buffer_s).max(AHEAD_S)
 }
+
+/// The least lead over real time that marks a live input as a file in disguise, seconds.
+pub const AHEAD_S: f64 = 1.0;
 
 static INTERRUPTED: AtomicBool = AtomicBool::new(false);
 
@@ -413,5 +420,11 @@ mod tests {
             Duration::from_secs(10),
             8.0
         ));
+        // A small queue: still a second at least (a capture's start-up backlog of 0.1 s
+        // with --max-buffer 0.25 stays live).
+        let ms = Duration::from_millis;
+        assert!(!faster_than_real_time(s(0.35), 16000, ms(250), 0.25));
+        assert!(!faster_than_real_time(s(1.0), 16000, ms(1), 0.25));
+        assert!(faster_than_real_time(s(1.1), 16000, ms(50), 0.25));
     }
 }

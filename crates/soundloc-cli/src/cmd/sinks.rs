@@ -255,7 +255,7 @@ impl Sinks {
                 a.spectrum.as_deref(),
                 "--spectrum (two files: the .npy and its .json)",
             ),
-            (a.plot.as_deref(), "--plot (a PNG written by name)"),
+            (a.plot.as_deref(), "--plot (an image written by name)"),
         ] {
             if let Some(p) = p.filter(|p| std::fs::metadata(p).is_ok_and(|m| !m.is_file())) {
                 bail!(

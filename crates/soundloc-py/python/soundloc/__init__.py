@@ -155,6 +155,11 @@ class Results:
         return pd.DataFrame(rows)
 
 
+# Arguments that are counts or indices (unsigned in the library).
+_COUNTS = {"num_sources", "window", "period", "nfft", "hop", "channels", "input_channels",
+           "subspace_dim", "preroll", "noise_preceding"}
+
+
 def _spec_of(kwargs):
     # A negative count or index is a bad value, not a numeric overflow.
     try:
@@ -163,10 +168,13 @@ def _spec_of(kwargs):
         # The binding's keyword function is an implementation detail: name the class.
         raise TypeError(str(e).replace("spec()", "Localizer()")) from None
     except OverflowError as e:
-        bad = [k for k, v in kwargs.items()
-               if (isinstance(v, int) and not isinstance(v, bool) and v < 0)
-               or (isinstance(v, (list, tuple)) and any(isinstance(x, int) and x < 0 for x in v))]
-        raise ValueError(f"{', '.join(bad) or 'an argument'}: must not be negative ({e})") from None
+        def out_of_range(v):
+            if isinstance(v, (list, tuple)):
+                return any(out_of_range(x) for x in v)
+            return isinstance(v, int) and not isinstance(v, bool) and not 0 <= v < 2 ** 63
+        bad = [k for k, v in kwargs.items() if k in _COUNTS and out_of_range(v)]
+        what = ", ".join(bad) or "a count or index"
+        raise ValueError(f"{what}: must be a non-negative integer in range ({e})") from None
 
 
 class Localizer:

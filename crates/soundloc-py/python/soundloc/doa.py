@@ -65,7 +65,7 @@ class _DOA:
             raise ValueError("The dimension must be 2 or 3.")
         if nfft % 2:
             raise ValueError("Signal length must be even.")
-        if not (np.isfinite(fs) and fs > 0):
+        if not (np.isfinite(fs) and int(fs) >= 1):
             raise ValueError(f"fs must be a positive sampling rate in Hz, got {fs}")
         if int(nfft) < 4:
             raise ValueError(f"nfft must be an even FFT length of at least 4, got {nfft}")

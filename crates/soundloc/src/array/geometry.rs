@@ -51,8 +51,8 @@ impl Geometry {
         Ok(g)
     }
 
-    /// Check positions: at least one mic, all finite and within [`MAX_COORD_M`] of the
-    /// origin, no two closer than 1 µm.
+    /// Check positions: at least one mic, every coordinate finite and within
+    /// ±[`MAX_COORD_M`], no two closer than 1 µm.
     pub fn validate(&self, what: &Path) -> Result<()> {
         if self.mics.is_empty() {
             return Err(Error::format(what, "no microphones"));

@@ -90,6 +90,17 @@ impl Audio {
             return Err(Error::Config("channel selection is empty".into()));
         }
         let n = self.num_channels();
+        // One channel twice would make every correlation matrix singular.
+        if let Some((k, &c)) = indices
+            .iter()
+            .enumerate()
+            .find(|(k, c)| indices[..*k].contains(c))
+        {
+            return Err(Error::Mismatch(format!(
+                "channel {c} is selected twice (positions {} and {k} of the selection)",
+                indices.iter().position(|&x| x == c).unwrap_or(0)
+            )));
+        }
         let channels = indices
             .iter()
             .map(|&i| {

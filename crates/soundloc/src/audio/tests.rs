@@ -287,6 +287,11 @@ fn select_and_slice() {
     let e = a.select_channels(&[0, 3]).unwrap_err().to_string();
     assert!(e.contains("channel 3") && e.contains("3 channels"), "{e}");
     assert!(a.select_channels(&[]).is_err());
+    let e = a.select_channels(&[1, 0, 1]).unwrap_err().to_string();
+    assert!(
+        e.contains("channel 1 is selected twice (positions 0 and 2"),
+        "{e}"
+    );
     let t = a.slice_seconds(0.5, 1.2).unwrap();
     assert_eq!(t.num_samples(), 7);
     assert_eq!(t.channels[0][0], 5.0);

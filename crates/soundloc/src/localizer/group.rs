@@ -81,12 +81,22 @@ impl LocalizerGroup {
         let cache = spec.tf_cache.dir();
         let inner = match spec.precision {
             Precision::F32 => {
-                let plan = Arc::new(plan_for::<f32>(&p.config, &p.tf, k.as_ref(), spec)?);
+                let plan = Arc::new(plan_for::<f32>(
+                    &p.config,
+                    &p.tf,
+                    k.as_ref(),
+                    p.noise_file.as_deref(),
+                )?);
                 let backend = make_backend(plan.clone(), spec.device, cache.as_deref())?;
                 Inner::F32(StreamGroup::with_backend(plan, backend))
             }
             Precision::F64 => {
-                let plan = Arc::new(plan_for::<f64>(&p.config, &p.tf, k.as_ref(), spec)?);
+                let plan = Arc::new(plan_for::<f64>(
+                    &p.config,
+                    &p.tf,
+                    k.as_ref(),
+                    p.noise_file.as_deref(),
+                )?);
                 let backend = make_backend(plan.clone(), spec.device, cache.as_deref())?;
                 Inner::F64(StreamGroup::with_backend(plan, backend))
             }

@@ -357,8 +357,20 @@ impl Localizer {
         let p = prepare(spec, tf, noise)?;
         let grid = p.tf.grid.clone();
         let inner = match spec.precision {
-            Precision::F32 => Inner::F32(engine::<f32>(&p.config, &p.tf, spec, p.options)?),
-            Precision::F64 => Inner::F64(engine::<f64>(&p.config, &p.tf, spec, p.options)?),
+            Precision::F32 => Inner::F32(engine::<f32>(
+                &p.config,
+                &p.tf,
+                spec,
+                p.options,
+                p.noise_file.as_deref(),
+            )?),
+            Precision::F64 => Inner::F64(engine::<f64>(
+                &p.config,
+                &p.tf,
+                spec,
+                p.options,
+                p.noise_file.as_deref(),
+            )?),
         };
         Ok(Localizer {
             inner,

@@ -24,6 +24,8 @@ pub(crate) struct Prepared {
     pub tf: TransferFunctions,
     pub options: StreamOptions,
     pub notes: Vec<String>,
+    /// The file K was read from (a noise recording or correlation file), for messages.
+    pub noise_file: Option<std::path::PathBuf>,
 }
 
 /// Resolve `spec` against transfer functions of all microphones (before
@@ -52,6 +54,14 @@ pub(crate) fn prepare(
         mics: tf.num_mics,
     };
     let mut notes: Vec<String> = note.into_iter().collect();
+    let noise_file = match (&noise, &spec.noise) {
+        (None, NoiseSource::Recording { path } | NoiseSource::CorrelationFile { path })
+            if algorithm.uses_noise() =>
+        {
+            Some(path.clone())
+        }
+        _ => None,
+    };
     let initial_noise = match (noise, &spec.noise) {
         _ if !algorithm.uses_noise() => InitialNoise::Given(None),
         (Some(k), _) => InitialNoise::Given(Some(k)),
@@ -106,6 +116,7 @@ pub(crate) fn prepare(
         tf,
         options,
         notes,
+        noise_file,
     })
 }
 
@@ -114,13 +125,14 @@ pub(crate) fn engine<T: Real>(
     tf: &TransferFunctions,
     spec: &LocalizerSpec,
     options: StreamOptions,
+    noise_file: Option<&Path>,
 ) -> Result<Engine<T>> {
     let device = spec.device;
     let k = match &options.initial_noise {
         InitialNoise::Given(k) => k.as_ref(),
         InitialNoise::Range(..) => None,
     };
-    let plan = Arc::new(plan_for::<T>(config, tf, k, spec)?);
+    let plan = Arc::new(plan_for::<T>(config, tf, k, noise_file)?);
     tracing::debug!(
         "plan ready: {} bins, {} directions",
         plan.num_bins(),
@@ -134,21 +146,21 @@ pub(crate) fn engine<T: Real>(
     Ok(e)
 }
 
-/// The plan for `config`, `tf` and K `k`; where K comes from a file of `spec`'s (a noise
+/// The plan for `config`, `tf` and K `k`; where K was read from `noise_file` (a noise
 /// recording or correlation file), an error with K names that file.
 pub(crate) fn plan_for<T: Real>(
     config: &LocalizeConfig,
     tf: &TransferFunctions,
     k: Option<&NoiseMatrices>,
-    spec: &LocalizerSpec,
+    noise_file: Option<&Path>,
 ) -> Result<Plan<T>> {
-    Plan::<T>::new(config, tf, k).map_err(|e| match (e, &spec.noise) {
+    Plan::<T>::new(config, tf, k).map_err(|e| match (e, noise_file) {
         (
             Error::Numerical {
                 stage: "noise",
                 message,
             },
-            NoiseSource::Recording { path } | NoiseSource::CorrelationFile { path },
+            Some(path),
         ) if k.is_some() => Error::Numerical {
             stage: "noise",
             message: format!("{}: {message}", path.display()),

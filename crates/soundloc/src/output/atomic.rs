@@ -372,6 +372,7 @@ mod tests {
 
     /// `-o /dev/stdout | cat`, `-o >(wc -l)`: a magic link to an anonymous pipe, whose
     /// link text (`pipe:[N]`) names no file.
+    #[cfg(unix)]
     #[test]
     fn an_anonymous_pipe_through_proc_fd_is_written() {
         use std::io::Read;

@@ -235,22 +235,15 @@ impl NoiseCm {
                 self.num_mics
             )));
         }
-        // Only what the readers take back.
-        if let Some(i) = self
-            .data
-            .iter()
-            .position(|z| !(z.re.is_finite() && z.im.is_finite()))
-        {
-            let (b, r) = (
-                i / (self.num_mics * self.num_mics),
-                i % (self.num_mics * self.num_mics),
-            );
-            return Err(Error::Config(format!(
-                "{}: K at bin {b}, entry ({}, {}) is not finite",
-                path.display(),
-                r / self.num_mics,
-                r % self.num_mics
-            )));
+        Ok(())
+    }
+
+    /// Before writing: only what the readers take back (finite, Hermitian matrices).
+    fn check_values(&self, path: &Path) -> Result<()> {
+        let mm = self.num_mics * self.num_mics;
+        for (b, k) in self.data.chunks_exact(mm).enumerate() {
+            check_bin(k, self.num_mics)
+                .map_err(|e| Error::Config(format!("{}: K at bin {b}: {e}", path.display())))?;
         }
         Ok(())
     }

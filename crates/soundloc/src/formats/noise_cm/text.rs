@@ -55,6 +55,7 @@ impl NoiseCm {
     /// Writes the HARK ≤ 2.0 text pair (each file atomically).
     pub fn write_text_pair(&self, real: &Path, imag: &Path) -> Result<()> {
         self.validate_shape(real)?;
+        self.check_values(real)?;
         let part = |f: fn(&Complex<f64>) -> f64| {
             let mut s = String::new();
             for k in 0..self.num_bins() {

@@ -188,6 +188,20 @@ impl NoiseCm {
     /// Writes the HARK ≥ 2.1 zip (atomically; values rounded to f32).
     pub fn write_zip(&self, path: &Path) -> Result<()> {
         self.validate_shape(path)?;
+        self.check_values(path)?;
+        // The zip holds f32: a value beyond its range would be read back as infinite.
+        let big = |v: f64| v.abs() > f32::MAX as f64;
+        if let Some(i) = self.data.iter().position(|z| big(z.re) || big(z.im)) {
+            let mm = self.num_mics * self.num_mics;
+            return Err(Error::Config(format!(
+                "{}: K at bin {}, entry ({}, {}) = {} is beyond single precision (the zip holds f32): write the text pair",
+                path.display(),
+                i / mm,
+                (i % mm) / self.num_mics,
+                i % self.num_mics,
+                self.data[i]
+            )));
+        }
         hark_zip::write_zip_entries(path, &self.zip_entries()?)
     }
 }
