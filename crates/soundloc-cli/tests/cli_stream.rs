@@ -72,6 +72,23 @@ fn streaming_wav_header(channels: u16, rate: u32) -> Vec<u8> {
     h
 }
 
+/// The port a `tcp-listen:…:0` run says it waits on (read from its stderr).
+fn listening_port(err: &mut impl BufRead) -> u16 {
+    let mut line = String::new();
+    let t = Instant::now();
+    loop {
+        line.clear();
+        assert!(
+            err.read_line(&mut line).unwrap() > 0,
+            "soundloc exited before listening"
+        );
+        if let Some(p) = line.trim().strip_prefix("soundloc: waiting for a sender on tcp:") {
+            return p.rsplit(':').next().unwrap().parse::<u16>().unwrap();
+        }
+        assert!(t.elapsed() < Duration::from_secs(60));
+    }
+}
+
 /// Read stdout lines on a thread, with the time each arrived.
 fn lines_of(r: impl Read + Send + 'static) -> mpsc::Receiver<String> {
     let (tx, rx) = mpsc::channel();
@@ -225,19 +242,7 @@ fn tcp_listen_and_connect_equal_the_file_and_a_cut_frame_is_reported() {
         .spawn()
         .unwrap();
     let mut err = BufReader::new(child.stderr.take().unwrap());
-    let mut line = String::new();
-    let t = Instant::now();
-    let port = loop {
-        line.clear();
-        assert!(
-            err.read_line(&mut line).unwrap() > 0,
-            "soundloc exited before listening"
-        );
-        if let Some(p) = line.trim().strip_prefix("soundloc: waiting for a sender on tcp:") {
-            break p.rsplit(':').next().unwrap().parse::<u16>().unwrap();
-        }
-        assert!(t.elapsed() < Duration::from_secs(60));
-    };
+    let port = listening_port(&mut err);
     let mut s = TcpStream::connect(("127.0.0.1", port)).unwrap();
     s.write_all(&s16le(&audio, 0..audio.num_samples())).unwrap();
     s.write_all(&[1, 2, 3]).unwrap();
@@ -306,17 +311,7 @@ fn a_reset_connection_ends_the_input_and_keeps_the_outputs() {
         .spawn()
         .unwrap();
     let mut err = BufReader::new(child.stderr.take().unwrap());
-    let mut line = String::new();
-    let port = loop {
-        line.clear();
-        assert!(
-            err.read_line(&mut line).unwrap() > 0,
-            "soundloc exited before listening"
-        );
-        if let Some(p) = line.trim().strip_prefix("soundloc: waiting for a sender on tcp:") {
-            break p.rsplit(':').next().unwrap().parse::<u16>().unwrap();
-        }
-    };
+    let port = listening_port(&mut err);
     let mut s = TcpStream::connect(("127.0.0.1", port)).unwrap();
     s.write_all(&s16le(&audio, 0..audio.num_samples())).unwrap();
     // Let it all be read, then close with SO_LINGER 0: a reset instead of a close.

@@ -42,8 +42,7 @@ def test_tracker_options_equal_the_cli(tmp_path):
     x = scene(seconds=2.0, seed=7)
     wav = tmp_path / "rec.wav"
     write_wav(wav, x)
-    geo = tmp_path / "array.toml"
-    geo.write_text("mics = [" + ", ".join("[%r, %r, %r]" % tuple(float(v) for v in m) for m in MICS) + "]\n")
+    geo = write_geometry(tmp_path / "array.toml")
     out = subprocess.run(
         [str(cli()), "localize", str(wav), "--geometry", str(geo), "--grid", "ring:5", "--device", "cpu", "-q",
          "--period", "10", "--track", "--thresh", "3", "--pause-length", "300", "--min-src-interval", "15",
@@ -167,6 +166,12 @@ def write_wav(path, x):
         w.writeframes(x.astype("<i2").tobytes())
 
 
+def write_geometry(path):
+    """MICS as a geometry file for the CLI."""
+    path.write_text("mics = [" + ", ".join("[%r, %r, %r]" % tuple(float(v) for v in m) for m in MICS) + "]\n")
+    return path
+
+
 def cli():
     b = Path(os.environ.get("SOUNDLOC_BIN", ROOT / "target" / "release" / "soundloc"))
     if not b.exists():
@@ -178,8 +183,7 @@ def test_python_equals_the_cli(tmp_path):
     x = scene(seconds=2.0, seed=6)
     wav = tmp_path / "rec.wav"
     write_wav(wav, x)
-    geo = tmp_path / "array.toml"
-    geo.write_text("mics = [" + ", ".join("[%r, %r, %r]" % tuple(float(v) for v in m) for m in MICS) + "]\n")
+    geo = write_geometry(tmp_path / "array.toml")
     out = subprocess.run(
         [str(cli()), "localize", str(wav), "--geometry", str(geo), "--grid", "ring:5", "--device", "cpu", "-q",
          "--period", "20"],
