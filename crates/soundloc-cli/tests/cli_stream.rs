@@ -72,6 +72,28 @@ fn streaming_wav_header(channels: u16, rate: u32) -> Vec<u8> {
     h
 }
 
+/// `soundloc localize tcp-listen:127.0.0.1:0` on raw ring PCM (plus `extra`): the child,
+/// its stderr and the port it waits on.
+fn listener(
+    geo: &Path,
+    extra: &[&std::ffi::OsStr],
+) -> (std::process::Child, BufReader<std::process::ChildStderr>, u16) {
+    let mut child = bin()
+        .args(["localize", "tcp-listen:127.0.0.1:0"])
+        .args(RAW_S16_RING)
+        .arg("--geometry")
+        .arg(geo)
+        .args(&OPTS[..8])
+        .args(extra)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut err = BufReader::new(child.stderr.take().unwrap());
+    let port = listening_port(&mut err);
+    (child, err, port)
+}
+
 /// The port a `tcp-listen:…:0` run says it waits on (read from its stderr).
 fn listening_port(err: &mut impl BufRead) -> u16 {
     let mut line = String::new();
@@ -231,18 +253,7 @@ fn tcp_listen_and_connect_equal_the_file_and_a_cut_frame_is_reported() {
     let (audio, geo, wav) = scene();
     let want = from_file(&wav, &geo);
     // soundloc listens; the test sends raw PCM, then 3 stray bytes, and hangs up.
-    let mut child = bin()
-        .args(["localize", "tcp-listen:127.0.0.1:0"])
-        .args(RAW_S16_RING)
-        .arg("--geometry")
-        .arg(&geo)
-        .args(&OPTS[..8])
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    let mut err = BufReader::new(child.stderr.take().unwrap());
-    let port = listening_port(&mut err);
+    let (child, mut err, port) = listener(&geo, &[]);
     let mut s = TcpStream::connect(("127.0.0.1", port)).unwrap();
     s.write_all(&s16le(&audio, 0..audio.num_samples())).unwrap();
     s.write_all(&[1, 2, 3]).unwrap();
@@ -298,20 +309,7 @@ fn a_reset_connection_ends_the_input_and_keeps_the_outputs() {
     let want = from_file(&wav, &geo);
     let out = tmp("reset.jsonl");
     let _ = std::fs::remove_file(&out);
-    let mut child = bin()
-        .args(["localize", "tcp-listen:127.0.0.1:0"])
-        .args(RAW_S16_RING)
-        .arg("--geometry")
-        .arg(&geo)
-        .args(&OPTS[..8])
-        .arg("-o")
-        .arg(&out)
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    let mut err = BufReader::new(child.stderr.take().unwrap());
-    let port = listening_port(&mut err);
+    let (child, mut err, port) = listener(&geo, &["-o".as_ref(), out.as_os_str()]);
     let mut s = TcpStream::connect(("127.0.0.1", port)).unwrap();
     s.write_all(&s16le(&audio, 0..audio.num_samples())).unwrap();
     // Let it all be read, then close with SO_LINGER 0: a reset instead of a close.

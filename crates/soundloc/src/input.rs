@@ -222,15 +222,9 @@ impl ChannelMap {
                 )));
             }
             // One channel feeding two microphones makes every correlation matrix singular.
-            if let Some((i, &c)) = self
-                .input_channels
-                .iter()
-                .enumerate()
-                .find(|(i, c)| self.input_channels[..*i].contains(c))
-            {
+            if let Some((c, first, again)) = repeated(&self.input_channels) {
                 return Err(Error::Mismatch(format!(
-                    "input channel {c} is selected twice (positions {} and {i} of the input-channel list)",
-                    self.input_channels.iter().position(|x| *x == c).unwrap_or(0)
+                    "input channel {c} is selected twice (positions {first} and {again} of the input-channel list)"
                 )));
             }
             self.input_channels.clone()
@@ -257,6 +251,17 @@ impl ChannelMap {
         }
         Ok(idx)
     }
+}
+
+/// The first index of `indices` that repeats an earlier one: (index, its first position,
+/// the repeat's position).
+pub fn repeated(indices: &[usize]) -> Option<(usize, usize, usize)> {
+    indices.iter().enumerate().find_map(|(k, c)| {
+        indices[..k]
+            .iter()
+            .position(|x| x == c)
+            .map(|first| (*c, first, k))
+    })
 }
 
 #[cfg(test)]

@@ -301,17 +301,17 @@ impl TransferFunctions {
         if channels.is_empty() {
             return Err(Error::Config("TF_CHANNEL_SELECTION: no channels selected".into()));
         }
-        for (i, &c) in channels.iter().enumerate() {
+        if let Some((c, _, _)) = crate::input::repeated(channels) {
+            return Err(Error::Config(format!(
+                "TF_CHANNEL_SELECTION: channel {c} is selected twice"
+            )));
+        }
+        for &c in channels {
             if c >= self.num_mics {
                 return Err(Error::Config(format!(
                     "TF_CHANNEL_SELECTION: channel {c} is out of range: the transfer functions have {} microphones (0..={})",
                     self.num_mics,
                     self.num_mics - 1
-                )));
-            }
-            if channels[..i].contains(&c) {
-                return Err(Error::Config(format!(
-                    "TF_CHANNEL_SELECTION: channel {c} is selected twice"
                 )));
             }
         }

@@ -91,14 +91,9 @@ impl Audio {
         }
         let n = self.num_channels();
         // One channel twice would make every correlation matrix singular.
-        if let Some((k, &c)) = indices
-            .iter()
-            .enumerate()
-            .find(|(k, c)| indices[..*k].contains(c))
-        {
+        if let Some((c, first, again)) = crate::input::repeated(indices) {
             return Err(Error::Mismatch(format!(
-                "channel {c} is selected twice (positions {} and {k} of the selection)",
-                indices.iter().position(|&x| x == c).unwrap_or(0)
+                "channel {c} is selected twice (positions {first} and {again} of the selection)"
             )));
         }
         let channels = indices

@@ -118,22 +118,30 @@ impl<T: Real> StreamGroup<T> {
                 self.streams.len()
             )));
         }
-        // Every block is checked before any is taken: a rejected call leaves every stream
-        // as it was, and the error names the stream.
-        for (i, (s, b)) in self.streams.iter().zip(blocks).enumerate() {
-            s.check(b).map_err(|e| match e {
+        // Every block is checked (in parallel) before any is taken: a rejected call leaves
+        // every stream as it was, and the error names the first bad stream.
+        let checks: Vec<Result<_>> = self
+            .streams
+            .par_iter_mut() // (a stream is Send, not Sync)
+            .zip(blocks.par_iter())
+            .map(|(s, b)| s.check(b))
+            .collect();
+        let mut checked = Vec::with_capacity(blocks.len());
+        for (i, c) in checks.into_iter().enumerate() {
+            checked.push(c.map_err(|e| match e {
                 Error::Numerical { stage, message } => Error::Numerical {
                     stage,
                     message: format!("stream {i}: {message}"),
                 },
                 e => Error::Mismatch(format!("stream {i}: {e}")),
-            })?;
+            })?);
         }
         self.streams
             .par_iter_mut()
             .zip(blocks.par_iter())
+            .zip(checked.into_par_iter())
             .zip(outs.par_iter_mut())
-            .try_for_each(|((s, b), o)| s.push(*b, o))?;
+            .try_for_each(|(((s, b), (idx, len)), o)| s.take(*b, idx, len, o))?;
         self.run(outs)
     }
 

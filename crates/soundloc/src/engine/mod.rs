@@ -288,6 +288,17 @@ impl<T: Real> Engine<T> {
     /// Push a block of any length; results of windows it completes are appended to `out`.
     pub fn push(&mut self, block: Block<'_>, out: &mut Output) -> Result<()> {
         let (idx, len) = self.check(&block)?;
+        self.take(block, idx, len, out)
+    }
+
+    /// [`push`](Self::push) after [`check`](Self::check) said `idx`, `len` for `block`.
+    pub(crate) fn take(
+        &mut self,
+        block: Block<'_>,
+        idx: Arc<[usize]>,
+        len: usize,
+        out: &mut Output,
+    ) -> Result<()> {
         if self.map.is_none() {
             self.map = Some((block.channels(), idx.clone()));
         }
