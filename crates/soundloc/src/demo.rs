@@ -50,6 +50,41 @@ pub struct DemoScene {
     pub sample_rate_hz: u32,
     /// Render seed.
     pub seed: u64,
+    /// How the array as built differs from its model `geometry` (rendering uses it, the
+    /// transfer functions keep the model); `None`: a perfect array.
+    pub errors: Option<ArrayErrors>,
+}
+
+/// An array as built against its model: where its microphones really are and each
+/// channel's gain. Real arrays differ from their model (placement tolerance, capsule
+/// sensitivity ±1 dB, measured or geometric TFs that are not exact), and a simulation
+/// that renders with the very steering vectors it searches favours methods that lean
+/// on those vectors being exact (e.g. MUSIC with very few noise dimensions).
+#[derive(Debug, Clone)]
+pub struct ArrayErrors {
+    /// The microphones' true positions.
+    pub geometry: Geometry,
+    /// Each channel's linear gain.
+    pub gains: Vec<f64>,
+}
+
+impl ArrayErrors {
+    /// Positions moved by N(0, `position_std_m`) per axis, gains 10^(N(0, `gain_std_db`)/20).
+    pub fn random(model: &Geometry, position_std_m: f64, gain_std_db: f64, seed: u64) -> Self {
+        let mut g = crate::sim::Gauss::new(seed ^ 0xA77A_E770);
+        let mics = model
+            .mics
+            .iter()
+            .map(|p| p.map(|x| x + position_std_m * g.next()))
+            .collect();
+        let gains = (0..model.num_mics())
+            .map(|_| 10f64.powf(gain_std_db * g.next() / 20.0))
+            .collect();
+        ArrayErrors {
+            geometry: Geometry { mics },
+            gains,
+        }
+    }
 }
 
 const TALK_START_S: f64 = 1.0;
@@ -104,6 +139,7 @@ fn build(
         snr_db,
         sample_rate_hz: fs,
         seed,
+        errors: None,
     })
 }
 
@@ -169,13 +205,20 @@ pub fn sphere60_drone(snr_db: f64, grid_points: usize, seed: u64) -> Result<Demo
 impl DemoScene {
     /// Render the recording.
     pub fn render(&self) -> Audio {
-        render(
+        let geometry = self.errors.as_ref().map_or(&self.geometry, |e| &e.geometry);
+        let mut audio = render(
             &self.scene,
-            &self.geometry,
+            geometry,
             self.sample_rate_hz,
             self.duration_s,
             self.seed,
-        )
+        );
+        if let Some(e) = &self.errors {
+            for (ch, &g) in audio.channels.iter_mut().zip(&e.gains) {
+                ch.iter_mut().for_each(|x| *x = (*x as f64 * g) as f32);
+            }
+        }
+        audio
     }
 
     /// Free-field transfer functions for the bins `config` uses.

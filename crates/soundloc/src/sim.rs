@@ -50,6 +50,7 @@ mod tests;
 
 pub use room::{image_sources, Room, MAX_REFLECTION_ORDER};
 use room::{reflections_response, EXACT_IMAGES_MAX};
+pub(crate) use signals::Gauss;
 
 use crate::array::Geometry;
 use crate::audio::Audio;

@@ -462,6 +462,7 @@ fn changing_drone(snr_db: f64, seed: u64) -> DemoScene {
         snr_db,
         sample_rate_hz: FS,
         seed,
+        errors: None,
     }
 }
 

@@ -99,9 +99,33 @@ pub struct Args {
     /// With --accuracy: only the conditions with at most this SNR (dB).
     #[arg(long, allow_negative_numbers = true)]
     pub max_snr: Option<f64>,
+    /// With --accuracy: only the conditions with at least this SNR (dB).
+    #[arg(long, allow_negative_numbers = true)]
+    pub min_snr: Option<f64>,
     /// With --accuracy: only the variants whose name contains this text (repeatable).
     #[arg(long)]
     pub variant: Vec<String>,
+    /// With --accuracy: what else sounds besides the talkers — drone rotors 25 cm from
+    /// the array (the GEVD family, K from the first second), or broadband sources spread
+    /// over the room (the algorithms that need no noise recording).
+    #[arg(long, value_enum, default_value = "drone")]
+    pub scene: SceneArg,
+    /// With --accuracy: render with an array that differs from its model, as a real array
+    /// differs from its geometry or measured TFs: each microphone's position off by this
+    /// much per axis (standard deviation, mm) ...
+    #[arg(long, default_value_t = 0.0)]
+    pub position_error_mm: f64,
+    /// ... and each channel's gain by this much (standard deviation, dB).
+    #[arg(long, default_value_t = 0.0)]
+    pub gain_error_db: f64,
+}
+
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SceneArg {
+    /// Four rotors 0.25 m from the array.
+    Drone,
+    /// Six broadband sources spread over the room, no drone.
+    Room,
 }
 
 #[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
@@ -291,7 +315,9 @@ fn run_e2e(a: &Args, alg: AlgorithmArg) -> anyhow::Result<ExitCode> {
 }
 
 fn run_accuracy(a: &Args) -> anyhow::Result<ExitCode> {
-    use soundloc::bench::accuracy::{run, variants_for, StudyArray, TEST_SEED0};
+    use soundloc::bench::accuracy::{
+        run, variants_for, variants_without_noise, SceneKind, StudyArray, StudyNoise, TEST_SEED0,
+    };
     let array = match a.arrays.first() {
         Some(ArrayArg::Seed) => StudyArray::Sphere60,
         _ => StudyArray::Ring8,
@@ -302,8 +328,13 @@ fn run_accuracy(a: &Args) -> anyhow::Result<ExitCode> {
     };
     let period = if a.period == 1 { 25 } else { a.period };
     let max_snr = a.max_snr.unwrap_or(f64::INFINITY);
-    let only = move |c: &soundloc::bench::accuracy::Condition| c.snr_db <= max_snr;
-    let vs: Vec<_> = variants_for(array, period)
+    let min_snr = a.min_snr.unwrap_or(f64::NEG_INFINITY);
+    let only = move |c: &soundloc::bench::accuracy::Condition| c.snr_db <= max_snr && c.snr_db >= min_snr;
+    let (noise, all) = match a.scene {
+        SceneArg::Drone => (StudyNoise::Rotors, variants_for(array, period)),
+        SceneArg::Room => (StudyNoise::Room, variants_without_noise(array, period)),
+    };
+    let vs: Vec<_> = all
         .into_iter()
         .filter(|v| a.variant.is_empty() || a.variant.iter().any(|s| v.name.contains(s.as_str())))
         .collect();
@@ -311,12 +342,29 @@ fn run_accuracy(a: &Args) -> anyhow::Result<ExitCode> {
         anyhow::bail!("--variant {:?}: no variant of the study matches", a.variant);
     }
     let t = std::time::Instant::now();
-    let study = run(array, &vs, seed0, a.scenes, 5.0, &only, &|n, total| {
+    if !(a.position_error_mm >= 0.0
+        && a.position_error_mm <= 100.0
+        && a.gain_error_db >= 0.0
+        && a.gain_error_db <= 20.0)
+    {
+        anyhow::bail!("--position-error-mm must be within 0..100 and --gain-error-db within 0..20");
+    }
+    let kind = SceneKind {
+        noise,
+        position_error_m: a.position_error_mm * 1e-3,
+        gain_error_db: a.gain_error_db,
+    };
+    let study = run(array, kind, &vs, seed0, a.scenes, 5.0, &only, &|n, total| {
         eprint!("\rscenes {n}/{total}");
     })?;
     eprintln!();
     println!(
-        "accuracy study: {array:?}, {:?} split, {} scene(s) per condition, PERIOD {period}, {} results per variant, hit = a reported peak within 5° (as many peaks as talkers), {:.0} s",
+        "accuracy study: {array:?}, {noise:?} noise{}, {:?} split, {} scene(s) per condition, PERIOD {period}, {} results per variant, hit = a reported peak within 5° (as many peaks as talkers), {:.0} s",
+        if a.position_error_mm > 0.0 || a.gain_error_db > 0.0 {
+            format!(", array errors {} mm / {} dB", a.position_error_mm, a.gain_error_db)
+        } else {
+            String::new()
+        },
         a.split,
         a.scenes,
         study.localizations,

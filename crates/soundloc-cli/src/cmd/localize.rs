@@ -26,7 +26,9 @@ use std::time::Instant;
 /// Analysis options shared by `localize` (HARK LocalizeMUSIC parameter names in brackets).
 #[derive(clap::Args, Debug, Clone)]
 pub struct AnalysisArgs {
-    /// MUSIC_ALGORITHM. Default: sevd, or gevd when a noise source is given.
+    /// MUSIC_ALGORITHM. Unnamed: the room default without a noise source (sevd as
+    /// NormMUSIC, subspace min(M/2, round(2√M)), refined), the robust gevd with one
+    /// (subspace max(num-sources+2, M/2), refined). Named: exactly HARK's.
     #[arg(long, value_enum)]
     pub algorithm: Option<AlgorithmArg>,
     /// NUM_SOURCE: signal subspace dimension (< number of mics).

@@ -36,7 +36,7 @@ pub enum Command {
     #[command(allow_negative_numbers = true)]
     Listen(Box<listen::Args>),
     /// Benchmark the seed configuration (GSVD, 60 mics, 73 bins, W 50, 2522 directions).
-    Bench(bench::Args),
+    Bench(Box<bench::Args>),
     /// Transfer functions: inspect HARK TF files, make geometric ones.
     #[command(allow_negative_numbers = true)]
     Tf(tf::Args),
@@ -104,7 +104,7 @@ impl From<AlgorithmArg> for soundloc::Algorithm {
 
 pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
     match cli.command {
-        Command::Bench(a) => bench::run(a),
+        Command::Bench(a) => bench::run(*a),
         Command::Demo(a) => demo::run(a),
         Command::Localize(a) => localize::run(*a),
         Command::Batch(a) => batch::run(*a),

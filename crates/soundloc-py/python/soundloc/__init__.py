@@ -20,7 +20,9 @@ Arguments (HARK LocalizeMUSIC name / pyroomacoustics name):
         (pyroomacoustics' ``L`` transposed) with grid: "ring:STEP_DEG[:ELEV]", "sphere:N" or
         a (D, 3) array of unit directions; fs (SAMPLING_RATE, for geometry=).
     algorithm: "sevd" | "gevd" | "gevd-hark" | "gsvd" | "srp-phat" (MUSIC_ALGORITHM); default
-        sevd, or the robust gevd (subspace max(num_sources+2, M/2), refinement) when a noise source is given.
+        (None): without a noise source the room default (NormMUSIC: sevd with every bin
+        normalised, subspace min(M/2, round(2√M)), refinement), with one the robust gevd
+        (subspace max(num_sources+2, M/2), refinement); a named algorithm runs as HARK's.
     subspace_dim (signal subspace when it should differ from num_sources), normalize_bins
         (NormMUSIC), refine (sub-grid peak directions), subspace_tracking (approximate
         streaming mode on the CPU: leading vectors tracked between windows; no source count).

@@ -52,8 +52,10 @@ macro_rules! dispatch {
     };
 }
 
+mod defaults;
 mod group;
 mod prepare;
+pub use defaults::{robust_subspace_dim, room_subspace_dim};
 pub use group::LocalizerGroup;
 
 /// Where the microphone positions and steering vectors come from.
@@ -111,7 +113,8 @@ pub enum NoiseSource {
 pub struct LocalizerSpec {
     /// The array.
     pub array: ArraySpec,
-    /// MUSIC_ALGORITHM; None = sevd, or gevd when a noise source is given.
+    /// MUSIC_ALGORITHM; None = the defaults of [`LocalizerSpec::resolved_analysis`]: the room
+    /// default (NormMUSIC) without a noise source, the robust GEVD with one.
     #[serde(default)]
     pub algorithm: Option<Algorithm>,
     /// The analysis parameters (HARK LocalizeMUSIC's); its `algorithm` is replaced by the
@@ -187,57 +190,6 @@ impl LocalizerSpec {
         }
     }
 
-    /// Whether a noise source or an online update is given.
-    pub fn noise_given(&self) -> bool {
-        self.noise != NoiseSource::None || self.noise_update != NoiseUpdate::Fixed
-    }
-
-    /// The algorithm that runs, and a note saying why when it was not named.
-    pub fn resolved_algorithm(&self) -> (Algorithm, Option<String>) {
-        match self.algorithm {
-            Some(a) if a.uses_noise() && !self.noise_given() => (
-                a,
-                Some(format!("{} without a noise source: K = identity", a.name())),
-            ),
-            Some(a) => (a, None),
-            None if self.noise_given() => (
-                Algorithm::Gevd,
-                Some(
-                    "a noise source was given: using the robust default, the textbook GEVD with a \
-                     signal subspace of max(--num-sources + 2, M/2) dimensions and sub-grid refinement \
-                     (choose with --algorithm, --subspace-dim, --refine)"
-                        .into(),
-                ),
-            ),
-            None => (Algorithm::Sevd, None),
-        }
-    }
-
-    /// The analysis that runs for an array of `num_mics` microphones: `analysis` with the
-    /// resolved algorithm and, for the robust default (a noise source given, no algorithm
-    /// named), the settings the accuracy study chose (`soundloc bench --accuracy`,
-    /// docs/accuracy.md): a signal subspace of max(`num_sources` + 2, M/2) dimensions, below
-    /// M (unless `subspace_dim` is set) — reverberation and the rotors' residue take
-    /// dimensions of their own, the more the larger the array — and sub-grid refinement. An
-    /// algorithm named explicitly runs as asked (HARK-faithful).
-    pub fn resolved_analysis(&self, num_mics: usize) -> (LocalizeConfig, Option<String>) {
-        let (algorithm, note) = self.resolved_algorithm();
-        let mut c = LocalizeConfig {
-            algorithm,
-            ..self.analysis.clone()
-        };
-        if self.algorithm.is_none() && self.noise_given() {
-            if c.subspace_dim.is_none() {
-                let ns = robust_subspace_dim(c.num_sources, num_mics);
-                if ns < num_mics && ns != c.num_sources {
-                    c.subspace_dim = Some(ns);
-                }
-            }
-            c.refine = true;
-        }
-        (c, note)
-    }
-
     /// Load the transfer functions of the array for an analysis config: only the bins it
     /// uses (all bins when the file does not fit the config, so the plan says why).
     pub fn load_array(&self, config: &LocalizeConfig) -> Result<TransferFunctions> {
@@ -296,15 +248,6 @@ impl LocalizerSpec {
         }?;
         Ok((tf, None))
     }
-}
-
-/// The robust default's signal-subspace dimension for `num_sources` reported sources on
-/// `num_mics` microphones: max(num_sources + 2, M/2), below M, at least num_sources.
-pub fn robust_subspace_dim(num_sources: usize, num_mics: usize) -> usize {
-    (num_sources + 2)
-        .max(num_mics / 2)
-        .min(num_mics.saturating_sub(1))
-        .max(num_sources)
 }
 
 enum Inner {
@@ -507,38 +450,5 @@ mod tests {
         assert_eq!((got.bins(), got.sample_rate_hz), (at16.clone(), 16000));
         assert_eq!(at16, 16..89);
         std::fs::remove_dir_all(&dir).unwrap();
-    }
-
-    /// The robust default's subspace: num_sources + 2 on small arrays, M/2 on large ones,
-    /// always below M; a named algorithm or an explicit --subspace-dim is left alone.
-    #[test]
-    fn the_robust_subspace_grows_with_the_array() {
-        assert_eq!(robust_subspace_dim(2, 8), 4);
-        assert_eq!(robust_subspace_dim(3, 8), 5);
-        assert_eq!(robust_subspace_dim(2, 60), 30);
-        assert_eq!(robust_subspace_dim(2, 16), 8);
-        assert_eq!(robust_subspace_dim(1, 2), 1);
-        assert_eq!(robust_subspace_dim(2, 4), 3);
-        let mut spec = LocalizerSpec::free_field(vec![[0.0; 3]; 60], GridSpec::Sphere { n: 100 });
-        spec.noise = NoiseSource::Range {
-            start_s: 0.0,
-            end_s: 1.0,
-        };
-        let (c, note) = spec.resolved_analysis(60);
-        assert_eq!(
-            (c.algorithm, c.subspace_dim, c.refine),
-            (Algorithm::Gevd, Some(30), true)
-        );
-        assert!(note.unwrap().contains("M/2"));
-        spec.analysis.subspace_dim = Some(6);
-        assert_eq!(spec.resolved_analysis(60).0.subspace_dim, Some(6));
-        spec.analysis.subspace_dim = None;
-        spec.algorithm = Some(Algorithm::Gevd);
-        let (c, _) = spec.resolved_analysis(60);
-        assert_eq!(
-            (c.subspace_dim, c.refine),
-            (None, false),
-            "named algorithms run as asked"
-        );
     }
 }

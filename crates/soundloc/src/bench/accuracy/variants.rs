@@ -1,0 +1,207 @@
+//! The study's variants: the configurations compared, one change at a time.
+
+use super::scenes::StudyArray;
+use crate::config::{Algorithm, LocalizeConfig};
+
+/// A named configuration to compare.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct Variant {
+    /// Short name for the table.
+    pub name: String,
+    /// The configuration (its `max_peaks` is set per scene to the talker count).
+    pub config: LocalizeConfig,
+}
+
+/// The variants of the study: the textbook GEVD and HARK's algorithms as they are, then
+/// one change at a time and the promising combinations.
+pub fn variants(period: usize) -> Vec<Variant> {
+    let base = LocalizeConfig {
+        algorithm: Algorithm::Gevd,
+        period,
+        ..Default::default()
+    };
+    let v = |name: &str, f: &dyn Fn(&mut LocalizeConfig)| {
+        let mut c = base.clone();
+        f(&mut c);
+        Variant {
+            name: name.into(),
+            config: c,
+        }
+    };
+    vec![
+        v("gevd (textbook, Ns=2)", &|_| {}),
+        v("sevd", &|c| c.algorithm = Algorithm::Sevd),
+        v("gsvd (HARK)", &|c| c.algorithm = Algorithm::Gsvd),
+        v("gevd-hark", &|c| c.algorithm = Algorithm::GevdHark),
+        v("srp-phat", &|c| c.algorithm = Algorithm::SrpPhat),
+        v("normmusic (sevd)", &|c| {
+            c.algorithm = Algorithm::Sevd;
+            c.normalize_bins = true
+        }),
+        v("gevd Ns=1", &|c| c.num_sources = 1),
+        v("gevd Ns=3", &|c| c.num_sources = 3),
+        v("gevd Ns=4", &|c| c.num_sources = 4),
+        v("gevd no eigen weight", &|c| c.eigenvalue_weight = false),
+        v("gevd normalized bins", &|c| c.normalize_bins = true),
+        v("gevd 300-4000 Hz", &|c| {
+            c.lower_freq_hz = 300.0;
+            c.upper_freq_hz = 4000.0
+        }),
+        v("gevd 1000-4000 Hz", &|c| {
+            c.lower_freq_hz = 1000.0;
+            c.upper_freq_hz = 4000.0
+        }),
+        v("gevd Ns=3 normalized", &|c| {
+            c.num_sources = 3;
+            c.normalize_bins = true
+        }),
+        v("gevd Ns=3 normalized 300-4000", &|c| {
+            c.num_sources = 3;
+            c.normalize_bins = true;
+            c.lower_freq_hz = 300.0;
+            c.upper_freq_hz = 4000.0
+        }),
+        v("gevd Ns=3 W=25", &|c| {
+            c.num_sources = 3;
+            c.window = 25
+        }),
+        v("gevd Ns=3 W=100", &|c| {
+            c.num_sources = 3;
+            c.window = 100
+        }),
+        v("gevd Ns=3 no eigen weight", &|c| {
+            c.num_sources = 3;
+            c.eigenvalue_weight = false
+        }),
+        v("gevd Ns=3 loading 1e-2", &|c| {
+            c.num_sources = 3;
+            c.diagonal_loading = 1e-2
+        }),
+        v("gevd subspace 4 refined", &|c| {
+            c.subspace_dim = Some(4);
+            c.refine = true
+        }),
+        v("gevd normalized refined", &|c| {
+            c.normalize_bins = true;
+            c.refine = true
+        }),
+    ]
+}
+
+/// [`variants`], plus the robust default (its signal subspace depends on the array:
+/// [`crate::localizer::robust_subspace_dim`]), other subspace sizes (the ring's 8
+/// microphones allow at most 7), and the robust default with longer windows, another
+/// band, no eigenvalue weight.
+pub fn variants_for(array: StudyArray, period: usize) -> Vec<Variant> {
+    let mut vs = variants(period);
+    let base = vs[0].config.clone();
+    let dims: &[usize] = match array {
+        StudyArray::Ring8 => &[5, 6],
+        StudyArray::Sphere60 => &[6, 8, 12, 16, 20, 24, 30],
+    };
+    let mut push = |name: String, f: &dyn Fn(&mut LocalizeConfig)| {
+        let mut c = base.clone();
+        c.refine = true;
+        f(&mut c);
+        vs.push(Variant { name, config: c });
+    };
+    let mics = match array {
+        StudyArray::Ring8 => 8,
+        StudyArray::Sphere60 => 60,
+    };
+    let robust = crate::localizer::robust_subspace_dim(base.num_sources, mics);
+    push(format!("robust default (subspace {robust} refined)"), &|c| {
+        c.subspace_dim = Some(robust)
+    });
+    for &dim in dims {
+        push(format!("gevd subspace {dim} refined"), &|c| {
+            c.subspace_dim = Some(dim)
+        });
+    }
+    push("robust W=100".into(), &|c| {
+        c.subspace_dim = Some(robust);
+        c.window = 100
+    });
+    push("robust W=150".into(), &|c| {
+        c.subspace_dim = Some(robust);
+        c.window = 150
+    });
+    push("robust W=100 400-3500 Hz".into(), &|c| {
+        c.subspace_dim = Some(robust);
+        c.window = 100;
+        c.lower_freq_hz = 400.0;
+        c.upper_freq_hz = 3500.0
+    });
+    push("robust no eigen weight".into(), &|c| {
+        c.subspace_dim = Some(robust);
+        c.eigenvalue_weight = false
+    });
+    vs
+}
+
+/// The variants for scenes without a noise recording ([`super::StudyNoise::Room`]): the plain
+/// MUSIC family and SRP-PHAT, which need no K — HARK's SEVD as it is (the default
+/// without a noise source), then larger signal subspaces, refinement, NormMUSIC — and,
+/// for reference, the robust default of a user who does have a noise-only second.
+pub fn variants_without_noise(array: StudyArray, period: usize) -> Vec<Variant> {
+    let base = LocalizeConfig {
+        algorithm: Algorithm::Sevd,
+        period,
+        ..Default::default()
+    };
+    let mut vs = Vec::new();
+    let mut push = |name: String, f: &dyn Fn(&mut LocalizeConfig)| {
+        let mut c = base.clone();
+        f(&mut c);
+        vs.push(Variant { name, config: c });
+    };
+    let (mics, dims): (usize, &[usize]) = match array {
+        StudyArray::Ring8 => (8, &[3, 4, 5, 6]),
+        StudyArray::Sphere60 => (60, &[4, 8, 12, 16, 20, 30, 45]),
+    };
+    push("sevd (Ns=2)".into(), &|_| {});
+    push("sevd refined".into(), &|c| c.refine = true);
+    for &dim in dims {
+        push(format!("sevd subspace {dim} refined"), &|c| {
+            c.subspace_dim = Some(dim);
+            c.refine = true
+        });
+    }
+    push("sevd no eigen weight".into(), &|c| c.eigenvalue_weight = false);
+    push("normmusic".into(), &|c| c.normalize_bins = true);
+    push("normmusic refined".into(), &|c| {
+        c.normalize_bins = true;
+        c.refine = true
+    });
+    for &dim in dims {
+        push(format!("normmusic subspace {dim} refined"), &|c| {
+            c.normalize_bins = true;
+            c.subspace_dim = Some(dim);
+            c.refine = true
+        });
+    }
+    push("srp-phat".into(), &|c| c.algorithm = Algorithm::SrpPhat);
+    push("srp-phat refined".into(), &|c| {
+        c.algorithm = Algorithm::SrpPhat;
+        c.refine = true
+    });
+    let room = crate::localizer::room_subspace_dim(base.num_sources, mics);
+    push(
+        format!("room default (normmusic subspace {room} refined)"),
+        &|c| {
+            c.normalize_bins = true;
+            c.subspace_dim = Some(room);
+            c.refine = true
+        },
+    );
+    let robust = crate::localizer::robust_subspace_dim(base.num_sources, mics);
+    push(
+        format!("gevd robust default, K from 0-1 s (subspace {robust})"),
+        &|c| {
+            c.algorithm = Algorithm::Gevd;
+            c.subspace_dim = Some(robust);
+            c.refine = true
+        },
+    );
+    vs
+}
