@@ -138,7 +138,7 @@ pub(crate) fn spec(
     a.num_sources = num_sources;
     a.subspace_dim = subspace_dim;
     a.normalize_bins = normalize_bins;
-    // The robust default (a noise source, no algorithm) turns refinement on itself.
+    // Unnamed algorithms (the room and robust defaults) turn refinement on themselves.
     a.refine = refine;
     a.subspace_tracking = subspace_tracking;
     a.max_peaks = max_peaks;

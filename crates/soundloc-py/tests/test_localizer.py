@@ -95,14 +95,22 @@ def test_known_directions():
 
 def test_srp_phat_normmusic_and_refinement():
     x = scene()
-    for kw in (dict(algorithm="srp-phat"), dict(normalize_bins=True), dict(refine=True, subspace_dim=3)):
+    # algorithm="sevd" named: unnamed, the room default would turn normalisation and
+    # refinement on by itself.
+    for kw in (
+        dict(algorithm="srp-phat"),
+        dict(algorithm="sevd", normalize_bins=True),
+        dict(algorithm="sevd", refine=True, subspace_dim=3),
+    ):
         r = localizer(**kw).localize(x, FS)
         for row in r.azimuth_deg:
             for t in TALKERS:
                 assert min(angle(a, t) for a in row) <= 5.0, (kw, row, t)
     # Refined directions leave the 5° grid; grid directions stay on it.
-    refined = localizer(refine=True).localize(x, FS).azimuth_deg
+    refined = localizer(algorithm="sevd", refine=True).localize(x, FS).azimuth_deg
     assert np.any(np.abs(refined / 5.0 - np.round(refined / 5.0)) > 1e-3)
+    on_grid = localizer(algorithm="sevd").localize(x, FS).azimuth_deg
+    assert np.all(np.abs(on_grid / 5.0 - np.round(on_grid / 5.0)) < 1e-9)
     with pytest.raises(ValueError, match="subspace-dim"):
         localizer(subspace_dim=8).localize(x, FS)
 

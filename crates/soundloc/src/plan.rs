@@ -335,6 +335,18 @@ fn validate_config(c: &LocalizeConfig) -> Result<()> {
 }
 
 /// w_k per used bin.
+/// The highest power (dB) a per-bin normalised spectrum (NormMUSIC, `normalize_bins`) can
+/// reach: every bin's maximum is its weight w_k, so P̄ ≤ Σ_k w_k and the reported power
+/// 10·log10(P̄ + 1) ≤ 10·log10(Σ_k w_k + 1). `None` when the bins are not normalised
+/// (the plain MUSIC spectrum has no such bound).
+pub fn normalized_power_ceiling_db(c: &LocalizeConfig) -> Result<Option<f64>> {
+    if !(c.normalize_bins && c.algorithm.is_music()) {
+        return Ok(None);
+    }
+    let w: Vec<f64> = spectrum_weights(c, &c.bin_range())?;
+    Ok(Some(10.0 * (w.iter().sum::<f64>() + 1.0).log10()))
+}
+
 fn spectrum_weights<T: Real>(c: &LocalizeConfig, bins: &Range<usize>) -> Result<Vec<T>> {
     let hz = |k: usize| k as f64 * c.sample_rate_hz as f64 / c.nfft as f64;
     Ok(match &c.spectrum_weight {

@@ -84,8 +84,9 @@ pub struct Args {
     /// With --e2e: noise-only time range of the input for K, START:END seconds.
     #[arg(long, default_value = "0:1")]
     pub noise_range: String,
-    /// The accuracy study: simulated drone scenes (anechoic and RT60 0.2–0.6 s rooms,
-    /// 1–3 talkers, SNR +20…−10 dB) localized by every algorithm and option; prints the
+    /// The accuracy study: simulated scenes (anechoic and RT60 0.2–0.6 s rooms, 1–3
+    /// talkers, SNR +20…−10 dB; drone rotors or room noise: --scene) localized by every
+    /// algorithm and option; prints the
     /// hit rate within 5° per group of conditions (Markdown). Uses --array (ring8 or
     /// seed = the 60-mic sphere; default ring8), --period, --scenes, --split.
     #[arg(long, conflicts_with_all = ["stream", "e2e"])]

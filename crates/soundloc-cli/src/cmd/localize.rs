@@ -31,7 +31,8 @@ pub struct AnalysisArgs {
     /// (subspace max(num-sources+2, M/2), refined). Named: exactly HARK's.
     #[arg(long, value_enum)]
     pub algorithm: Option<AlgorithmArg>,
-    /// NUM_SOURCE: signal subspace dimension (< number of mics).
+    /// NUM_SOURCE: the number of sources (peaks reported and, in HARK, the signal subspace
+    /// dimension; < number of mics).
     #[arg(long, default_value_t = 2)]
     pub num_sources: usize,
     /// MAXNUM_OUT_PEAKS: -1 = NUM_SOURCE, 0 = all peaks.
@@ -84,7 +85,9 @@ pub struct AnalysisArgs {
     pub diagonal_loading: f64,
     /// Signal-subspace dimension of the decomposition when it should differ from
     /// --num-sources (reverberant rooms and large arrays need more than the talkers);
-    /// default: --num-sources, as HARK, or max(--num-sources + 2, M/2) in the robust default.
+    /// default: --num-sources, as HARK, when an algorithm is named; unnamed,
+    /// min(M/2, round(2√M)) in the room default and max(--num-sources + 2, M/2) in the
+    /// robust default.
     #[arg(long)]
     pub subspace_dim: Option<usize>,
     /// Per-bin normalisation (NormMUSIC): every bin's spectrum is scaled to a maximum of

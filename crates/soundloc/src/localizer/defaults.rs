@@ -22,21 +22,11 @@ impl LocalizerSpec {
             Some(a) => (a, None),
             None if self.noise_given() => (
                 Algorithm::Gevd,
-                Some(
-                    "a noise source was given: using the robust default, the textbook GEVD with a \
-                     signal subspace of max(--num-sources + 2, M/2) dimensions and sub-grid refinement \
-                     (choose with --algorithm, --subspace-dim, --refine)"
-                        .into(),
-                ),
+                Some("a noise source was given: the robust default, the textbook GEVD".into()),
             ),
             None => (
                 Algorithm::Sevd,
-                Some(
-                    "no noise source: using the room default, NormMUSIC (SEVD with every bin's \
-                     spectrum normalised) with a signal subspace of min(M/2, round(2√M)) dimensions and \
-                     sub-grid refinement (HARK's plain SEVD: --algorithm sevd; give a noise source for the GEVD)"
-                        .into(),
-                ),
+                Some("no noise source: the room default, NormMUSIC (SEVD with every bin normalised)".into()),
             ),
         }
     }
@@ -74,6 +64,25 @@ impl LocalizerSpec {
             }
             c.normalize_bins |= !noise;
             c.refine = true;
+            // The note says what runs: the subspace actually used, and for NormMUSIC the
+            // power scale (tracker thresholds tuned on SEVD's do not carry over).
+            let dim = c.signal_dim();
+            let note = if noise {
+                format!(
+                    "a noise source was given: using the robust default, the textbook GEVD with a \
+                     signal subspace of {dim} of {num_mics} (max(--num-sources + 2, M/2) unless \
+                     --subspace-dim) and sub-grid refinement (HARK's: name --algorithm)"
+                )
+            } else {
+                format!(
+                    "no noise source: using the room default, NormMUSIC (SEVD with every bin's \
+                     spectrum normalised; powers on its scale, at most 10·log10(bins + 1) dB) with a \
+                     signal subspace of {dim} of {num_mics} (min(M/2, round(2√M)) unless \
+                     --subspace-dim) and sub-grid refinement (HARK's plain SEVD: --algorithm sevd; \
+                     with a noise source, the GEVD)"
+                )
+            };
+            return (c, Some(note));
         }
         (c, note)
     }
@@ -160,13 +169,20 @@ mod tests {
             (Algorithm::Sevd, Some(4), true, true)
         );
         assert!(note.unwrap().contains("NormMUSIC"));
+        assert_eq!(spec.resolved_analysis(60).0.subspace_dim, Some(15));
         spec.analysis.subspace_dim = Some(3);
-        assert_eq!(spec.resolved_analysis(8).0.subspace_dim, Some(3));
+        let (c, note) = spec.resolved_analysis(8);
+        assert_eq!(c.subspace_dim, Some(3));
+        assert!(
+            note.unwrap().contains("3 of 8"),
+            "the note names the subspace used"
+        );
+        spec.analysis.subspace_dim = None;
         spec.algorithm = Some(Algorithm::Sevd);
         let (c, note) = spec.resolved_analysis(8);
         assert_eq!(
             (c.subspace_dim, c.normalize_bins, c.refine, note),
-            (Some(3), false, false, None),
+            (None, false, false, None),
             "a named algorithm runs as asked"
         );
     }

@@ -451,4 +451,36 @@ mod tests {
         assert_eq!(at16, 16..89);
         std::fs::remove_dir_all(&dir).unwrap();
     }
+
+    /// A tracker threshold above the highest power a normalised spectrum reaches (the room
+    /// default's NormMUSIC: 10·log10(73 + 1) = 18.7 dB with the default bins) is refused
+    /// with a message, not run to an empty output; below it, or with HARK's SEVD named, it
+    /// runs.
+    #[test]
+    fn a_threshold_no_normmusic_peak_can_reach_is_refused() {
+        let geo = crate::array::Geometry::circle(8, 0.0365, 0.0);
+        let mut spec = LocalizerSpec::free_field(
+            geo.mics,
+            GridSpec::Ring {
+                step_deg: 5.0,
+                elevation_deg: 0.0,
+            },
+        );
+        spec.device = DeviceChoice::Cpu;
+        let track = |thresh_db: f64| {
+            Some(TrackingSpec {
+                tracker: crate::tracking::TrackerConfig::with_thresh(thresh_db),
+                preroll: 0,
+            })
+        };
+        spec.tracking = track(25.0);
+        let err = Localizer::new(&spec).err().expect("refused").to_string();
+        assert!(err.contains("never exceeds 18.7 dB"), "{err}");
+        assert!(err.contains("--algorithm sevd"), "{err}");
+        spec.tracking = track(18.0);
+        assert!(Localizer::new(&spec).is_ok());
+        spec.tracking = track(25.0);
+        spec.algorithm = Some(Algorithm::Sevd);
+        assert!(Localizer::new(&spec).is_ok(), "HARK's scale has no ceiling");
+    }
 }

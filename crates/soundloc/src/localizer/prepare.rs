@@ -104,6 +104,23 @@ pub(crate) fn prepare(
     if !algorithm.uses_noise() && spec.noise != NoiseSource::None {
         notes.push(format!("{} ignores the noise matrix", algorithm.name()));
     }
+    // A tracker threshold that no peak of a normalised spectrum can reach would drop
+    // every result without a word (HARK thresholds are tuned on SEVD's scale).
+    if let (Some(t), Some(ceiling)) = (&spec.tracking, crate::plan::normalized_power_ceiling_db(&config)?) {
+        if t.tracker.thresh_db > ceiling {
+            return Err(Error::Config(format!(
+                "tracker threshold {} dB: with every bin normalised (NormMUSIC{}) the power never \
+                 exceeds {ceiling:.1} dB here, so no source would pass; lower the threshold, or name \
+                 the algorithm (e.g. --algorithm sevd) for HARK's scale",
+                t.tracker.thresh_db,
+                if spec.algorithm.is_none() {
+                    ", the room default"
+                } else {
+                    ""
+                }
+            )));
+        }
+    }
     let options = StreamOptions {
         initial_noise,
         noise_update: spec.noise_update.clone(),

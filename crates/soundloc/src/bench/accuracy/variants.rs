@@ -141,7 +141,8 @@ pub fn variants_for(array: StudyArray, period: usize) -> Vec<Variant> {
 
 /// The variants for scenes without a noise recording ([`super::StudyNoise::Room`]): the plain
 /// MUSIC family and SRP-PHAT, which need no K — HARK's SEVD as it is (the default
-/// without a noise source), then larger signal subspaces, refinement, NormMUSIC — and,
+/// without a noise source until the room default), then larger signal subspaces,
+/// refinement, NormMUSIC, the room default itself — and,
 /// for reference, the robust default of a user who does have a noise-only second.
 pub fn variants_without_noise(array: StudyArray, period: usize) -> Vec<Variant> {
     let base = LocalizeConfig {
