@@ -229,6 +229,27 @@ impl LocalizeConfig {
     pub fn signal_dim(&self) -> usize {
         self.subspace_dim.unwrap_or(self.num_sources)
     }
+    /// What runs, for people: the algorithm's name ("normmusic" for the SEVD with every
+    /// bin normalised), then the signal subspace when it differs from `num_sources`, and
+    /// "refined" (e.g. "normmusic (subspace 4, refined)" for the room default on 8 mics).
+    pub fn label(&self) -> String {
+        let mut s = match (self.algorithm, self.normalize_bins && self.algorithm.is_music()) {
+            (Algorithm::Sevd, true) => "normmusic".to_string(),
+            (a, true) => format!("{} normalised", a.name()),
+            (a, false) => a.name().to_string(),
+        };
+        let mut with = Vec::new();
+        if self.algorithm.is_music() && self.signal_dim() != self.num_sources {
+            with.push(format!("subspace {}", self.signal_dim()));
+        }
+        if self.refine {
+            with.push("refined".to_string());
+        }
+        if !with.is_empty() {
+            s += &format!(" ({})", with.join(", "));
+        }
+        s
+    }
     /// Peaks reported per result after resolving `max_peaks` (usize::MAX = all).
     pub fn peaks_out(&self) -> usize {
         match self.max_peaks {

@@ -595,7 +595,7 @@ pub fn drive(
             sinks.count(),
             audio_s,
             nch,
-            loc.config().algorithm.name(),
+            loc.config().label(),
             loc.device_name(),
             progress.compute_s / audio_s
         ),
@@ -610,11 +610,11 @@ pub fn drive(
         );
     }
     let title = format!(
-        "{} — {} MUSIC, {}",
+        "{} — {}, {}",
         name.file_name()
             .map(|s| s.to_string_lossy().into_owned())
             .unwrap_or_default(),
-        loc.config().algorithm.name(),
+        loc.config().label(),
         loc.device_name()
     );
     let view = sinks.take_view();

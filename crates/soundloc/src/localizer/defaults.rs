@@ -169,6 +169,7 @@ mod tests {
             (Algorithm::Sevd, Some(4), true, true)
         );
         assert!(note.unwrap().contains("NormMUSIC"));
+        assert_eq!(c.label(), "normmusic (subspace 4, refined)");
         assert_eq!(spec.resolved_analysis(60).0.subspace_dim, Some(15));
         spec.analysis.subspace_dim = Some(3);
         let (c, note) = spec.resolved_analysis(8);
@@ -185,5 +186,6 @@ mod tests {
             (None, false, false, None),
             "a named algorithm runs as asked"
         );
+        assert_eq!(c.label(), "sevd");
     }
 }
