@@ -130,6 +130,42 @@ fn per_talker(sc: &DemoScene, results: &[soundloc::LocalizationResult]) -> Vec<u
     sc.score(results, 5.0).per_talker_hits
 }
 
+/// A CPU spec for a ring scene: its microphones, the 5° ring grid, PERIOD 25.
+fn ring_spec(sc: &DemoScene) -> LocalizerSpec {
+    let mut spec = LocalizerSpec::free_field(
+        sc.geometry.mics.clone(),
+        GridSpec::Ring {
+            step_deg: 5.0,
+            elevation_deg: 0.0,
+        },
+    );
+    spec.analysis.period = 25;
+    spec.device = DeviceChoice::Cpu;
+    spec
+}
+
+/// A default finds every talker in at least half the windows where the named algorithm
+/// finds one of them in at most a quarter.
+fn assert_default_beats_named(
+    sc: &DemoScene,
+    default: &[soundloc::LocalizationResult],
+    named: &[soundloc::LocalizationResult],
+    what: [&str; 2],
+) {
+    let (hd, hn) = (per_talker(sc, default), per_talker(sc, named));
+    let windows = sc.score(default, 5.0).windows;
+    assert!(
+        hd.iter().all(|&h| 2 * h >= windows),
+        "{}: {hd:?} of {windows}",
+        what[0]
+    );
+    assert!(
+        hn.iter().any(|&h| 4 * h <= windows),
+        "{}: {hn:?} of {windows}",
+        what[1]
+    );
+}
+
 #[test]
 fn robust_default_finds_both_talkers_where_textbook_gevd_misses_one() {
     // A fixed held-out-style scene: RT60 0.4 s, two talkers at 0 dB SNR, four rotors.
@@ -140,16 +176,7 @@ fn robust_default_finds_both_talkers_where_textbook_gevd_misses_one() {
     };
     let sc = scene(StudyArray::Ring8, c, ROBUST_SEED).unwrap();
     let audio = sc.render();
-    let mics = sc.geometry.mics.clone();
-    let mut spec = LocalizerSpec::free_field(
-        mics,
-        GridSpec::Ring {
-            step_deg: 5.0,
-            elevation_deg: 0.0,
-        },
-    );
-    spec.analysis.period = 25;
-    spec.device = DeviceChoice::Cpu;
+    let mut spec = ring_spec(&sc);
     spec.noise = NoiseSource::Range {
         start_s: 0.0,
         end_s: 1.0,
@@ -166,16 +193,7 @@ fn robust_default_finds_both_talkers_where_textbook_gevd_misses_one() {
     let mut textbook = Localizer::new(&spec).unwrap();
     assert_eq!(textbook.config().signal_dim(), 2);
     let t = textbook.localize(&audio.channels).unwrap();
-    let (hr, ht) = (per_talker(&sc, &r.results), per_talker(&sc, &t.results));
-    let windows = sc.score(&r.results, 5.0).windows;
-    assert!(
-        hr.iter().all(|&h| 2 * h >= windows),
-        "robust default: {hr:?} of {windows}"
-    );
-    assert!(
-        ht.iter().any(|&h| 4 * h <= windows),
-        "textbook GEVD: {ht:?} of {windows}"
-    );
+    assert_default_beats_named(&sc, &r.results, &t.results, ["robust default", "textbook GEVD"]);
 }
 
 #[test]
@@ -194,16 +212,8 @@ fn room_default_finds_the_talkers_where_hark_sevd_misses_one() {
     };
     let sc = scene_with(StudyArray::Ring8, kind, c, ROOM_SEED).unwrap();
     let audio = sc.render();
-    let mut spec = LocalizerSpec::free_field(
-        sc.geometry.mics.clone(),
-        GridSpec::Ring {
-            step_deg: 5.0,
-            elevation_deg: 0.0,
-        },
-    );
-    spec.analysis.period = 25;
+    let mut spec = ring_spec(&sc);
     spec.analysis.max_peaks = 2;
-    spec.device = DeviceChoice::Cpu;
     // The room default: no algorithm, no noise source.
     let mut room = Localizer::new(&spec).unwrap();
     let cfg = room.config();
@@ -220,16 +230,7 @@ fn room_default_finds_the_talkers_where_hark_sevd_misses_one() {
         (2, false)
     );
     let t = sevd.localize(&audio.channels).unwrap();
-    let (hr, ht) = (per_talker(&sc, &r.results), per_talker(&sc, &t.results));
-    let windows = sc.score(&r.results, 5.0).windows;
-    assert!(
-        hr.iter().all(|&h| 2 * h >= windows),
-        "room default: {hr:?} of {windows}"
-    );
-    assert!(
-        ht.iter().any(|&h| 4 * h <= windows),
-        "HARK's SEVD: {ht:?} of {windows}"
-    );
+    assert_default_beats_named(&sc, &r.results, &t.results, ["room default", "HARK's SEVD"]);
 }
 
 /// Found by trying seeds 1–16: here HARK's SEVD finds one talker in none of the six

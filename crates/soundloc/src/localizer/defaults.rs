@@ -12,7 +12,9 @@ impl LocalizerSpec {
         self.noise != NoiseSource::None || self.noise_update != NoiseUpdate::Fixed
     }
 
-    /// The algorithm that runs, and a note saying why when it was not named.
+    /// The algorithm that runs, and a note when a named one runs without its K. The
+    /// defaults' own note comes from [`LocalizerSpec::resolved_analysis`], which knows the
+    /// array's size.
     pub fn resolved_algorithm(&self) -> (Algorithm, Option<String>) {
         match self.algorithm {
             Some(a) if a.uses_noise() && !self.noise_given() => (
@@ -20,14 +22,8 @@ impl LocalizerSpec {
                 Some(format!("{} without a noise source: K = identity", a.name())),
             ),
             Some(a) => (a, None),
-            None if self.noise_given() => (
-                Algorithm::Gevd,
-                Some("a noise source was given: the robust default, the textbook GEVD".into()),
-            ),
-            None => (
-                Algorithm::Sevd,
-                Some("no noise source: the room default, NormMUSIC (SEVD with every bin normalised)".into()),
-            ),
+            None if self.noise_given() => (Algorithm::Gevd, None),
+            None => (Algorithm::Sevd, None),
         }
     }
 
