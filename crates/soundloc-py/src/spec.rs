@@ -47,7 +47,7 @@ impl PySpec {
     tracker_min_id=None, preroll=0, device="auto", precision="f32", channels=None,
     input_channels=None, spectrum=true, grid_radius=1.0, speed_of_sound=343.0, channels_first=false,
     subspace_dim=None, normalize_bins=false, refine=false, subspace_tracking=false, resample=false,
-    diagonal_loading=0.0))]
+    diagonal_loading=0.0, coherence=None))]
 #[allow(clippy::too_many_arguments)] // mirrors the Python keywords
 pub(crate) fn spec(
     tf: Option<PathBuf>,
@@ -88,6 +88,7 @@ pub(crate) fn spec(
     subspace_tracking: bool,
     resample: bool,
     diagonal_loading: f64,
+    coherence: Option<bool>,
 ) -> PyResult<PySpec> {
     // Defaults: HARK's band (500–2800 Hz) and 16 kHz.
     let freq_range = freq_range.map_or(Ok((500.0, 2800.0)), |r| pair(r, "freq_range"))?;
@@ -134,6 +135,8 @@ pub(crate) fn spec(
     spec.algorithm = algorithm
         .map(|a| parse::<Algorithm>("algorithm", a))
         .transpose()?;
+    // None: the default's choice (on in the room default).
+    spec.coherence = coherence;
     let a = &mut spec.analysis;
     a.num_sources = num_sources;
     a.subspace_dim = subspace_dim;

@@ -141,3 +141,31 @@ SL_CORR_KERNEL(correlate_phat_f32, float, float)
 SL_CORR_KERNEL(correlate_f64, double, double)
 SL_CORR_KERNEL(correlate_phat_f64, double, double)
 #endif
+
+// Coherence normalisation (LocalizeConfig::coherence, correlation::normalize_coherence on
+// the CPU, the same operations in the same order): every matrix of R (double, M × M, the
+// correlate kernel's output, block b = matrix b) in place, R_ij ← R_ij · (s_i s_j) with
+// s_i = 1/√R_ii, or 0 where R_ii is not positive and finite; the diagonal is set to exactly
+// 1 (0 for such a channel). One block per matrix, any number of threads; dynamic shared
+// memory: M doubles.
+extern "C" __global__ void __launch_bounds__(256) coherence_f64(cplx<double>* R, int M) {
+    SL_DYN_SMEM(sl_smem);
+    double* s = reinterpret_cast<double*>(sl_smem);
+    cplx<double>* Rm = R + (size_t)blockIdx.x * M * M;
+    for (int i = threadIdx.x; i < M; i += blockDim.x) {
+        const double d = Rm[(size_t)i * M + i].re;
+        s[i] = (d > 0.0 && d - d == 0.0) ? 1.0 / sl_sqrt(d) : 0.0;
+    }
+    __syncthreads();
+    for (int q = threadIdx.x; q < M * M; q += blockDim.x) {
+        const int j = q / M, i = q - j * M;
+        const double k = s[i] * s[j];
+        cplx<double> v = Rm[q];
+        if (i == j) {
+            v = cx<double>(k > 0.0 ? 1.0 : 0.0, 0.0);
+        } else {
+            v = cx<double>(v.re * k, v.im * k);
+        }
+        Rm[q] = v;
+    }
+}

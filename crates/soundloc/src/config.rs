@@ -179,6 +179,16 @@ pub struct LocalizeConfig {
     /// direction is the maximum of a quadratic fitted to the dB spectrum at the peak and
     /// its grid neighbours, within one grid step. Off in HARK (grid directions only).
     pub refine: bool,
+    /// Coherence normalisation (off in HARK): every window's R_k is replaced by its
+    /// coherence matrix D^{-1/2} R_k D^{-1/2}, D = diag(R_k) (R̃_ij = R_ij / √(R_ii R_jj),
+    /// unit diagonal), the steering vectors by their phases a_m/|a_m|, and a noise matrix
+    /// K_k likewise by its own diagonal. A microphone's gain then cancels: the spectrum no
+    /// longer depends on how far the channels' gains are from the transfer functions' (real
+    /// arrays' microphones differ by ±1 dB and more). It also discards the level
+    /// differences between microphones that measured transfer functions hold (shadowing by
+    /// the array's body). A silent channel (R_ii = 0) keeps a zero row and column. Ignored
+    /// by SRP-PHAT, whose phase transform already discards gains.
+    pub coherence: bool,
     /// Approximate mode for streams (see [`crate::subspace::tracking`]): each window's
     /// leading vectors by warm-started subspace iteration from the previous window's,
     /// checked by their residual, with an exact decomposition at the start, on every
@@ -211,6 +221,7 @@ impl Default for LocalizeConfig {
             diagonal_loading: 0.0,
             normalize_bins: false,
             refine: false,
+            coherence: false,
             subspace_tracking: false,
         }
     }
@@ -231,7 +242,8 @@ impl LocalizeConfig {
     }
     /// What runs, for people: the algorithm's name ("normmusic" for the SEVD with every
     /// bin normalised), then the signal subspace when it differs from `num_sources`, and
-    /// "refined" (e.g. "normmusic (subspace 4, refined)" for the room default on 8 mics).
+    /// "coherence" and "refined" (e.g. "normmusic (subspace 4, coherence, refined)" for the
+    /// room default on 8 mics).
     pub fn label(&self) -> String {
         let mut s = match (self.algorithm, self.normalize_bins && self.algorithm.is_music()) {
             (Algorithm::Sevd, true) => "normmusic".to_string(),
@@ -242,6 +254,9 @@ impl LocalizeConfig {
         if self.algorithm.is_music() && self.signal_dim() != self.num_sources {
             with.push(format!("subspace {}", self.signal_dim()));
         }
+        if self.coherence && self.algorithm.is_music() {
+            with.push("coherence".to_string());
+        }
         if self.refine {
             with.push("refined".to_string());
         }
@@ -249,6 +264,16 @@ impl LocalizeConfig {
             s += &format!(" ({})", with.join(", "));
         }
         s
+    }
+    /// Whether the number of active sources is estimated (`num_active`): for the MUSIC
+    /// family, not in the approximate mode (it keeps only the tracked values), and not
+    /// where coherence normalisation meets a noise matrix (R and K are scaled by different
+    /// diagonals there, so the whitened noise floor is no longer white, which the count's
+    /// criterion assumes).
+    pub fn counts_sources(&self) -> bool {
+        self.algorithm.is_music()
+            && !self.subspace_tracking
+            && !(self.coherence && self.algorithm.uses_noise())
     }
     /// Peaks reported per result after resolving `max_peaks` (usize::MAX = all).
     pub fn peaks_out(&self) -> usize {

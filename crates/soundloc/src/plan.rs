@@ -141,7 +141,8 @@ impl<T: Real> Plan<T> {
         // Steering [bin][dir][mic] and norms.
         let mut steering = vec![C::new(T::zero(), T::zero()); nb * d * m];
         let mut norm2 = vec![T::zero(); nb * d];
-        let phase_only = config.algorithm == Algorithm::SrpPhat;
+        // SRP-PHAT, and MUSIC on coherence matrices, steer with the phase alone: ã = a/|a|.
+        let phase_only = config.algorithm == Algorithm::SrpPhat || config.coherence;
         steering
             .par_chunks_mut(d * m)
             .zip(norm2.par_chunks_mut(d))
@@ -154,7 +155,6 @@ impl<T: Real> Plan<T> {
                         let a = tf.get(dir, mic, bin);
                         let (mut re, mut im) = (a.re as f64, a.im as f64);
                         if phase_only {
-                            // SRP-PHAT steers with the phase alone: ã = a/|a|.
                             let n = re.hypot(im);
                             (re, im) = if n > 0.0 && n.is_finite() {
                                 (re / n, im / n)
@@ -425,6 +425,7 @@ fn whitening<T: Real>(
                 m,
                 d,
                 config.diagonal_loading,
+                config.coherence,
                 &steering[b * d * m..(b + 1) * d * m],
             )
             .map_err(|msg| {
@@ -459,6 +460,7 @@ fn bin_whitening<T: Real>(
     m: usize,
     d: usize,
     loading: f64,
+    coherence: bool,
     steering: &[C<T>],
 ) -> std::result::Result<BinWhitening<T>, String> {
     if kraw.len() != m * m {
@@ -473,6 +475,12 @@ fn bin_whitening<T: Real>(
         for i in 0..m {
             k[(i, i)].re += loading * mean_diag;
         }
+    }
+    if coherence {
+        // K's coherence matrix, as every window's R ([`LocalizeConfig::coherence`]).
+        let mut kv: Vec<C<f64>> = (0..m * m).map(|q| k[(q / m, q % m)]).collect();
+        crate::correlation::normalize_coherence(&mut kv, m);
+        k = Mat::from_fn(m, m, |i, j| kv[i * m + j]);
     }
     // HARK's scaling for GEVD/GSVD: K ← K / max_ij |Re K_ij|.
     let mut mx = 0.0f64;

@@ -218,8 +218,14 @@ fn room_default_finds_the_talkers_where_hark_sevd_misses_one() {
     let mut room = Localizer::new(&spec).unwrap();
     let cfg = room.config();
     assert_eq!(
-        (cfg.algorithm, cfg.signal_dim(), cfg.normalize_bins, cfg.refine),
-        (Algorithm::Sevd, 4, true, true)
+        (
+            cfg.algorithm,
+            cfg.signal_dim(),
+            cfg.normalize_bins,
+            cfg.refine,
+            cfg.coherence
+        ),
+        (Algorithm::Sevd, 4, true, true, true)
     );
     let r = room.localize(&audio.channels).unwrap();
     // HARK's SEVD, named.

@@ -370,8 +370,9 @@ fn scene_ring_array_every_algorithm() {
     sd.check(&mode, "ring8 sevd middle W25 P7 all peaks", &cfg, 3);
 }
 
-/// SRP-PHAT (phase-transformed correlation, no decomposition) and NormMUSIC (per-bin
-/// normalised spectra, two spectrum passes) on the GPU against the CPU reference.
+/// SRP-PHAT (phase-transformed correlation, no decomposition), NormMUSIC (per-bin
+/// normalised spectra, two spectrum passes) and coherence normalisation on the GPU
+/// against the CPU reference.
 #[test]
 fn srp_phat_and_normmusic_on_the_gpu() {
     let Some(mode) = mode("srp_phat_and_normmusic_on_the_gpu") else {
@@ -391,6 +392,21 @@ fn srp_phat_and_normmusic_on_the_gpu() {
     sd.check(&mode, "ring8 srp-phat normalised", &norm(Algorithm::SrpPhat), 4);
     sd.check(&mode, "ring8 normmusic sevd", &norm(Algorithm::Sevd), 4);
     sd.check(&mode, "ring8 normmusic gevd", &norm(Algorithm::Gevd), 3);
+    // Coherence normalisation (a kernel of its own after the correlation): the room
+    // default's form, and with K.
+    let coh = |alg, dim| LocalizeConfig {
+        coherence: true,
+        subspace_dim: Some(dim),
+        refine: true,
+        ..norm(alg)
+    };
+    sd.check(
+        &mode,
+        "ring8 room default (coherence)",
+        &coh(Algorithm::Sevd, 4),
+        4,
+    );
+    sd.check(&mode, "ring8 gevd coherence", &coh(Algorithm::Gevd, 4), 3);
     let (mics, dirs) = if mode.is_emulator() { (12, 150) } else { (60, 2522) };
     let sd = scene(Geometry::sphere(mics, 0.1), Grid::sphere(dirs, 1.0), 11);
     sd.check(
@@ -403,6 +419,14 @@ fn srp_phat_and_normmusic_on_the_gpu() {
         &mode,
         &format!("sphere{mics} normmusic gevd"),
         &norm(Algorithm::Gevd),
+        8,
+    );
+    // W = 50 < M = 60 frames: the factor form would be chosen without coherence.
+    let dim = if mode.is_emulator() { 3 } else { 15 };
+    sd.check(
+        &mode,
+        &format!("sphere{mics} room default (coherence, subspace {dim})"),
+        &coh(Algorithm::Sevd, dim),
         8,
     );
 }

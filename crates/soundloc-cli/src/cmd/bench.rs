@@ -31,6 +31,9 @@ pub struct Args {
     /// NormMUSIC: normalise each bin's spectrum to a maximum of 1 before the bin sum.
     #[arg(long)]
     pub normalize_bins: bool,
+    /// Coherence normalisation of every R (and K): unit diagonals, phase-only steering.
+    #[arg(long)]
+    pub coherence: bool,
     /// Signal-subspace dimension when it should differ from --num-sources (the robust
     /// default uses max(--num-sources + 2, M/2)).
     #[arg(long)]
@@ -446,6 +449,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
             window: a.window,
             num_sources: a.num_sources,
             normalize_bins: a.normalize_bins,
+            coherence: a.coherence,
             subspace_dim: a.subspace_dim,
             batch: a.batch,
             repeats: a.repeats,

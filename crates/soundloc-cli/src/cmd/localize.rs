@@ -98,6 +98,12 @@ pub struct AnalysisArgs {
     /// spectrum around it, not at the grid point.
     #[arg(long)]
     pub refine: bool,
+    /// Coherence normalisation: each window's R (and K) scaled to a unit diagonal,
+    /// R_ij/√(R_ii R_jj), and the steering vectors to their phases, so the microphones'
+    /// gain mismatch cancels. Default: on in the room default (no algorithm named, no noise
+    /// source), off otherwise; `--coherence false` turns it off there.
+    #[arg(long, num_args = 0..=1, default_missing_value = "true", value_name = "BOOL")]
+    pub coherence: Option<bool>,
     /// Approximate streaming mode (CPU): leading vectors tracked between windows, residual-
     /// checked; for large arrays at small --period and --num-sources; no source count.
     #[arg(long)]
@@ -276,6 +282,8 @@ impl AnalysisArgs {
             diagonal_loading: self.diagonal_loading,
             normalize_bins: self.normalize_bins,
             refine: self.refine,
+            // The spec's `coherence` carries the choice (None: the default's).
+            coherence: false,
             subspace_tracking: self.subspace_tracking,
         }
     }
@@ -392,6 +400,7 @@ impl RunArgs {
                 (None, false) => TfCache::Default,
             },
             resample: self.resample,
+            coherence: self.analysis.coherence,
         })
     }
 }

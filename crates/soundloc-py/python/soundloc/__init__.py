@@ -21,11 +21,14 @@ Arguments (HARK LocalizeMUSIC name / pyroomacoustics name):
         a (D, 3) array of unit directions; fs (SAMPLING_RATE, for geometry=).
     algorithm: "sevd" | "gevd" | "gevd-hark" | "gsvd" | "srp-phat" (MUSIC_ALGORITHM); default
         (None): without a noise source the room default (NormMUSIC: sevd with every bin
-        normalised, subspace min(M/2, round(2√M)), refinement), with one the robust gevd
+        normalised, subspace min(M/2, round(2√M)), coherence, refinement), with one the robust gevd
         (subspace max(num_sources+2, M/2), refinement); a named algorithm runs as HARK's.
     subspace_dim (signal subspace when it should differ from num_sources), normalize_bins
         (NormMUSIC), refine (sub-grid peak directions), subspace_tracking (approximate
-        streaming mode on the CPU: leading vectors tracked between windows; no source count).
+        streaming mode on the CPU: leading vectors tracked between windows; no source count),
+        coherence (True/False: every window's R and K scaled to a unit diagonal and steering
+        vectors to their phases, so the microphones' gain mismatch cancels; None: on in the
+        room default, off otherwise).
     num_sources (NUM_SOURCE / num_src), max_peaks (MAXNUM_OUT_PEAKS), window (WINDOW, frames),
     period (PERIOD), window_type "past"|"middle"|"future" (WINDOW_TYPE), freq_range
         (LOWER/UPPER_BOUND_FREQUENCY, Hz; pyroomacoustics' freq_range), nfft (LENGTH),

@@ -107,7 +107,7 @@ const std::unordered_map<std::string, Binder>& registry() {
         REG(decompose_gn_f32), REG(decompose_gv_f32), REG(decompose_sn_f64), REG(decompose_sv_f64),
         REG(decompose_gn_f64), REG(decompose_gv_f64), REG(spectrum_f32),     REG(spectrum_f64),     REG(spectrum4_f32),    REG(spectrum4_f64),
         REG(peaks_f32),        REG(peaks_f64),        REG(eigh_f32),         REG(eigh_f64),     REG(eigh_narrow_f32), REG(eigh_narrow_f64),
-        REG(form_h_f32),       REG(form_h_f64),       REG(correlate_phat_f32), REG(correlate_phat_f64),
+        REG(form_h_f32),       REG(form_h_f64),       REG(correlate_phat_f32), REG(correlate_phat_f64), REG(coherence_f64),
     };
     return r;
 }

@@ -404,10 +404,10 @@ impl<T: Real> CpuBackend<T> {
         self.times.spectrum_ms += ms(t);
 
         // Peaks, and the number of active sources (median over the bins that carry
-        // weight; none in the approximate mode, which keeps only the tracked values).
+        // weight; where estimated: `LocalizeConfig::counts_sources`).
         let t = Instant::now();
         out.source_count.clear();
-        if !srp && !tracking {
+        if c.counts_sources() {
             for w in 0..nw {
                 let used = (0..nb)
                     .filter(|&b| plan.weights[b] != T::zero())

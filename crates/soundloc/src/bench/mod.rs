@@ -42,6 +42,8 @@ pub struct BenchConfig {
     pub num_sources: usize,
     /// NormMUSIC's per-bin normalisation.
     pub normalize_bins: bool,
+    /// Coherence normalisation (`LocalizeConfig::coherence`).
+    pub coherence: bool,
     /// Signal-subspace dimension when it differs from `num_sources` (None: the same).
     pub subspace_dim: Option<usize>,
     /// Windows per batch for the throughput figure.
@@ -61,6 +63,7 @@ impl Default for BenchConfig {
             window: 50,
             num_sources: 2,
             normalize_bins: false,
+            coherence: false,
             subspace_dim: None,
             batch: 16,
             repeats: 10,
@@ -117,6 +120,7 @@ pub fn inputs<T: Real>(cfg: &BenchConfig) -> Result<BenchInputs<T>> {
         period: cfg.window,
         num_sources: cfg.num_sources,
         normalize_bins: cfg.normalize_bins,
+        coherence: cfg.coherence,
         subspace_dim: cfg.subspace_dim,
         ..Default::default()
     };

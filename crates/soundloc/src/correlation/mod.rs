@@ -139,9 +139,98 @@ pub fn correlate<T: Real>(spectra: &Spectra<T>, w: &WindowSpec, bin: usize, out:
     )
 }
 
+/// Coherence normalisation ([`crate::config::LocalizeConfig::coherence`]) of one M × M
+/// matrix in place: R_ij ← R_ij · (s_i s_j) with s_i = 1/√R_ii, so the diagonal becomes
+/// exactly 1; a channel with R_ii = 0 (or not finite) gets s_i = 0, a zero row and
+/// column. Scale-free, so HARK's scaling before it does not matter. The GPU's
+/// `coherence_f64` (correlate.cu) computes the same in the same order.
+pub fn normalize_coherence<U: Real>(r: &mut [C<U>], m: usize) {
+    debug_assert_eq!(r.len(), m * m);
+    let mut s = [0.0f64; 64];
+    let mut big = Vec::new();
+    let s: &mut [f64] = if m <= 64 {
+        &mut s[..m]
+    } else {
+        big.resize(m, 0.0);
+        &mut big
+    };
+    for (i, si) in s.iter_mut().enumerate() {
+        let d = r[i * m + i].re.to_f64();
+        *si = if d > 0.0 && d.is_finite() {
+            1.0 / d.sqrt()
+        } else {
+            0.0
+        };
+    }
+    for i in 0..m {
+        for j in 0..m {
+            let k = s[i] * s[j];
+            let v = &mut r[i * m + j];
+            *v = if i == j {
+                C::new(U::of_f64(if k > 0.0 { 1.0 } else { 0.0 }), U::zero())
+            } else {
+                C::new(U::of_f64(v.re.to_f64() * k), U::of_f64(v.im.to_f64() * k))
+            };
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Channel gains cancel: the coherence matrix of G R G is R's (to rounding), with a
+    /// unit diagonal; a silent channel gets a zero row and column.
+    #[test]
+    fn coherence_cancels_channel_gains() {
+        let m = 5;
+        // R = Y Yᴴ from a fixed complex Y (M × 7), positive definite.
+        let y: Vec<C<f64>> = (0..m * 7)
+            .map(|q| {
+                C::new(
+                    ((q * 37 % 11) as f64 - 5.0) / 3.0,
+                    ((q * 53 % 13) as f64 - 6.0) / 4.0,
+                )
+            })
+            .collect();
+        let r: Vec<C<f64>> = (0..m * m)
+            .map(|q| {
+                (0..7)
+                    .map(|f| y[(q / m) * 7 + f] * y[(q % m) * 7 + f].conj())
+                    .sum()
+            })
+            .collect();
+        let g = [1.0, 1.3, 0.6, 2.5, 0.9];
+        let mut a = r.clone();
+        let mut b: Vec<C<f64>> = (0..m * m).map(|q| r[q] * (g[q / m] * g[q % m])).collect();
+        normalize_coherence(&mut a, m);
+        normalize_coherence(&mut b, m);
+        for q in 0..m * m {
+            assert!(
+                (a[q] - b[q]).norm() < 1e-14,
+                "entry {q}: {:?} vs {:?}",
+                a[q],
+                b[q]
+            );
+        }
+        for i in 0..m {
+            assert_eq!(a[i * m + i], C::new(1.0, 0.0));
+            // The coherence of two channels: R_01 / √(R_00 R_11).
+            let want = r[i * m] / (r[i * m + i].re * r[0].re).sqrt();
+            assert!((a[i * m] - want).norm() < 1e-14);
+        }
+        // Channel 2 silent.
+        let mut c = r.clone();
+        for (q, v) in c.iter_mut().enumerate() {
+            if q / m == 2 || q % m == 2 {
+                *v = C::new(0.0, 0.0);
+            }
+        }
+        normalize_coherence(&mut c, m);
+        assert!((0..m).all(|k| c[2 * m + k] == C::new(0.0, 0.0) && c[k * m + 2] == C::new(0.0, 0.0)));
+        assert_eq!(c[0], C::new(1.0, 0.0));
+        assert!((c[1] - a[1]).norm() < 1e-14);
+    }
 
     #[test]
     fn future_windows_every_period_inside_the_signal() {

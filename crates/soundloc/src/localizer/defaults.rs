@@ -36,7 +36,9 @@ impl LocalizerSpec {
     ///   array — and sub-grid refinement;
     /// - without one (the room default): NormMUSIC, the SEVD with every bin's spectrum
     ///   normalised to a maximum of 1, with a signal subspace of min(M/2, round(2√M))
-    ///   dimensions ([`room_subspace_dim`]) and sub-grid refinement.
+    ///   dimensions ([`room_subspace_dim`]), coherence normalisation
+    ///   ([`LocalizeConfig::coherence`]: real arrays' gain mismatch cancels) unless
+    ///   `coherence` says otherwise, and sub-grid refinement.
     ///
     /// An explicit `subspace_dim` is kept. An algorithm named explicitly runs as asked
     /// (HARK-faithful).
@@ -46,6 +48,8 @@ impl LocalizerSpec {
             algorithm,
             ..self.analysis.clone()
         };
+        let room = self.algorithm.is_none() && !self.noise_given();
+        c.coherence = self.coherence.unwrap_or(c.coherence || room);
         if self.algorithm.is_none() {
             let noise = self.noise_given();
             if c.subspace_dim.is_none() {
@@ -63,6 +67,11 @@ impl LocalizerSpec {
             // The note says what runs: the subspace actually used, and for NormMUSIC the
             // power scale (tracker thresholds tuned on SEVD's do not carry over).
             let dim = c.signal_dim();
+            let coherence = if c.coherence {
+                "coherence normalisation (the microphones' gain mismatch cancels; off: --coherence false)"
+            } else {
+                "no coherence normalisation"
+            };
             let note = if noise {
                 format!(
                     "a noise source was given: using the robust default, the textbook GEVD with a \
@@ -74,8 +83,8 @@ impl LocalizerSpec {
                     "no noise source: using the room default, NormMUSIC (SEVD with every bin's \
                      spectrum normalised; powers on its scale, at most 10·log10(bins + 1) dB) with a \
                      signal subspace of {dim} of {num_mics} (min(M/2, round(2√M)) unless \
-                     --subspace-dim) and sub-grid refinement (HARK's plain SEVD: --algorithm sevd; \
-                     with a noise source, the GEVD)"
+                     --subspace-dim), {coherence} and sub-grid refinement (HARK's plain SEVD: \
+                     --algorithm sevd; with a noise source, the GEVD)"
                 )
             };
             return (c, Some(note));
@@ -129,8 +138,8 @@ mod tests {
         };
         let (c, note) = spec.resolved_analysis(60);
         assert_eq!(
-            (c.algorithm, c.subspace_dim, c.refine),
-            (Algorithm::Gevd, Some(30), true)
+            (c.algorithm, c.subspace_dim, c.refine, c.coherence),
+            (Algorithm::Gevd, Some(30), true, false)
         );
         assert!(note.unwrap().contains("M/2"));
         spec.analysis.subspace_dim = Some(6);
@@ -146,8 +155,8 @@ mod tests {
     }
 
     /// Without a noise source and no algorithm named: NormMUSIC, min(M/2, round(2√M))
-    /// signal dimensions (at least num_sources), refined;
-    /// `--algorithm sevd` is HARK's plain SEVD.
+    /// signal dimensions (at least num_sources), coherence normalisation (unless turned
+    /// off), refined; `--algorithm sevd` is HARK's plain SEVD.
     #[test]
     fn the_room_default_is_normmusic_with_a_larger_subspace() {
         assert_eq!(room_subspace_dim(2, 8), 4);
@@ -161,11 +170,23 @@ mod tests {
         let mut spec = LocalizerSpec::free_field(vec![[0.0; 3]; 8], GridSpec::Sphere { n: 100 });
         let (c, note) = spec.resolved_analysis(8);
         assert_eq!(
-            (c.algorithm, c.subspace_dim, c.normalize_bins, c.refine),
-            (Algorithm::Sevd, Some(4), true, true)
+            (
+                c.algorithm,
+                c.subspace_dim,
+                c.normalize_bins,
+                c.refine,
+                c.coherence
+            ),
+            (Algorithm::Sevd, Some(4), true, true, true)
         );
-        assert!(note.unwrap().contains("NormMUSIC"));
+        let note = note.unwrap();
+        assert!(note.contains("NormMUSIC") && note.contains("off: --coherence false"));
+        assert_eq!(c.label(), "normmusic (subspace 4, coherence, refined)");
+        spec.coherence = Some(false);
+        let (c, note) = spec.resolved_analysis(8);
+        assert!(!c.coherence && note.unwrap().contains("no coherence normalisation"));
         assert_eq!(c.label(), "normmusic (subspace 4, refined)");
+        spec.coherence = None;
         assert_eq!(spec.resolved_analysis(60).0.subspace_dim, Some(15));
         spec.analysis.subspace_dim = Some(3);
         let (c, note) = spec.resolved_analysis(8);
@@ -178,10 +199,16 @@ mod tests {
         spec.algorithm = Some(Algorithm::Sevd);
         let (c, note) = spec.resolved_analysis(8);
         assert_eq!(
-            (c.subspace_dim, c.normalize_bins, c.refine, note),
-            (None, false, false, None),
+            (c.subspace_dim, c.normalize_bins, c.refine, c.coherence, note),
+            (None, false, false, false, None),
             "a named algorithm runs as asked"
         );
         assert_eq!(c.label(), "sevd");
+        spec.coherence = Some(true);
+        assert_eq!(
+            spec.resolved_analysis(8).0.label(),
+            "sevd (coherence)",
+            "asked for by name, coherence goes with any algorithm"
+        );
     }
 }

@@ -153,6 +153,11 @@ pub struct LocalizerSpec {
     /// recording here, the input through [`Localizer::input_converter`].
     #[serde(default)]
     pub resample: bool,
+    /// Coherence normalisation ([`LocalizeConfig::coherence`]): None = the default's choice
+    /// (on in the room default, i.e. no algorithm named and no noise source; else
+    /// `analysis.coherence`); Some(v) = v whatever the algorithm.
+    #[serde(default)]
+    pub coherence: Option<bool>,
 }
 
 impl LocalizerSpec {
@@ -187,6 +192,7 @@ impl LocalizerSpec {
             spectrum: false,
             tf_cache: TfCache::Default,
             resample: false,
+            coherence: None,
         }
     }
 

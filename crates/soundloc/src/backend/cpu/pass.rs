@@ -5,6 +5,7 @@
 
 use super::{thread_scratch, ThreadScratch};
 use crate::backend::{Job, WindowSpec};
+use crate::correlation::normalize_coherence;
 use crate::correlation::running::{run_bin, Step};
 use crate::music::{accumulate_bin, dir_block, normalize_bin, SpectrumScratch};
 use crate::plan::Plan;
@@ -89,6 +90,7 @@ impl<T: Real> Ctx<'_, '_, T> {
         let (m, nb, nw) = (plan.num_mics, plan.num_bins(), self.nw);
         let mm = m * m;
         let srp = !plan.config.algorithm.is_music();
+        let coherence = plan.config.coherence && !srp;
         let bins = task.b0..(task.b0 + task.sums.len()).min(nb);
         let BinTask {
             sums,
@@ -112,6 +114,9 @@ impl<T: Real> Ctx<'_, '_, T> {
                     for (w, st) in job.windows.iter().zip(&self.steps[j]) {
                         let o = (i * nw + wi) * mm;
                         run_bin(sum, *st, job, w, b, srp, y, &mut r[o..o + mm]);
+                        if coherence {
+                            normalize_coherence(&mut r[o..o + mm], m);
+                        }
                         wi += 1;
                     }
                 }
@@ -293,7 +298,7 @@ impl<T: Real> Ctx<'_, '_, T> {
 
         // 4. k̂ per window and bin (MDL; overlapping frames are not independent
         // snapshots: N = W·hop/N_fft of them).
-        if !srp && !c.subspace_tracking {
+        if c.counts_sources() {
             let overlap = c.hop.min(c.nfft) as f64 / c.nfft as f64;
             for (i, b) in bins.clone().enumerate() {
                 if plan.weights[b] == T::zero() {

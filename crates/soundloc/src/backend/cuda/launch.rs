@@ -253,6 +253,15 @@ impl<T: Real> CudaBackend<T> {
             .p(self.d_r.ptr)
             .p(self.d_scale.ptr)
             .launch(g, self.f.correlate, [nmat, 1, 1], l.corr_threads, l.corr_smem)?;
+        if l.coherence {
+            Args::new().p(self.d_r.ptr).i(l.m).launch(
+                g,
+                self.f.coherence,
+                [nmat, 1, 1],
+                super::COHERENCE_THREADS,
+                l.m * 8,
+            )?;
+        }
         g.record(ev[1], Stream::Compute)?;
         if l.srp {
             // No decomposition: the spectrum reads R̃.

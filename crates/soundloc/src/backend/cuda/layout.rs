@@ -29,6 +29,8 @@ pub(super) struct Layout {
     pub(super) srp: bool,
     /// NormMUSIC's per-bin normalisation (two spectrum passes).
     pub(super) normalize: bool,
+    /// Coherence normalisation of every R after the correlation (`coherence_f64`).
+    pub(super) coherence: bool,
     pub(super) lpp: usize,
     pub(super) want_v: bool,
     pub(super) ld: usize,
@@ -275,6 +277,7 @@ pub(super) fn layout<T: Real>(plan: &Plan<T>, gpu: &dyn Gpu) -> Result<Layout> {
         alg: plan.config.algorithm,
         srp,
         normalize: plan.config.normalize_bins,
+        coherence: plan.config.coherence && !srp,
         lpp: v.lpp as usize,
         want_v,
         ld,

@@ -6,6 +6,7 @@
 //!  host frames ─(pinned staging, copy stream)─► X [frame][bin][mic]
 //!  per sub-batch of windows, on the compute stream:
 //!   correlate  (window × bin) blocks   R = (1/W) Σ x xᴴ, HARK scaling          correlate.cu
+//!   coherence  one block per matrix    R ← D^{-1/2} R D^{-1/2} (when asked)     correlate.cu
 //!   eigh       one block per matrix    H = R | W R Wᴴ | W R W | (W R)(W R)ᴴ in f64,  eigh.cu
 //!                                      Householder → tridiagonal, bisection, inverse
 //!                                      iteration, top-Ns vectors (squared denominator, M ≤ 64)
@@ -99,6 +100,8 @@ const MAX_SWEEPS: i32 = 40;
 const SMEM_DEFAULT: usize = 48 * 1024;
 /// Threads of a form_h block (eigh.cu `EH_THREADS`: its register tiles are 16 columns wide).
 const FORM_H_THREADS: usize = 256;
+/// Threads per block of `coherence_f64` (one block per matrix).
+const COHERENCE_THREADS: usize = 128;
 
 /// Name of CUDA device 0 and its capability, or why CUDA cannot be used.
 pub fn probe() -> std::result::Result<String, String> {
@@ -233,6 +236,7 @@ fn variant_for<T: Real>(plan: &Plan<T>) -> Result<Variant> {
 
 struct Funcs {
     correlate: Func,
+    coherence: Func,
     decompose: Func,
     eigh: Func,
     form_h: Func,
@@ -313,6 +317,7 @@ impl<T: Real> CudaBackend<T> {
             lay: lay.clone(),
             f: Funcs {
                 correlate: 0,
+                coherence: 0,
                 decompose: 0,
                 eigh: 0,
                 form_h: 0,
@@ -384,6 +389,7 @@ impl<T: Real> CudaBackend<T> {
             } else {
                 format!("correlate_{t}")
             })?,
+            coherence: self.gpu.function("coherence_f64")?,
             decompose: self.gpu.function(&dec)?,
             eigh: self.gpu.function(&l.eigh_shape.kernel(t))?,
             form_h: self.gpu.function(&format!("form_h_{t}"))?,
@@ -419,6 +425,7 @@ impl<T: Real> CudaBackend<T> {
         let l = &self.lay;
         for (f, name, threads) in [
             (self.f.correlate, "correlate", l.corr_threads),
+            (self.f.coherence, "coherence", COHERENCE_THREADS),
             (self.f.decompose, "decompose", l.dec_threads),
             (self.f.eigh, "eigh", l.eigh_shape.threads),
             (self.f.form_h, "form_h", FORM_H_THREADS),

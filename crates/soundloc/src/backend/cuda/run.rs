@@ -136,7 +136,8 @@ impl<T: Real> CudaBackend<T> {
             .flat_map(|j| j.windows.iter().map(|w| w.len))
             .max()
             .unwrap_or(0);
-        let mode = if l.squared && maxlen < m && self.factor_ok {
+        // (Not with coherence normalisation: the factor is built from the raw frames.)
+        let mode = if l.squared && maxlen < m && self.factor_ok && !l.coherence {
             let ncf = maxlen + (maxlen & 1);
             DecMode {
                 factor: if l.alg == Algorithm::Gsvd { 2 } else { 1 },

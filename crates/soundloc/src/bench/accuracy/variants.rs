@@ -136,6 +136,10 @@ pub fn variants_for(array: StudyArray, period: usize) -> Vec<Variant> {
         c.subspace_dim = Some(robust);
         c.eigenvalue_weight = false
     });
+    push(format!("robust coherence (subspace {robust})"), &|c| {
+        c.subspace_dim = Some(robust);
+        c.coherence = true
+    });
     vs
 }
 
@@ -195,6 +199,20 @@ pub fn variants_without_noise(array: StudyArray, period: usize) -> Vec<Variant> 
             c.refine = true
         },
     );
+    push(
+        format!("room default coherence (normmusic subspace {room} refined)"),
+        &|c| {
+            c.normalize_bins = true;
+            c.subspace_dim = Some(room);
+            c.refine = true;
+            c.coherence = true
+        },
+    );
+    push(format!("sevd subspace {room} coherence refined"), &|c| {
+        c.subspace_dim = Some(room);
+        c.refine = true;
+        c.coherence = true
+    });
     let robust = crate::localizer::robust_subspace_dim(base.num_sources, mics);
     push(
         format!("gevd robust default, K from 0-1 s (subspace {robust})"),
