@@ -274,3 +274,39 @@ fn absurd_fft_lengths_and_endless_files_are_clear_errors() {
         &["fuzzfind-dev-full.toml", "too large for a geometry file"],
     );
 }
+
+/// `--coherence` and `--no-coherence` are plain switches (a following input is not taken
+/// as their value), the last one wins, and the summary line says what ran: the room
+/// default normalises unless told not to; a named algorithm does only when asked.
+#[test]
+fn coherence_switches_say_what_ran() {
+    let (wav, geo, _) = scene("coherence_switches_say_what_ran");
+    let (w, g) = (wav.to_str().unwrap(), geo.to_str().unwrap());
+    let summary = |args: &[&str]| {
+        let o = bin().args(args).output().unwrap();
+        let e = String::from_utf8_lossy(&o.stderr).into_owned();
+        assert!(o.status.success(), "{args:?}: {e}");
+        e.lines()
+            .find(|l| l.contains(" results from "))
+            .unwrap_or_else(|| panic!("{args:?}: no summary line in {e}"))
+            .to_string()
+    };
+    let s = summary(&["localize", w, "--geometry", g]);
+    assert!(s.contains("normmusic (subspace 4, coherence, refined)"), "{s}");
+    let s = summary(&["localize", "--no-coherence", w, "--geometry", g]);
+    assert!(s.contains("normmusic (subspace 4, refined)"), "{s}");
+    let s = summary(&["localize", "--no-coherence", "--coherence", w, "--geometry", g]);
+    assert!(s.contains("coherence, refined"), "{s}");
+    let s = summary(&[
+        "localize",
+        "--coherence",
+        w,
+        "--geometry",
+        g,
+        "--algorithm",
+        "sevd",
+    ]);
+    assert!(s.contains("sevd (coherence)"), "{s}");
+    let s = summary(&["localize", w, "--geometry", g, "--algorithm", "sevd"]);
+    assert!(!s.contains("coherence"), "{s}");
+}

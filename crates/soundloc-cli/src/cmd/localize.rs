@@ -101,9 +101,12 @@ pub struct AnalysisArgs {
     /// Coherence normalisation: each window's R (and K) scaled to a unit diagonal,
     /// R_ij/√(R_ii R_jj), and the steering vectors to their phases, so the microphones'
     /// gain mismatch cancels. Default: on in the room default (no algorithm named, no noise
-    /// source), off otherwise; `--coherence false` turns it off there.
-    #[arg(long, num_args = 0..=1, default_missing_value = "true", value_name = "BOOL")]
-    pub coherence: Option<bool>,
+    /// source), off otherwise.
+    #[arg(long, overrides_with = "no_coherence")]
+    pub coherence: bool,
+    /// No coherence normalisation, also in the room default.
+    #[arg(long, overrides_with = "coherence")]
+    pub no_coherence: bool,
     /// Approximate streaming mode (CPU): leading vectors tracked between windows, residual-
     /// checked; for large arrays at small --period and --num-sources; no source count.
     #[arg(long)]
@@ -400,7 +403,12 @@ impl RunArgs {
                 (None, false) => TfCache::Default,
             },
             resample: self.resample,
-            coherence: self.analysis.coherence,
+            // None: the default's choice.
+            coherence: match (self.analysis.coherence, self.analysis.no_coherence) {
+                (true, _) => Some(true),
+                (_, true) => Some(false),
+                _ => None,
+            },
         })
     }
 }

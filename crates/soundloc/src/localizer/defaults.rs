@@ -68,7 +68,7 @@ impl LocalizerSpec {
             // power scale (tracker thresholds tuned on SEVD's do not carry over).
             let dim = c.signal_dim();
             let coherence = if c.coherence {
-                "coherence normalisation (the microphones' gain mismatch cancels; off: --coherence false)"
+                "coherence normalisation (the microphones' gain mismatch cancels; off: --no-coherence)"
             } else {
                 "no coherence normalisation"
             };
@@ -180,7 +180,7 @@ mod tests {
             (Algorithm::Sevd, Some(4), true, true, true)
         );
         let note = note.unwrap();
-        assert!(note.contains("NormMUSIC") && note.contains("off: --coherence false"));
+        assert!(note.contains("NormMUSIC") && note.contains("off: --no-coherence"));
         assert_eq!(c.label(), "normmusic (subspace 4, coherence, refined)");
         spec.coherence = Some(false);
         let (c, note) = spec.resolved_analysis(8);
