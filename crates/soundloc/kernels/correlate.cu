@@ -145,16 +145,24 @@ SL_CORR_KERNEL(correlate_phat_f64, double, double)
 // Coherence normalisation (LocalizeConfig::coherence, correlation::normalize_coherence on
 // the CPU, the same operations in the same order): every matrix of R (double, M × M, the
 // correlate kernel's output, block b = matrix b) in place, R_ij ← R_ij · (s_i s_j) with
-// s_i = 1/√R_ii, or 0 where R_ii is not positive and finite; the diagonal is set to exactly
-// 1 (0 for such a channel). One block per matrix, any number of threads; dynamic shared
-// memory: M doubles.
+// s_i = 1/√R_ii, or 0 for a silent channel (R_ii ≤ 1e-10 · the largest finite R_jj, or not
+// finite: correlation::SILENT); the diagonal is set to exactly 1 (0 for such a channel).
+// One block per matrix, any number of threads; dynamic shared memory: M doubles.
 extern "C" __global__ void __launch_bounds__(256) coherence_f64(cplx<double>* R, int M) {
     SL_DYN_SMEM(sl_smem);
     double* s = reinterpret_cast<double*>(sl_smem);
     cplx<double>* Rm = R + (size_t)blockIdx.x * M * M;
+    for (int i = threadIdx.x; i < M; i += blockDim.x) s[i] = Rm[(size_t)i * M + i].re;
+    __syncthreads();
+    double mx = 0.0;
+    for (int i = 0; i < M; ++i) {
+        const double d = s[i];
+        if (d - d == 0.0 && d > mx) mx = d;
+    }
+    __syncthreads();
     for (int i = threadIdx.x; i < M; i += blockDim.x) {
         const double d = Rm[(size_t)i * M + i].re;
-        s[i] = (d > 0.0 && d - d == 0.0) ? 1.0 / sl_sqrt(d) : 0.0;
+        s[i] = (d > 1e-10 * mx && d - d == 0.0) ? 1.0 / sl_sqrt(d) : 0.0;
     }
     __syncthreads();
     for (int q = threadIdx.x; q < M * M; q += blockDim.x) {

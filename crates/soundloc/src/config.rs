@@ -179,15 +179,21 @@ pub struct LocalizeConfig {
     /// direction is the maximum of a quadratic fitted to the dB spectrum at the peak and
     /// its grid neighbours, within one grid step. Off in HARK (grid directions only).
     pub refine: bool,
-    /// Coherence normalisation (off in HARK): every window's R_k is replaced by its
-    /// coherence matrix D^{-1/2} R_k D^{-1/2}, D = diag(R_k) (R̃_ij = R_ij / √(R_ii R_jj),
-    /// unit diagonal), the steering vectors by their phases a_m/|a_m|, and a noise matrix
-    /// K_k likewise by its own diagonal. A microphone's gain then cancels: the spectrum no
-    /// longer depends on how far the channels' gains are from the transfer functions' (real
-    /// arrays' microphones differ by ±1 dB and more). It also discards the level
-    /// differences between microphones that measured transfer functions hold (shadowing by
-    /// the array's body). A silent channel (R_ii = 0) keeps a zero row and column. Ignored
-    /// by SRP-PHAT, whose phase transform already discards gains.
+    /// Coherence normalisation (off in HARK): the channels' gains are taken from the
+    /// recording, not from the transfer functions, so an array whose microphones are
+    /// louder or quieter than its TFs say (real ones differ by ±1 dB and more) gives the
+    /// results of a matched one. The steering vectors are reduced to their phases
+    /// a_m/|a_m|, and
+    /// - SEVD: every window's R_k is replaced by its coherence matrix D^{-1/2} R_k
+    ///   D^{-1/2}, D = diag(R_k) (R̃_ij = R_ij / √(R_ii R_jj), unit diagonal; a silent
+    ///   channel keeps a zero row and column), in which each channel's gain cancels;
+    /// - the textbook GEVD: R and K stay as they are (the whitening stays exact) and the
+    ///   steering vectors take the magnitudes of K's channel levels, √(K_mm / geometric mean of K_jj) —
+    ///   with K = G K₀ G that is the gain G times the noise field's own level pattern.
+    ///
+    /// It discards the level differences that measured TFs hold (the array's own shadow).
+    /// Refused for HARK's GSVD and GEVD; ignored by SRP-PHAT, whose phase transform already
+    /// discards gains.
     pub coherence: bool,
     /// Approximate mode for streams (see [`crate::subspace::tracking`]): each window's
     /// leading vectors by warm-started subspace iteration from the previous window's,
@@ -266,14 +272,14 @@ impl LocalizeConfig {
         s
     }
     /// Whether the number of active sources is estimated (`num_active`): for the MUSIC
-    /// family, not in the approximate mode (it keeps only the tracked values), and not
-    /// where coherence normalisation meets a noise matrix (R and K are scaled by different
-    /// diagonals there, so the whitened noise floor is no longer white, which the count's
-    /// criterion assumes).
+    /// family, not in the approximate mode (it keeps only the tracked values).
     pub fn counts_sources(&self) -> bool {
-        self.algorithm.is_music()
-            && !self.subspace_tracking
-            && !(self.coherence && self.algorithm.uses_noise())
+        self.algorithm.is_music() && !self.subspace_tracking
+    }
+    /// Whether every window's R is replaced by its coherence matrix: [`Self::coherence`]
+    /// with the SEVD (the textbook GEVD takes the gains from K instead).
+    pub fn normalizes_r(&self) -> bool {
+        self.coherence && self.algorithm == Algorithm::Sevd
     }
     /// Peaks reported per result after resolving `max_peaks` (usize::MAX = all).
     pub fn peaks_out(&self) -> usize {

@@ -290,6 +290,14 @@ fn validate_config(c: &LocalizeConfig) -> Result<()> {
     if c.period == 0 {
         return bad("period must be at least 1 frame".into());
     }
+    if c.coherence && matches!(c.algorithm, Algorithm::Gsvd | Algorithm::GevdHark) {
+        return bad(format!(
+            "coherence normalisation is defined for sevd and the textbook gevd, not for HARK's {} \
+             (its spectrum uses the raw steering vectors against K⁻¹-weighted ones); drop --coherence \
+             or use --algorithm gevd",
+            c.algorithm.name()
+        ));
+    }
     if c.max_peaks < -1 {
         return bad(format!(
             "max-peaks must be -1 (= num-sources), 0 (all peaks) or a positive count, got {}",
@@ -470,17 +478,25 @@ fn bin_whitening<T: Real>(
         return Err("contains non-finite values".into());
     }
     let mut k = Mat::<c64>::from_fn(m, m, |i, j| (kraw[i * m + j] + kraw[j * m + i].conj()) * 0.5);
+    // Coherence normalisation with K (the textbook GEVD, [`LocalizeConfig::coherence`]):
+    // the steering vectors (already phase-only) take the magnitudes of K's channel levels,
+    // √(K_mm / geometric mean of K's diagonal), the gains of the array as recorded; R and K
+    // stay as they are; taken before any diagonal loading. (Against the geometric mean,
+    // frequency-flat channel gains change every bin's steering by the same factor, so the
+    // bins keep their weights.)
+    let gains: Vec<f64> = {
+        let kd: Vec<f64> = (0..m).map(|i| k[(i, i)].re).collect();
+        let ok = coherence && kd.iter().all(|&x| x > 0.0 && x.is_finite());
+        let gm = (kd.iter().map(|x| x.ln()).sum::<f64>() / m as f64).exp();
+        kd.iter()
+            .map(|&x| if ok { (x / gm).sqrt() } else { 1.0 })
+            .collect()
+    };
     if loading > 0.0 {
         let mean_diag = (0..m).map(|i| k[(i, i)].re).sum::<f64>() / m as f64;
         for i in 0..m {
             k[(i, i)].re += loading * mean_diag;
         }
-    }
-    if coherence {
-        // K's coherence matrix, as every window's R ([`LocalizeConfig::coherence`]).
-        let mut kv: Vec<C<f64>> = (0..m * m).map(|q| k[(q / m, q % m)]).collect();
-        crate::correlation::normalize_coherence(&mut kv, m);
-        k = Mat::from_fn(m, m, |i, j| kv[i * m + j]);
     }
     // HARK's scaling for GEVD/GSVD: K ← K / max_ij |Re K_ij|.
     let mut mx = 0.0f64;
@@ -556,7 +572,7 @@ fn bin_whitening<T: Real>(
             // Whitened steering a_w = L⁻¹ a for every direction.
             let a = Mat::<c64>::from_fn(m, d, |i, dir| {
                 let z = steering[dir * m + i];
-                c64::new(z.re.to_f64(), z.im.to_f64())
+                c64::new(z.re.to_f64() * gains[i], z.im.to_f64() * gains[i])
             });
             let mut aw = Mat::<c64>::zeros(m, d);
             faer::linalg::matmul::matmul(

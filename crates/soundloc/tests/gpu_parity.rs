@@ -421,12 +421,16 @@ fn srp_phat_and_normmusic_on_the_gpu() {
         &norm(Algorithm::Gevd),
         8,
     );
-    // W = 50 < M = 60 frames: the factor form would be chosen without coherence.
-    let dim = if mode.is_emulator() { 3 } else { 15 };
+    // Fewer frames than microphones (W = 50 < 60; W = 8 < 12 in the emulator): the factor
+    // form, which rebuilds R from the raw frames, would be chosen without coherence.
+    let (dim, window) = if mode.is_emulator() { (3, 8) } else { (15, 50) };
     sd.check(
         &mode,
-        &format!("sphere{mics} room default (coherence, subspace {dim})"),
-        &coh(Algorithm::Sevd, dim),
+        &format!("sphere{mics} room default (coherence, subspace {dim}, W {window})"),
+        &LocalizeConfig {
+            window,
+            ..coh(Algorithm::Sevd, dim)
+        },
         8,
     );
 }

@@ -31,7 +31,7 @@ pub struct Args {
     /// NormMUSIC: normalise each bin's spectrum to a maximum of 1 before the bin sum.
     #[arg(long)]
     pub normalize_bins: bool,
-    /// Coherence normalisation of every R (and K): unit diagonals, phase-only steering.
+    /// Coherence normalisation (`--coherence` of `localize`), kernel benchmark only.
     #[arg(long)]
     pub coherence: bool,
     /// Signal-subspace dimension when it should differ from --num-sources (the robust
@@ -432,6 +432,12 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     } else {
         a.algorithms.clone()
     };
+    if a.coherence && (a.stream || a.e2e || a.accuracy) {
+        anyhow::bail!(
+            "--coherence applies to the kernel benchmark, not to --stream, --e2e or --accuracy \
+             (the accuracy study has coherence variants of its own)"
+        );
+    }
     if a.stream {
         return run_stream(&a, &algs);
     }

@@ -139,10 +139,14 @@ pub fn correlate<T: Real>(spectra: &Spectra<T>, w: &WindowSpec, bin: usize, out:
     )
 }
 
+/// A channel whose power is at most this fraction of the loudest channel's is silent for
+/// [`normalize_coherence`] (a dead microphone, or the rounding a sliding sum leaves).
+pub const SILENT: f64 = 1e-10;
+
 /// Coherence normalisation ([`crate::config::LocalizeConfig::coherence`]) of one M × M
 /// matrix in place: R_ij ← R_ij · (s_i s_j) with s_i = 1/√R_ii, so the diagonal becomes
-/// exactly 1; a channel with R_ii = 0 (or not finite) gets s_i = 0, a zero row and
-/// column. Scale-free, so HARK's scaling before it does not matter. The GPU's
+/// exactly 1; a silent channel (R_ii ≤ [`SILENT`] · max_j R_jj, or not finite) gets
+/// s_i = 0, a zero row and column. Scale-free, so HARK's scaling before it does not matter. The GPU's
 /// `coherence_f64` (correlate.cu) computes the same in the same order.
 pub fn normalize_coherence<U: Real>(r: &mut [C<U>], m: usize) {
     debug_assert_eq!(r.len(), m * m);
@@ -154,9 +158,13 @@ pub fn normalize_coherence<U: Real>(r: &mut [C<U>], m: usize) {
         big.resize(m, 0.0);
         &mut big
     };
+    let mx = (0..m)
+        .map(|i| r[i * m + i].re.to_f64())
+        .filter(|d| d.is_finite())
+        .fold(0.0f64, f64::max);
     for (i, si) in s.iter_mut().enumerate() {
         let d = r[i * m + i].re.to_f64();
-        *si = if d > 0.0 && d.is_finite() {
+        *si = if d > SILENT * mx && d.is_finite() {
             1.0 / d.sqrt()
         } else {
             0.0
@@ -230,6 +238,15 @@ mod tests {
         assert!((0..m).all(|k| c[2 * m + k] == C::new(0.0, 0.0) && c[k * m + 2] == C::new(0.0, 0.0)));
         assert_eq!(c[0], C::new(1.0, 0.0));
         assert!((c[1] - a[1]).norm() < 1e-14);
+        // Rounding left on a silent channel (a sliding sum's residue) is silence too:
+        // channel 2 scaled by 10⁻⁶ (its power by 10⁻¹², below SILENT).
+        let mut e = r.clone();
+        for (q, v) in e.iter_mut().enumerate() {
+            let k = usize::from(q / m == 2) + usize::from(q % m == 2);
+            *v *= 1e-6f64.powi(k as i32);
+        }
+        normalize_coherence(&mut e, m);
+        assert!((0..m).all(|k| e[2 * m + k] == C::new(0.0, 0.0)));
     }
 
     #[test]

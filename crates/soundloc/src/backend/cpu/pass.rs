@@ -90,7 +90,7 @@ impl<T: Real> Ctx<'_, '_, T> {
         let (m, nb, nw) = (plan.num_mics, plan.num_bins(), self.nw);
         let mm = m * m;
         let srp = !plan.config.algorithm.is_music();
-        let coherence = plan.config.coherence && !srp;
+        let coherence = plan.config.normalizes_r();
         let bins = task.b0..(task.b0 + task.sums.len()).min(nb);
         let BinTask {
             sums,

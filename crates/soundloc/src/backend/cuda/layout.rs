@@ -277,7 +277,7 @@ pub(super) fn layout<T: Real>(plan: &Plan<T>, gpu: &dyn Gpu) -> Result<Layout> {
         alg: plan.config.algorithm,
         srp,
         normalize: plan.config.normalize_bins,
-        coherence: plan.config.coherence && !srp,
+        coherence: plan.config.normalizes_r(),
         lpp: v.lpp as usize,
         want_v,
         ld,
