@@ -98,10 +98,12 @@ pub struct AnalysisArgs {
     /// spectrum around it, not at the grid point.
     #[arg(long)]
     pub refine: bool,
-    /// Coherence normalisation: each window's R (and K) scaled to a unit diagonal,
-    /// R_ij/√(R_ii R_jj), and the steering vectors to their phases, so the microphones'
-    /// gain mismatch cancels. Default: on in the room default (no algorithm named, no noise
-    /// source), off otherwise.
+    /// Coherence normalisation: the channels' gains come from the recording, not the TFs,
+    /// so the microphones' gain mismatch cancels. SEVD: each window's R scaled to a unit
+    /// diagonal, R_ij/√(R_ii R_jj), steering vectors reduced to their phases; textbook GEVD:
+    /// the steering phases take K's channel levels as magnitudes (not for HARK's gsvd and
+    /// gevd-hark). Default: on in the room default (no algorithm named, no noise source),
+    /// off otherwise.
     #[arg(long, overrides_with = "no_coherence")]
     pub coherence: bool,
     /// No coherence normalisation, also in the room default.

@@ -26,8 +26,9 @@ Arguments (HARK LocalizeMUSIC name / pyroomacoustics name):
     subspace_dim (signal subspace when it should differ from num_sources), normalize_bins
         (NormMUSIC), refine (sub-grid peak directions), subspace_tracking (approximate
         streaming mode on the CPU: leading vectors tracked between windows; no source count),
-        coherence (True/False: every window's R and K scaled to a unit diagonal and steering
-        vectors to their phases, so the microphones' gain mismatch cancels; None: on in the
+        coherence (True/False: the channels' gains taken from the recording, so the
+        microphones' gain mismatch cancels: sevd scales every window's R to a unit diagonal,
+        the textbook gevd gives the steering vectors K's channel levels; None: on in the
         room default, off otherwise).
     num_sources (NUM_SOURCE / num_src), max_peaks (MAXNUM_OUT_PEAKS), window (WINDOW, frames),
     period (PERIOD), window_type "past"|"middle"|"future" (WINDOW_TYPE), freq_range
