@@ -21,6 +21,15 @@ fn ring_spec(sc: &DemoScene) -> LocalizerSpec {
     spec
 }
 
+/// `channels` with channel m multiplied by `gains[m]`.
+fn with_gains(channels: &[Vec<f32>], gains: &[f32]) -> Vec<Vec<f32>> {
+    channels
+        .iter()
+        .zip(gains)
+        .map(|(ch, g)| ch.iter().map(|x| x * g).collect())
+        .collect()
+}
+
 fn run(spec: &LocalizerSpec, channels: &[Vec<f32>]) -> Vec<LocalizationResult> {
     Localizer::new(spec).unwrap().localize(channels).unwrap().results
 }
@@ -47,13 +56,7 @@ fn difference(a: &[LocalizationResult], b: &[LocalizationResult]) -> (bool, f64,
 fn a_channel_gain_cancels_with_coherence() {
     let sc = ring8_incoherent(&[30.0, -120.0], 15.0, 5).unwrap();
     let audio = sc.render();
-    let gains = [1.0f32, 2.0, 0.5, 1.0, 4.0, 1.0, 0.25, 2.0];
-    let scaled: Vec<Vec<f32>> = audio
-        .channels
-        .iter()
-        .zip(gains)
-        .map(|(ch, g)| ch.iter().map(|x| x * g).collect())
-        .collect();
+    let scaled = with_gains(&audio.channels, &[1.0f32, 2.0, 0.5, 1.0, 4.0, 1.0, 0.25, 2.0]);
     let mut spec = ring_spec(&sc);
     spec.precision = Precision::F64;
     let room = Localizer::new(&spec).unwrap();
@@ -90,13 +93,10 @@ fn the_gevd_takes_the_gains_from_k() {
     };
     let sc = scene(StudyArray::Ring8, c, GEVD_SEED).unwrap();
     let audio = sc.render();
-    let gains = [1.0f32, 1.26, 0.79, 1.0, 1.12, 0.89, 1.26, 0.84];
-    let scaled: Vec<Vec<f32>> = audio
-        .channels
-        .iter()
-        .zip(gains)
-        .map(|(ch, g)| ch.iter().map(|x| x * g).collect())
-        .collect();
+    let scaled = with_gains(
+        &audio.channels,
+        &[1.0f32, 1.26, 0.79, 1.0, 1.12, 0.89, 1.26, 0.84],
+    );
     let mut spec = ring_spec(&sc);
     spec.noise = NoiseSource::Range {
         start_s: 0.0,
