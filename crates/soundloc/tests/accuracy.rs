@@ -4,12 +4,14 @@
 //! default (no noise source, no algorithm named) in a reverberant room with an imperfect
 //! array.
 
-use soundloc::array::grid::GridSpec;
+mod ring;
+
+use ring::ring_spec;
 use soundloc::array::{Geometry, Grid};
 use soundloc::backend::DeviceChoice;
 use soundloc::bench::accuracy::{scene, scene_with, Condition, SceneKind, StudyArray, StudyNoise};
 use soundloc::demo::{angle_deg, localize_scene, ring8_incoherent, unit_from_az_el, DemoScene};
-use soundloc::localizer::{Localizer, LocalizerSpec};
+use soundloc::localizer::Localizer;
 use soundloc::sim::{position_from_az_el, Scene, SceneSource, Signal};
 use soundloc::NoiseSource;
 use soundloc::{Algorithm, LocalizeConfig};
@@ -128,20 +130,6 @@ fn refinement_is_within_a_quarter_step_of_off_grid_sources() {
 /// Per-talker hit counts of a run over the results after the onset.
 fn per_talker(sc: &DemoScene, results: &[soundloc::LocalizationResult]) -> Vec<usize> {
     sc.score(results, 5.0).per_talker_hits
-}
-
-/// A CPU spec for a ring scene: its microphones, the 5° ring grid, PERIOD 25.
-fn ring_spec(sc: &DemoScene) -> LocalizerSpec {
-    let mut spec = LocalizerSpec::free_field(
-        sc.geometry.mics.clone(),
-        GridSpec::Ring {
-            step_deg: 5.0,
-            elevation_deg: 0.0,
-        },
-    );
-    spec.analysis.period = 25;
-    spec.device = DeviceChoice::Cpu;
-    spec
 }
 
 /// A default finds every talker in at least half the windows where the named algorithm

@@ -2,24 +2,12 @@
 //! microphone's gain cancels, so an array whose channels are louder or quieter than its
 //! transfer functions say gives the results of a matched one.
 
-use soundloc::array::grid::GridSpec;
-use soundloc::backend::DeviceChoice;
-use soundloc::demo::{ring8_incoherent, DemoScene};
+mod ring;
+
+use ring::ring_spec;
+use soundloc::demo::ring8_incoherent;
 use soundloc::localizer::{Localizer, LocalizerSpec};
 use soundloc::{LocalizationResult, Precision};
-
-fn ring_spec(sc: &DemoScene) -> LocalizerSpec {
-    let mut spec = LocalizerSpec::free_field(
-        sc.geometry.mics.clone(),
-        GridSpec::Ring {
-            step_deg: 5.0,
-            elevation_deg: 0.0,
-        },
-    );
-    spec.analysis.period = 25;
-    spec.device = DeviceChoice::Cpu;
-    spec
-}
 
 /// `channels` with channel m multiplied by `gains[m]`.
 fn with_gains(channels: &[Vec<f32>], gains: &[f32]) -> Vec<Vec<f32>> {
