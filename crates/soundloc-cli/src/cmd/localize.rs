@@ -103,7 +103,8 @@ pub struct AnalysisArgs {
     /// diagonal, R_ij/√(R_ii R_jj), steering vectors reduced to their phases; textbook GEVD:
     /// the steering phases take K's channel levels as magnitudes (not for HARK's gsvd and
     /// gevd-hark). Default: on in the room default (no algorithm named, no noise source),
-    /// off otherwise.
+    /// off otherwise. With a noise source, turn it on for an uncalibrated array with
+    /// geometric TFs (it costs anechoic accuracy on an array that matches its TFs).
     #[arg(long, overrides_with = "no_coherence")]
     pub coherence: bool,
     /// No coherence normalisation, also in the room default.

@@ -29,7 +29,8 @@ Arguments (HARK LocalizeMUSIC name / pyroomacoustics name):
         coherence (True/False: the channels' gains taken from the recording, so the
         microphones' gain mismatch cancels: sevd scales every window's R to a unit diagonal,
         the textbook gevd gives the steering vectors K's channel levels; None: on in the
-        room default, off otherwise).
+        room default, off otherwise; with a noise source, True suits an uncalibrated array
+        with geometric transfer functions).
     num_sources (NUM_SOURCE / num_src), max_peaks (MAXNUM_OUT_PEAKS), window (WINDOW, frames),
     period (PERIOD), window_type "past"|"middle"|"future" (WINDOW_TYPE), freq_range
         (LOWER/UPPER_BOUND_FREQUENCY, Hz; pyroomacoustics' freq_range), nfft (LENGTH),

@@ -73,10 +73,19 @@ impl LocalizerSpec {
                 "no coherence normalisation"
             };
             let note = if noise {
+                // Coherence stays opt-in here (docs/accuracy.md, "Imperfect arrays in rotor
+                // noise"): the note says when to turn it on.
+                let gains = if c.coherence {
+                    "coherence normalisation (the steering vectors take K's channel levels)"
+                } else {
+                    "no coherence normalisation (microphones whose gains differ from the \
+                     transfer functions', e.g. an uncalibrated array with geometric ones: \
+                     --coherence)"
+                };
                 format!(
                     "a noise source was given: using the robust default, the textbook GEVD with a \
                      signal subspace of {dim} of {num_mics} (max(--num-sources + 2, M/2) unless \
-                     --subspace-dim) and sub-grid refinement (HARK's: name --algorithm)"
+                     --subspace-dim), {gains} and sub-grid refinement (HARK's: name --algorithm)"
                 )
             } else {
                 format!(
@@ -141,7 +150,19 @@ mod tests {
             (c.algorithm, c.subspace_dim, c.refine, c.coherence),
             (Algorithm::Gevd, Some(30), true, false)
         );
-        assert!(note.unwrap().contains("M/2"));
+        let note = note.unwrap();
+        assert!(note.contains("M/2"));
+        assert!(
+            note.contains("no coherence normalisation")
+                && note.contains("uncalibrated array")
+                && note.contains("--coherence)"),
+            "coherence stays opt-in with a noise source, and the note says when to turn it on: {note}"
+        );
+        spec.coherence = Some(true);
+        let (c, note) = spec.resolved_analysis(60);
+        assert!(c.coherence && note.unwrap().contains("K's channel levels"));
+        assert_eq!(c.label(), "gevd (subspace 30, coherence, refined)");
+        spec.coherence = None;
         spec.analysis.subspace_dim = Some(6);
         assert_eq!(spec.resolved_analysis(60).0.subspace_dim, Some(6));
         spec.analysis.subspace_dim = None;

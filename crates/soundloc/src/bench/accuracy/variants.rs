@@ -91,7 +91,9 @@ pub fn variants(period: usize) -> Vec<Variant> {
 /// [`variants`], plus the robust default (its signal subspace depends on the array:
 /// [`crate::localizer::robust_subspace_dim`]), other subspace sizes (the ring's 8
 /// microphones allow at most 7), and the robust default with longer windows, another
-/// band, no eigenvalue weight.
+/// band, no eigenvalue weight; with coherence normalisation alone and with other bands,
+/// per-bin normalisation, and diagonal loading of K (the imperfect-array comparisons of
+/// docs/accuracy.md).
 pub fn variants_for(array: StudyArray, period: usize) -> Vec<Variant> {
     let mut vs = variants(period);
     let base = vs[0].config.clone();
@@ -140,6 +142,46 @@ pub fn variants_for(array: StudyArray, period: usize) -> Vec<Variant> {
         c.subspace_dim = Some(robust);
         c.coherence = true
     });
+    push("robust 1000-4000 Hz".into(), &|c| {
+        c.subspace_dim = Some(robust);
+        c.lower_freq_hz = 1000.0;
+        c.upper_freq_hz = 4000.0
+    });
+    for (lo, hi) in [
+        (700.0, 2800.0),
+        (1000.0, 2800.0),
+        (1000.0, 3500.0),
+        (800.0, 4000.0),
+        (1000.0, 4000.0),
+        (1200.0, 4000.0),
+    ] {
+        push(format!("robust coherence {lo}-{hi} Hz"), &|c| {
+            c.subspace_dim = Some(robust);
+            c.coherence = true;
+            c.lower_freq_hz = lo;
+            c.upper_freq_hz = hi
+        });
+    }
+    push("robust coherence normalized".into(), &|c| {
+        c.subspace_dim = Some(robust);
+        c.coherence = true;
+        c.normalize_bins = true
+    });
+    push("robust normalized".into(), &|c| {
+        c.subspace_dim = Some(robust);
+        c.normalize_bins = true
+    });
+    for loading in [1e-4, 1e-3, 3e-3, 1e-2] {
+        push(format!("robust loading {loading:e}"), &|c| {
+            c.subspace_dim = Some(robust);
+            c.diagonal_loading = loading
+        });
+        push(format!("robust coherence loading {loading:e}"), &|c| {
+            c.subspace_dim = Some(robust);
+            c.coherence = true;
+            c.diagonal_loading = loading
+        });
+    }
     vs
 }
 
