@@ -79,8 +79,8 @@ impl LocalizerSpec {
                     "coherence normalisation (the steering vectors take K's channel levels)"
                 } else {
                     "no coherence normalisation (microphones whose gains differ from the \
-                     transfer functions', e.g. an uncalibrated array with geometric ones: \
-                     --coherence)"
+                     transfer functions', e.g. an uncalibrated array with free-field ones \
+                     from its geometry: --coherence)"
                 };
                 format!(
                     "a noise source was given: using the robust default, the textbook GEVD with a \
