@@ -6,14 +6,13 @@
 
 mod ring;
 
-use ring::ring_spec;
+use ring::{drone_spec, ring_spec, two_talker_drone};
 use soundloc::array::{Geometry, Grid};
 use soundloc::backend::DeviceChoice;
-use soundloc::bench::accuracy::{scene, scene_with, Condition, SceneKind, StudyArray, StudyNoise};
+use soundloc::bench::accuracy::{scene_with, Condition, SceneKind, StudyArray, StudyNoise};
 use soundloc::demo::{angle_deg, localize_scene, ring8_incoherent, unit_from_az_el, DemoScene};
 use soundloc::localizer::Localizer;
 use soundloc::sim::{position_from_az_el, Scene, SceneSource, Signal};
-use soundloc::NoiseSource;
 use soundloc::{Algorithm, LocalizeConfig};
 
 #[test]
@@ -157,18 +156,9 @@ fn assert_default_beats_named(
 #[test]
 fn robust_default_finds_both_talkers_where_textbook_gevd_misses_one() {
     // A fixed held-out-style scene: RT60 0.4 s, two talkers at 0 dB SNR, four rotors.
-    let c = Condition {
-        rt60_s: 0.4,
-        talkers: 2,
-        snr_db: 0.0,
-    };
-    let sc = scene(StudyArray::Ring8, c, ROBUST_SEED).unwrap();
+    let sc = two_talker_drone(0.4, ROBUST_SEED);
     let audio = sc.render();
-    let mut spec = ring_spec(&sc);
-    spec.noise = NoiseSource::Range {
-        start_s: 0.0,
-        end_s: 1.0,
-    };
+    let mut spec = drone_spec(&sc);
     // The robust default: no algorithm named.
     let robust = Localizer::new(&spec).unwrap();
     assert_eq!(robust.config().algorithm, Algorithm::Gevd);

@@ -4,7 +4,7 @@
 
 mod ring;
 
-use ring::ring_spec;
+use ring::{drone_spec, ring_spec, two_talker_drone};
 use soundloc::demo::ring8_incoherent;
 use soundloc::localizer::{Localizer, LocalizerSpec};
 use soundloc::{LocalizationResult, Precision};
@@ -72,24 +72,14 @@ fn a_channel_gain_cancels_with_coherence() {
 /// expected here: HARK's scaling of R adds 1 to its divisor.)
 #[test]
 fn the_gevd_takes_the_gains_from_k() {
-    use soundloc::bench::accuracy::{scene, Condition, StudyArray};
-    use soundloc::{Algorithm, NoiseSource};
-    let c = Condition {
-        rt60_s: 0.0,
-        talkers: 2,
-        snr_db: 0.0,
-    };
-    let sc = scene(StudyArray::Ring8, c, GEVD_SEED).unwrap();
+    use soundloc::Algorithm;
+    let sc = two_talker_drone(0.0, GEVD_SEED);
     let audio = sc.render();
     let scaled = with_gains(
         &audio.channels,
         &[1.0f32, 1.26, 0.79, 1.0, 1.12, 0.89, 1.26, 0.84],
     );
-    let mut spec = ring_spec(&sc);
-    spec.noise = NoiseSource::Range {
-        start_s: 0.0,
-        end_s: 1.0,
-    };
+    let mut spec = drone_spec(&sc);
     spec.algorithm = Some(Algorithm::Gevd);
     spec.analysis.subspace_dim = Some(4);
     let hits = |spec: &LocalizerSpec, ch: &[Vec<f32>]| sc.score(&run(spec, ch), 5.0);

@@ -20,3 +20,26 @@ pub fn ring_spec(sc: &DemoScene) -> LocalizerSpec {
     spec.device = DeviceChoice::Cpu;
     spec
 }
+
+/// A two-talker drone scene of the accuracy study on the ring (four rotors 25 cm away,
+/// talkers at 0 dB SNR) in a room of `rt60_s` (0: anechoic), seed `seed`.
+pub fn two_talker_drone(rt60_s: f64, seed: u64) -> DemoScene {
+    use soundloc::bench::accuracy::{scene, Condition, StudyArray};
+    let c = Condition {
+        rt60_s,
+        talkers: 2,
+        snr_db: 0.0,
+    };
+    scene(StudyArray::Ring8, c, seed).unwrap()
+}
+
+/// [`ring_spec`] with K from the scene's noise-only range: no algorithm named, so the
+/// robust default runs unless the caller names one.
+pub fn drone_spec(sc: &DemoScene) -> LocalizerSpec {
+    let mut spec = ring_spec(sc);
+    spec.noise = soundloc::NoiseSource::Range {
+        start_s: sc.noise_range_s.0,
+        end_s: sc.noise_range_s.1,
+    };
+    spec
+}
