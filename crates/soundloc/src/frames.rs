@@ -3,6 +3,11 @@
 //! snapshots form one correlation window, and the result is the broadband spectrum over
 //! the grid and its peaks. The Python drop-in (`soundloc.doa`) calls this; the plan,
 //! backends, spectrum and peak rules are the engine's own.
+//!
+//! With more snapshots than microphones, MUSIC's window reaches the backend as the M
+//! frames of a factor of its correlation ([`factor`]: one pass over X in its own memory
+//! order, no copy of every snapshot); SRP-PHAT, whose phase transform acts on each
+//! snapshot, and short windows get the snapshots themselves.
 
 use crate::array::freefield::free_field;
 use crate::array::{Geometry, Grid, TransferFunctions};
@@ -14,6 +19,8 @@ use crate::real::{Real, C};
 use crate::{Error, Result};
 use rayon::prelude::*;
 use std::sync::Arc;
+
+mod factor;
 
 /// The spectrum and peaks of one window of given frames.
 #[derive(Debug, Clone, PartialEq)]
@@ -98,6 +105,8 @@ struct Prepared<T: Real> {
     plan: Arc<Plan<T>>,
     backend: Box<dyn Backend<T>>,
     spectra: Spectra<T>,
+    /// Per used bin, its M factor frames (M × M; [`Prepared::factor`]).
+    factors: Vec<C<T>>,
     out: BatchOutput,
 }
 
@@ -113,23 +122,51 @@ impl<T: Real> Prepared<T> {
             plan,
             backend,
             spectra: Spectra::zeros(0, 0, 0),
+            factors: Vec::new(),
             out: BatchOutput::default(),
         })
     }
 
-    fn run(&mut self, x: &FramesView<'_>) -> Result<FramesResult> {
+    /// The window's M factor frames into `self.spectra` (factor.rs); false if a value
+    /// of a used bin is not finite.
+    fn factor(&mut self, x: &FramesView<'_>) -> bool {
         let [m, _, s] = x.shape;
-        if self.plan.num_mics != m {
-            return Err(Error::Mismatch(format!(
-                "frames have {m} microphones, the array {}",
-                self.plan.num_mics
-            )));
-        }
         let bins = self.plan.bins.clone();
         let nb = bins.len();
-        if self.spectra.num_frames != s || self.spectra.num_bins != nb || self.spectra.num_mics != m {
-            self.spectra = Spectra::zeros(s, nb, m);
+        let mut per_bin = std::mem::take(&mut self.factors);
+        per_bin.resize(nb * m * m, C::new(T::zero(), T::zero()));
+        let finite = per_bin
+            .par_chunks_mut(m * m)
+            .zip(bins.into_par_iter())
+            .map_init(
+                || (factor::Scratch::default(), Vec::new(), Vec::new()),
+                |(ws, sum, l), (out, k)| {
+                    sum.resize(m * m, num_complex::Complex::new(0.0, 0.0));
+                    let finite = factor::bin_sum(x, k, sum, ws);
+                    if finite {
+                        factor::factor_frames(sum, m, s, l, out, m);
+                    }
+                    finite
+                },
+            )
+            .reduce(|| true, |a, b| a & b);
+        // Frame c of bin b at (c · nb + b) · M.
+        for (b, fb) in per_bin.chunks_exact(m * m).enumerate() {
+            for (c, y) in fb.chunks_exact(m).enumerate() {
+                let o = (c * nb + b) * m;
+                self.spectra.data[o..o + m].copy_from_slice(y);
+            }
         }
+        self.factors = per_bin;
+        finite
+    }
+
+    /// The snapshots of the used bins into `self.spectra` (converted to T); false if one
+    /// is not finite.
+    fn copy(&mut self, x: &FramesView<'_>) -> bool {
+        let [m, _, s] = x.shape;
+        let bins = self.plan.bins.clone();
+        let nb = bins.len();
         // Only the used bins are read (and must be finite), in the order of the source's
         // memory where the snapshots lie closer together than the microphones (numpy's
         // (M, F, S) layout: each bin's snapshots are a contiguous run), else microphone
@@ -139,8 +176,7 @@ impl<T: Real> Prepared<T> {
         // Parts of snapshots in parallel (each part's destination is contiguous): a
         // window's frames are read once, from memory, at the pool's combined bandwidth.
         let part = s.div_ceil(rayon::current_num_threads().max(1)).max(8);
-        let finite = self
-            .spectra
+        self.spectra
             .data
             .par_chunks_mut(part * nb * m)
             .enumerate()
@@ -173,8 +209,29 @@ impl<T: Real> Prepared<T> {
                 }
                 finite
             })
-            .reduce(|| true, |a, b| a & b);
+            .reduce(|| true, |a, b| a & b)
+    }
+
+    fn run(&mut self, x: &FramesView<'_>) -> Result<FramesResult> {
+        let [m, _, s] = x.shape;
+        if self.plan.num_mics != m {
+            return Err(Error::Mismatch(format!(
+                "frames have {m} microphones, the array {}",
+                self.plan.num_mics
+            )));
+        }
+        let bins = self.plan.bins.clone();
+        let nb = bins.len();
+        // More snapshots than microphones (MUSIC): the window goes to the backend as the
+        // M frames of its correlation's factor (factor.rs), else as the snapshots.
+        let factored = self.plan.config.algorithm.is_music() && s > m;
+        let frames = if factored { m } else { s };
+        if self.spectra.num_frames != frames || self.spectra.num_bins != nb || self.spectra.num_mics != m {
+            self.spectra = Spectra::zeros(frames, nb, m);
+        }
+        let finite = if factored { self.factor(x) } else { self.copy(x) };
         if !finite {
+            let [st_mic, st_bin, st_snap] = x.strides;
             for (k, snap, mic) in
                 bins.flat_map(|k| (0..s).flat_map(move |snap| (0..m).map(move |mic| (k, snap, mic))))
             {
@@ -186,10 +243,15 @@ impl<T: Real> Prepared<T> {
                 }
             }
         }
+        self.localize()
+    }
+
+    /// The backend's result for the frames in `self.spectra`, all of them one window.
+    fn localize(&mut self) -> Result<FramesResult> {
         let window = WindowSpec {
             frame: 0,
             start: 0,
-            len: s,
+            len: self.spectra.num_frames,
         };
         self.backend
             .process(&[Job::once(&self.spectra, &[window])], true, &mut self.out)?;
@@ -365,6 +427,54 @@ mod tests {
                 e.contains("microphone 2, bin 10, snapshot 3 is not finite"),
                 "{e}"
             );
+        }
+    }
+
+    /// The window as the M frames of its correlation's factor gives the spectrum and
+    /// peaks of its S snapshots (f64: to rounding; f32: within the f32 path's own
+    /// rounding), for each MUSIC form; the factored path is the one a long window takes.
+    #[test]
+    fn factor_frames_localize_as_the_snapshots() {
+        let (geo, x, shape) = plane_wave(40);
+        let view = FramesView::contiguous(&x, shape).unwrap();
+        let tf = free_field(
+            &geo,
+            &Grid::ring(5.0, 0.0, 1e4),
+            64,
+            16000,
+            config(crate::Algorithm::Sevd).bin_range(),
+            343.0,
+        )
+        .unwrap();
+        for normalize_bins in [false, true] {
+            let c = LocalizeConfig {
+                normalize_bins,
+                subspace_dim: Some(2),
+                ..config(crate::Algorithm::Sevd)
+            };
+            let mut p = Prepared::<f64>::new(&c, &tf, DeviceChoice::Cpu).unwrap();
+            let (m, nb) = (shape[0], p.plan.num_bins());
+            p.spectra = Spectra::zeros(shape[2], nb, m);
+            assert!(p.copy(&view));
+            let snapshots = p.localize().unwrap();
+            p.spectra = Spectra::zeros(m, nb, m);
+            assert!(p.factor(&view));
+            let factored = p.localize().unwrap();
+            assert_eq!(factored.peaks.len(), 1);
+            assert_eq!(
+                factored.peaks.iter().map(|p| p.dir).collect::<Vec<_>>(),
+                snapshots.peaks.iter().map(|p| p.dir).collect::<Vec<_>>()
+            );
+            let worst = factored
+                .spectrum_db
+                .iter()
+                .zip(&snapshots.spectrum_db)
+                .map(|(a, b)| (a - b).abs())
+                .fold(0.0f32, f32::max);
+            assert!(worst < 1e-4, "normalize_bins {normalize_bins}: {worst} dB");
+            // What process() does with 40 snapshots of 6 microphones.
+            assert_eq!(p.run(&view).unwrap(), factored);
+            assert_eq!(p.spectra.num_frames, m);
         }
     }
 

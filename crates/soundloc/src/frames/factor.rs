@@ -1,0 +1,213 @@
+//! A long window of given frames as M frames: its correlation sum, then a factor of it.
+//!
+//! Per used bin k the sum S_k = Σ_s x_{·,k,s} x_{·,k,s}ᴴ (M × M, f64) is formed straight
+//! from the caller's array, each microphone's snapshots read in runs of its own memory
+//! order (numpy's (M, F, S): one contiguous run per microphone and bin). Its lower
+//! Cholesky factor L (S_k = L Lᴴ, semidefinite: a column whose pivot is at rounding level
+//! is left zero) gives M frames y_c = √(M / S_snap) · L_{·,c} whose correlation
+//! (Σ_c y_c y_cᴴ) / M is S_k / S_snap: the window's R to rounding. A backend given those
+//! M frames computes the same R, decomposition, spectrum and peaks as from the S_snap
+//! frames themselves, without the transposing copy of every snapshot into its frame
+//! layout. Only for MUSIC: SRP-PHAT transforms each frame before summing.
+
+use super::FramesView;
+use crate::real::{Real, C};
+use num_complex::Complex;
+
+/// Snapshots per block of [`bin_sum`]: a block of every microphone, split into real and
+/// imaginary parts, stays in the first-level cache.
+const BLOCK: usize = 64;
+
+/// Lanes of the sums in [`add_block`] (independent chains the compiler vectorises).
+const LANES: usize = 8;
+
+/// A pivot below this fraction of S's largest diagonal entry counts as zero.
+const PIVOT_FLOOR: f64 = 1e-14;
+
+/// Scratch of one thread: a block of snapshots in split parts, and the sums.
+#[derive(Default)]
+pub(super) struct Scratch {
+    re: Vec<f64>,
+    im: Vec<f64>,
+    sum_re: Vec<f64>,
+    sum_im: Vec<f64>,
+}
+
+/// S_k of bin `k` of `x` into `sum` (row-major M × M, Hermitian, real diagonal).
+/// Returns false if a value of the bin is not finite (`sum` is then meaningless).
+pub(super) fn bin_sum(x: &FramesView<'_>, k: usize, sum: &mut [Complex<f64>], ws: &mut Scratch) -> bool {
+    let [m, _, s] = x.shape;
+    let [st_mic, st_bin, st_snap] = x.strides;
+    ws.re.resize(m * BLOCK, 0.0);
+    ws.im.resize(m * BLOCK, 0.0);
+    ws.sum_re.clear();
+    ws.sum_re.resize(m * m * LANES, 0.0);
+    ws.sum_im.clear();
+    ws.sum_im.resize(m * m * LANES, 0.0);
+    let mut finite = true;
+    for first in (0..s).step_by(BLOCK) {
+        let n = BLOCK.min(s - first);
+        // The block's snapshots rounded up to whole lanes; zeros past the last add nothing.
+        let len = n.next_multiple_of(LANES);
+        for mic in 0..m {
+            let o = mic * st_mic + k * st_bin + first * st_snap;
+            let re = &mut ws.re[mic * BLOCK..mic * BLOCK + len];
+            let im = &mut ws.im[mic * BLOCK..mic * BLOCK + len];
+            if st_snap == 1 {
+                for ((r, i), v) in re.iter_mut().zip(im.iter_mut()).zip(&x.data[o..o + n]) {
+                    finite &= v.re.is_finite() & v.im.is_finite();
+                    (*r, *i) = (v.re, v.im);
+                }
+            } else {
+                for (t, (r, i)) in re.iter_mut().zip(im.iter_mut()).take(n).enumerate() {
+                    let v = x.data[o + t * st_snap];
+                    finite &= v.re.is_finite() & v.im.is_finite();
+                    (*r, *i) = (v.re, v.im);
+                }
+            }
+            re[n..].fill(0.0);
+            im[n..].fill(0.0);
+        }
+        add_block(&ws.re, &ws.im, m, len, &mut ws.sum_re, &mut ws.sum_im);
+    }
+    for i in 0..m {
+        for j in i..m {
+            let o = (i * m + j) * LANES;
+            let v = Complex::new(
+                ws.sum_re[o..o + LANES].iter().sum(),
+                ws.sum_im[o..o + LANES].iter().sum(),
+            );
+            sum[i * m + j] = v;
+            sum[j * m + i] = v.conj();
+        }
+        sum[i * m + i].im = 0.0;
+    }
+    finite
+}
+
+crate::subspace::simd::dispatch!(
+    /// Σ over the first `len` snapshots (a multiple of `LANES`) of a block of x_i conj(x_j)
+    /// for i ≤ j, into `LANES` partial sums per pair.
+    fn add_block(re: &[f64], im: &[f64], m: usize, len: usize, sum_re: &mut [f64], sum_im: &mut [f64]) => add_block_impl
+);
+
+#[inline(always)]
+fn add_block_impl(re: &[f64], im: &[f64], m: usize, len: usize, sum_re: &mut [f64], sum_im: &mut [f64]) {
+    for i in 0..m {
+        let (ri, ii) = (&re[i * BLOCK..(i + 1) * BLOCK], &im[i * BLOCK..(i + 1) * BLOCK]);
+        for j in i..m {
+            let (rj, ij) = (&re[j * BLOCK..(j + 1) * BLOCK], &im[j * BLOCK..(j + 1) * BLOCK]);
+            let o = (i * m + j) * LANES;
+            let mut ar = [0.0f64; LANES];
+            let mut ai = [0.0f64; LANES];
+            ar.copy_from_slice(&sum_re[o..o + LANES]);
+            ai.copy_from_slice(&sum_im[o..o + LANES]);
+            for t in (0..len).step_by(LANES) {
+                for l in 0..LANES {
+                    // x_i conj(x_j) = (a + ib)(c − id) = ac + bd + i(bc − ad).
+                    let (a, b, c, d) = (ri[t + l], ii[t + l], rj[t + l], ij[t + l]);
+                    ar[l] = a.mul_add(c, b.mul_add(d, ar[l]));
+                    ai[l] = b.mul_add(c, (-a).mul_add(d, ai[l]));
+                }
+            }
+            sum_re[o..o + LANES].copy_from_slice(&ar);
+            sum_im[o..o + LANES].copy_from_slice(&ai);
+        }
+    }
+}
+
+/// The M frames of one bin from its sum `sum` (row-major M × M, Hermitian) over
+/// `snapshots` snapshots: frame c's vector √(M / snapshots) · L_{·,c}, written at
+/// `out[c * stride .. c * stride + M]` (the frame layout of [`crate::backend::Spectra`]).
+/// `l` is scratch.
+pub(super) fn factor_frames<T: Real>(
+    sum: &[Complex<f64>],
+    m: usize,
+    snapshots: usize,
+    l: &mut Vec<Complex<f64>>,
+    out: &mut [C<T>],
+    stride: usize,
+) {
+    l.clear();
+    l.resize(m * m, Complex::new(0.0, 0.0));
+    let floor = (0..m).map(|i| sum[i * m + i].re).fold(0.0f64, f64::max) * PIVOT_FLOOR;
+    // Column by column: L_jj = √(S_jj − Σ_{t<j} |L_jt|²), L_ij = (S_ij − Σ_{t<j} L_it conj(L_jt)) / L_jj.
+    for j in 0..m {
+        let d = sum[j * m + j].re - (0..j).map(|t| l[j * m + t].norm_sqr()).sum::<f64>();
+        if d <= floor {
+            continue; // a rank-deficient direction: the column stays zero
+        }
+        let ljj = d.sqrt();
+        l[j * m + j] = Complex::new(ljj, 0.0);
+        for i in j + 1..m {
+            let mut v = sum[i * m + j];
+            for t in 0..j {
+                v -= l[i * m + t] * l[j * m + t].conj();
+            }
+            l[i * m + j] = v / ljj;
+        }
+    }
+    let scale = (m as f64 / snapshots as f64).sqrt();
+    for c in 0..m {
+        for i in 0..m {
+            let v = l[i * m + c] * scale;
+            out[c * stride + i] = C::new(T::of_f64(v.re), T::of_f64(v.im));
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The sum equals the defined Σ x xᴴ for a strided view (snapshots not a multiple of
+    /// the block), and L Lᴴ of the factor frames reproduces it, also when it is singular.
+    #[test]
+    fn sums_and_factors_reproduce_the_correlation() {
+        let (m, f, s) = (5, 3, 150);
+        let mut seed = 7u64;
+        let mut rnd = || {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+        };
+        let mut x: Vec<Complex<f64>> = (0..m * f * s).map(|_| Complex::new(rnd(), rnd())).collect();
+        // Microphone 4 = 2 × microphone 1 at bin 2: S_2 has rank 4.
+        for t in 0..s {
+            x[(4 * f + 2) * s + t] = x[(f + 2) * s + t] * 2.0;
+        }
+        let view = FramesView::new(&x, [m, f, s], [f * s, s, 1]).unwrap();
+        let mut ws = Scratch::default();
+        for k in 0..f {
+            let mut sum = vec![Complex::new(0.0, 0.0); m * m];
+            assert!(bin_sum(&view, k, &mut sum, &mut ws));
+            for i in 0..m {
+                for j in 0..m {
+                    let want: Complex<f64> = (0..s)
+                        .map(|t| x[(i * f + k) * s + t] * x[(j * f + k) * s + t].conj())
+                        .sum();
+                    assert!((sum[i * m + j] - want).norm() < 1e-12 * s as f64, "{k} {i} {j}");
+                }
+            }
+            let mut l = Vec::new();
+            let mut frames = vec![C::<f64>::new(0.0, 0.0); m * m];
+            factor_frames(&sum, m, s, &mut l, &mut frames, m);
+            for i in 0..m {
+                for j in 0..m {
+                    let r: C<f64> = (0..m).map(|c| frames[c * m + i] * frames[c * m + j].conj()).sum();
+                    let want = sum[i * m + j] / s as f64;
+                    assert!(
+                        (Complex::new(r.re, r.im) * (1.0 / m as f64) - want).norm() < 1e-12,
+                        "{k} {i} {j}: {r} vs {want}"
+                    );
+                }
+            }
+        }
+        x[(3 * f + 1) * s + 77].im = f64::NAN;
+        let view = FramesView::new(&x, [m, f, s], [f * s, s, 1]).unwrap();
+        let mut sum = vec![Complex::new(0.0, 0.0); m * m];
+        assert!(!bin_sum(&view, 1, &mut sum, &mut ws));
+        assert!(bin_sum(&view, 0, &mut sum, &mut ws));
+    }
+}
