@@ -457,6 +457,51 @@ fn noisy_recording_with_noise_range_and_online_segments() {
     }
 }
 
+/// A dead microphone in the drone scene makes K singular: the error names it (exit 2), and
+/// leaving it out with --channels finds both talkers with the other seven.
+#[test]
+fn a_dead_microphone_is_named_and_can_be_left_out() {
+    let scene = soundloc::demo::ring8_drone(-10.0, 1).unwrap();
+    let mut audio = scene.render();
+    audio.channels[5].fill(0.0);
+    let wav = tmp("dead5.wav");
+    audio
+        .write_wav(&wav, soundloc::audio::SampleFormat::Float32)
+        .unwrap();
+    let geo = tmp("dead5-ring8.toml");
+    std::fs::write(&geo, scene.geometry.to_toml_string()).unwrap();
+    let run = |extra: &[&str]| {
+        bin()
+            .arg("localize")
+            .arg(&wav)
+            .arg("--geometry")
+            .arg(&geo)
+            .args(["--grid", "ring:5", "--noise-range", "0:1", "--device", "cpu"])
+            .args(extra)
+            .output()
+            .unwrap()
+    };
+    assert_clean_failure(
+        &run(&[]),
+        &["channel 5 (0-based, of those in use) is silent", "--channels"],
+    );
+    let o = run(&["--channels", "0,1,2,3,4,6,7"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let results = soundloc::output::jsonl::read_jsonl(&o.stdout[..], Path::new("stdout")).unwrap();
+    let after: Vec<_> = results.iter().filter(|r| r.time_s >= 1.0).collect();
+    assert!(after.len() >= 3);
+    for r in after {
+        for talker in [-120.0, 30.0] {
+            let near = r
+                .sources
+                .iter()
+                .map(|s| (s.azimuth_deg - talker).abs())
+                .fold(f64::MAX, f64::min);
+            assert!(near <= 5.0, "talker {talker}° at {} s: {:?}", r.time_s, r.sources);
+        }
+    }
+}
+
 #[test]
 fn input_channel_selector_drops_extra_channels() {
     let Some(d) = data() else {

@@ -28,6 +28,9 @@ use rayon::prelude::*;
 use std::ops::Range;
 use std::sync::Arc;
 
+mod singular;
+use singular::not_positive_definite;
+
 /// Noise-dependent precomputation (absent for SEVD).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Whitening<T: Real> {
@@ -513,11 +516,7 @@ fn bin_whitening<T: Real>(
             k[(i, j)] /= mx;
         }
     }
-    let llt = k.llt(Side::Lower).map_err(|_| {
-        "is not positive definite (too few noise frames for the channel count, or a silent or duplicated channel); \
-         give more noise frames or use diagonal loading"
-            .to_string()
-    })?;
+    let llt = k.llt(Side::Lower).map_err(|_| not_positive_definite(&k))?;
     let row_major = |w: &Mat<c64>| -> Vec<c64> {
         let mut v = Vec::with_capacity(m * m);
         for i in 0..m {
