@@ -128,28 +128,36 @@ impl<T: Real> Prepared<T> {
     }
 
     /// The window's M factor frames into `self.spectra` (factor.rs); false if a value
-    /// of a used bin is not finite.
-    fn factor(&mut self, x: &FramesView<'_>) -> bool {
+    /// of a used bin is not finite; `None` if a sum or a factor frame overflows (values
+    /// too large for f64 sums or for frames in T), and nothing is written: the caller then
+    /// copies the snapshots, whose path reports or handles such values.
+    fn factor(&mut self, x: &FramesView<'_>) -> Option<bool> {
         let [m, _, s] = x.shape;
         let bins = self.plan.bins.clone();
         let nb = bins.len();
         let mut per_bin = std::mem::take(&mut self.factors);
         per_bin.resize(nb * m * m, C::new(T::zero(), T::zero()));
-        let finite = per_bin
+        let ok = |v: &C<T>| v.re.to_f64().is_finite() & v.im.to_f64().is_finite();
+        let (finite, held) = per_bin
             .par_chunks_mut(m * m)
             .zip(bins.into_par_iter())
             .map_init(
                 || (factor::Scratch::default(), Vec::new(), Vec::new()),
                 |(ws, sum, l), (out, k)| {
                     sum.resize(m * m, num_complex::Complex::new(0.0, 0.0));
-                    let finite = factor::bin_sum(x, k, sum, ws);
-                    if finite {
-                        factor::factor_frames(sum, m, s, l, out, m);
+                    if !factor::bin_sum(x, k, sum, ws) {
+                        return (false, true);
                     }
-                    finite
+                    factor::factor_frames(sum, m, s, l, out, m);
+                    let sums_held = sum.iter().all(|z| z.re.is_finite() & z.im.is_finite());
+                    (true, sums_held && out.iter().all(ok))
                 },
             )
-            .reduce(|| true, |a, b| a & b);
+            .reduce(|| (true, true), |a, b| (a.0 & b.0, a.1 & b.1));
+        if !held {
+            self.factors = per_bin;
+            return None;
+        }
         // Frame c of bin b at (c · nb + b) · M.
         for (b, fb) in per_bin.chunks_exact(m * m).enumerate() {
             for (c, y) in fb.chunks_exact(m).enumerate() {
@@ -158,7 +166,7 @@ impl<T: Real> Prepared<T> {
             }
         }
         self.factors = per_bin;
-        finite
+        Some(finite)
     }
 
     /// The snapshots of the used bins into `self.spectra` (converted to T); false if one
@@ -221,15 +229,21 @@ impl<T: Real> Prepared<T> {
             )));
         }
         let bins = self.plan.bins.clone();
-        let nb = bins.len();
         // More snapshots than microphones (MUSIC): the window goes to the backend as the
         // M frames of its correlation's factor (factor.rs), else as the snapshots.
         let factored = self.plan.config.algorithm.is_music() && s > m;
-        let frames = if factored { m } else { s };
-        if self.spectra.num_frames != frames || self.spectra.num_bins != nb || self.spectra.num_mics != m {
-            self.spectra = Spectra::zeros(frames, nb, m);
+        let mut finite = None;
+        if factored {
+            self.reshape(m);
+            finite = self.factor(x);
         }
-        let finite = if factored { self.factor(x) } else { self.copy(x) };
+        let finite = match finite {
+            Some(f) => f,
+            None => {
+                self.reshape(s);
+                self.copy(x)
+            }
+        };
         if !finite {
             let [st_mic, st_bin, st_snap] = x.strides;
             for (k, snap, mic) in
@@ -244,6 +258,14 @@ impl<T: Real> Prepared<T> {
             }
         }
         self.localize()
+    }
+
+    /// `self.spectra` for `frames` frames of the plan's bins and microphones.
+    fn reshape(&mut self, frames: usize) {
+        let (nb, m) = (self.plan.num_bins(), self.plan.num_mics);
+        if self.spectra.num_frames != frames || self.spectra.num_bins != nb || self.spectra.num_mics != m {
+            self.spectra = Spectra::zeros(frames, nb, m);
+        }
     }
 
     /// The backend's result for the frames in `self.spectra`, all of them one window.
@@ -458,7 +480,7 @@ mod tests {
             assert!(p.copy(&view));
             let snapshots = p.localize().unwrap();
             p.spectra = Spectra::zeros(m, nb, m);
-            assert!(p.factor(&view));
+            assert_eq!(p.factor(&view), Some(true));
             let factored = p.localize().unwrap();
             assert_eq!(factored.peaks.len(), 1);
             assert_eq!(
@@ -476,6 +498,28 @@ mod tests {
             assert_eq!(p.run(&view).unwrap(), factored);
             assert_eq!(p.spectra.num_frames, m);
         }
+        // Values whose sums overflow f64 take the snapshots' path, and its error, instead
+        // of a silent all-zero factor; large values that the sums hold are factored.
+        let mut fl = FramesLocalizer::new(
+            geo,
+            Grid::ring(5.0, 0.0, 1e4),
+            343.0,
+            DeviceChoice::Cpu,
+            Precision::F32,
+        );
+        let c = config(crate::Algorithm::Sevd);
+        let want = fl.process(&c, &view).unwrap();
+        let big: Vec<Complex<f64>> = x.iter().map(|v| v * 1e30).collect();
+        let got = fl
+            .process(&c, &FramesView::contiguous(&big, shape).unwrap())
+            .unwrap();
+        assert_eq!(
+            got.peaks.iter().map(|p| p.dir).collect::<Vec<_>>(),
+            want.peaks.iter().map(|p| p.dir).collect::<Vec<_>>()
+        );
+        let huge: Vec<Complex<f64>> = x.iter().map(|v| v * 1e200).collect();
+        let e = fl.process(&c, &FramesView::contiguous(&huge, shape).unwrap());
+        assert!(e.is_err(), "{e:?}");
     }
 
     /// Shapes and strides that reach past the data are refused, not read.
