@@ -197,8 +197,9 @@ impl<T: Real> Prepared<T> {
                             let src = &x.data[mic * st_mic + k * st_bin..];
                             for (i, snap) in snaps.clone().enumerate() {
                                 let v = src[snap * st_snap];
-                                finite &= v.re.is_finite() & v.im.is_finite();
-                                data[(i * nb + b) * m + mic] = conv(v);
+                                let y = conv(v);
+                                finite &= y.re.to_f64().is_finite() & y.im.to_f64().is_finite();
+                                data[(i * nb + b) * m + mic] = y;
                             }
                         }
                     }
@@ -209,8 +210,8 @@ impl<T: Real> Prepared<T> {
                             let dst = &mut data[(i * nb + b) * m..(i * nb + b + 1) * m];
                             for (mic, out) in dst.iter_mut().enumerate() {
                                 let v = src[mic * st_mic];
-                                finite &= v.re.is_finite() & v.im.is_finite();
                                 *out = conv(v);
+                                finite &= out.re.to_f64().is_finite() & out.im.to_f64().is_finite();
                             }
                         }
                     }
@@ -249,12 +250,23 @@ impl<T: Real> Prepared<T> {
             for (k, snap, mic) in
                 bins.flat_map(|k| (0..s).flat_map(move |snap| (0..m).map(move |mic| (k, snap, mic))))
             {
-                if !x.data[k * st_bin + snap * st_snap + mic * st_mic].is_finite() {
-                    return Err(Error::Numerical {
-                        stage: "input",
-                        message: format!("frames: microphone {mic}, bin {k}, snapshot {snap} is not finite"),
-                    });
-                }
+                let v = x.data[k * st_bin + snap * st_snap + mic * st_mic];
+                let what = if !v.is_finite() {
+                    "is not finite".to_string()
+                } else if !(T::of_f64(v.re).to_f64().is_finite() && T::of_f64(v.im).to_f64().is_finite()) {
+                    format!(
+                        "is {:e}, beyond {} (|x| <= {:e}; use precision f64 or scale the input)",
+                        v.norm(),
+                        T::NAME,
+                        f32::MAX
+                    )
+                } else {
+                    continue;
+                };
+                return Err(Error::Numerical {
+                    stage: "input",
+                    message: format!("frames: microphone {mic}, bin {k}, snapshot {snap} {what}"),
+                });
             }
         }
         self.localize()
@@ -519,7 +531,12 @@ mod tests {
         );
         let huge: Vec<Complex<f64>> = x.iter().map(|v| v * 1e200).collect();
         let e = fl.process(&c, &FramesView::contiguous(&huge, shape).unwrap());
-        assert!(e.is_err(), "{e:?}");
+        let e = e.unwrap_err().to_string();
+        assert!(e.contains("beyond f32") && e.contains("precision f64"), "{e}");
+        // SRP-PHAT (the snapshots' path) said nothing and found no peak before.
+        let srp = config(crate::Algorithm::SrpPhat);
+        let e = fl.process(&srp, &FramesView::contiguous(&huge, shape).unwrap());
+        assert!(e.unwrap_err().to_string().contains("beyond f32"));
     }
 
     /// Shapes and strides that reach past the data are refused, not read.
