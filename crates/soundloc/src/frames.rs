@@ -238,11 +238,12 @@ impl<T: Real> Prepared<T> {
             self.reshape(m);
             finite = self.factor(x);
         }
-        let finite = match finite {
-            Some(f) => f,
+        // `copied`: the snapshots went in as values of T, which must hold them.
+        let (finite, copied) = match finite {
+            Some(f) => (f, false),
             None => {
                 self.reshape(s);
-                self.copy(x)
+                (self.copy(x), true)
             }
         };
         if !finite {
@@ -253,7 +254,9 @@ impl<T: Real> Prepared<T> {
                 let v = x.data[k * st_bin + snap * st_snap + mic * st_mic];
                 let what = if !v.is_finite() {
                     "is not finite".to_string()
-                } else if !(T::of_f64(v.re).to_f64().is_finite() && T::of_f64(v.im).to_f64().is_finite()) {
+                } else if copied
+                    && !(T::of_f64(v.re).to_f64().is_finite() && T::of_f64(v.im).to_f64().is_finite())
+                {
                     format!(
                         "is {:e}, beyond {} (|x| <= {:e}; use precision f64 or scale the input)",
                         v.norm(),
@@ -464,9 +467,39 @@ mod tests {
         }
     }
 
+    /// The spectrum and peaks of `view` as its snapshots and as its factor frames, and the
+    /// largest difference of the two spectra (dB); checks that `run` takes the factor.
+    fn both_paths<T: Real>(
+        c: &LocalizeConfig,
+        tf: &TransferFunctions,
+        view: &FramesView<'_>,
+    ) -> (Vec<usize>, Vec<usize>, f32) {
+        let mut p = Prepared::<T>::new(c, tf, DeviceChoice::Cpu).unwrap();
+        let [m, _, s] = view.shape();
+        let nb = p.plan.num_bins();
+        p.spectra = Spectra::zeros(s, nb, m);
+        assert!(p.copy(view));
+        let snapshots = p.localize().unwrap();
+        p.spectra = Spectra::zeros(m, nb, m);
+        assert_eq!(p.factor(view), Some(true));
+        let factored = p.localize().unwrap();
+        let worst = factored
+            .spectrum_db
+            .iter()
+            .zip(&snapshots.spectrum_db)
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0f32, f32::max);
+        // What process() does with more snapshots than microphones.
+        assert_eq!(p.run(view).unwrap(), factored);
+        assert_eq!(p.spectra.num_frames, m);
+        let dirs = |r: &FramesResult| r.peaks.iter().map(|p| p.dir).collect::<Vec<_>>();
+        (dirs(&factored), dirs(&snapshots), worst)
+    }
+
     /// The window as the M frames of its correlation's factor gives the spectrum and
-    /// peaks of its S snapshots (f64: to rounding; f32: within the f32 path's own
-    /// rounding), for each MUSIC form; the factored path is the one a long window takes.
+    /// peaks of its S snapshots: in f64 to rounding, in f32 within the f32 path's own
+    /// rounding (the snapshots are rounded to f32 on one path, the factor frames on the
+    /// other), for plain and normalised MUSIC.
     #[test]
     fn factor_frames_localize_as_the_snapshots() {
         let (geo, x, shape) = plane_wave(40);
@@ -486,29 +519,13 @@ mod tests {
                 subspace_dim: Some(2),
                 ..config(crate::Algorithm::Sevd)
             };
-            let mut p = Prepared::<f64>::new(&c, &tf, DeviceChoice::Cpu).unwrap();
-            let (m, nb) = (shape[0], p.plan.num_bins());
-            p.spectra = Spectra::zeros(shape[2], nb, m);
-            assert!(p.copy(&view));
-            let snapshots = p.localize().unwrap();
-            p.spectra = Spectra::zeros(m, nb, m);
-            assert_eq!(p.factor(&view), Some(true));
-            let factored = p.localize().unwrap();
-            assert_eq!(factored.peaks.len(), 1);
-            assert_eq!(
-                factored.peaks.iter().map(|p| p.dir).collect::<Vec<_>>(),
-                snapshots.peaks.iter().map(|p| p.dir).collect::<Vec<_>>()
-            );
-            let worst = factored
-                .spectrum_db
-                .iter()
-                .zip(&snapshots.spectrum_db)
-                .map(|(a, b)| (a - b).abs())
-                .fold(0.0f32, f32::max);
-            assert!(worst < 1e-4, "normalize_bins {normalize_bins}: {worst} dB");
-            // What process() does with 40 snapshots of 6 microphones.
-            assert_eq!(p.run(&view).unwrap(), factored);
-            assert_eq!(p.spectra.num_frames, m);
+            let (factored, snapshots, worst) = both_paths::<f64>(&c, &tf, &view);
+            assert_eq!(factored.len(), 1);
+            assert_eq!(factored, snapshots);
+            assert!(worst < 1e-5, "f64, normalize_bins {normalize_bins}: {worst} dB");
+            let (factored, snapshots, worst) = both_paths::<f32>(&c, &tf, &view);
+            assert_eq!(factored, snapshots);
+            assert!(worst < 2e-4, "f32, normalize_bins {normalize_bins}: {worst} dB");
         }
         // Values whose sums overflow f64 take the snapshots' path, and its error, instead
         // of a silent all-zero factor; large values that the sums hold are factored.
@@ -525,6 +542,7 @@ mod tests {
         let got = fl
             .process(&c, &FramesView::contiguous(&big, shape).unwrap())
             .unwrap();
+        assert!(matches!(&fl.cached, Some((_, Cached::F32(p))) if p.spectra.num_frames == shape[0]));
         assert_eq!(
             got.peaks.iter().map(|p| p.dir).collect::<Vec<_>>(),
             want.peaks.iter().map(|p| p.dir).collect::<Vec<_>>()

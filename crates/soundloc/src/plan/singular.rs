@@ -5,14 +5,22 @@ use faer::{c64, Mat};
 /// Why K (Hermitian, scaled) has no Cholesky factor, naming the channels (0-based, of
 /// those in use) where the cause is one: silent ones (K_ii ≤ [`crate::correlation::SILENT`] · max K_jj: a
 /// dead microphone) and pairs that carry one signal (|K_ij|² ≥ (1 − 10⁻⁹) K_ii K_jj: a
-/// duplicated channel, unless all pairs do); otherwise too few noise frames is the likely
-/// cause.
+/// duplicated channel, unless all pairs do, as with one noise frame); a negative power
+/// (not a correlation matrix); otherwise the likely causes are listed (too few frames,
+/// one coherent source, channels that combine others: checking for them would cost a
+/// decomposition of K for a message).
 pub(super) fn not_positive_definite(k: &Mat<c64>) -> String {
     use crate::correlation::SILENT;
     let m = k.nrows();
     let d: Vec<f64> = (0..m).map(|i| k[(i, i)].re).collect();
     let top = d.iter().copied().fold(0.0f64, f64::max);
     let list = |v: &[usize]| v.iter().map(|c| c.to_string()).collect::<Vec<_>>().join(", ");
+    if let Some(i) = (0..m).find(|&i| d[i] < 0.0) {
+        return format!(
+            "is not a correlation matrix: channel {i} (0-based, of those in use) has a negative \
+             power"
+        );
+    }
     let silent: Vec<usize> = (0..m).filter(|&i| d[i] <= SILENT * top).collect();
     if !silent.is_empty() {
         let (s, are) = if silent.len() == 1 {
@@ -41,8 +49,9 @@ pub(super) fn not_positive_definite(k: &Mat<c64>) -> String {
             );
         }
     }
-    "is not positive definite (too few noise frames for the channel count?); give more \
-     noise frames or use diagonal loading"
+    "is not positive definite (too few noise frames for the channel count, one coherent \
+     noise source, or channels that are combinations of others?); give more noise frames or \
+     use diagonal loading"
         .to_string()
 }
 
@@ -98,6 +107,11 @@ mod tests {
         assert!(
             e.contains("channels 2 and 5 (0-based, of those in use) carry the same signal"),
             "{e}"
+        );
+        let mut neg = k_of(6, 100, |_| {});
+        neg[(2, 2)].re = -1.0;
+        assert!(
+            not_positive_definite(&neg).contains("channel 2 (0-based, of those in use) has a negative power")
         );
         for frames in [1, 3] {
             let few = k_of(6, frames, |_| {});
