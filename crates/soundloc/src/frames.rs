@@ -141,18 +141,14 @@ impl<T: Real> Prepared<T> {
         let (finite, held) = per_bin
             .par_chunks_mut(m * m)
             .zip(bins.into_par_iter())
-            .map_init(
-                || (factor::Scratch::default(), Vec::new(), Vec::new()),
-                |(ws, sum, l), (out, k)| {
-                    sum.resize(m * m, num_complex::Complex::new(0.0, 0.0));
-                    if !factor::bin_sum(x, k, sum, ws) {
-                        return (false, true);
-                    }
-                    factor::factor_frames(sum, m, s, l, out, m);
-                    let sums_held = sum.iter().all(|z| z.re.is_finite() & z.im.is_finite());
-                    (true, sums_held && out.iter().all(ok))
-                },
-            )
+            .map_init(factor::Scratch::default, |ws, (out, k)| {
+                if !factor::bin_sum(x, k, ws) {
+                    return (false, true);
+                }
+                factor::factor_frames(ws, m, s, out, m);
+                let sums_held = ws.sum.iter().all(|z| z.re.is_finite() & z.im.is_finite());
+                (true, sums_held && out.iter().all(ok))
+            })
             .reduce(|| (true, true), |a, b| (a.0 & b.0, a.1 & b.1));
         if !held {
             self.factors = per_bin;

@@ -26,19 +26,25 @@ const LANES: usize = 8;
 /// A pivot below this fraction of S's largest diagonal entry counts as zero.
 const PIVOT_FLOOR: f64 = 1e-14;
 
-/// Scratch of one thread: a block of snapshots in split parts, and the sums.
+/// Scratch of one thread: a block of snapshots in split parts, the lanes' sums, the
+/// bin's sum S (row-major M × M, [`bin_sum`]'s result), and the factor's working matrix
+/// and pivot list.
 #[derive(Default)]
 pub(super) struct Scratch {
     re: Vec<f64>,
     im: Vec<f64>,
     sum_re: Vec<f64>,
     sum_im: Vec<f64>,
+    pub(super) sum: Vec<Complex<f64>>,
+    work: Vec<Complex<f64>>,
+    rest: Vec<usize>,
 }
 
-/// S_k of bin `k` of `x` into `sum` (row-major M × M, Hermitian, real diagonal).
-/// Returns false if a value of the bin is not finite (`sum` is then meaningless).
-pub(super) fn bin_sum(x: &FramesView<'_>, k: usize, sum: &mut [Complex<f64>], ws: &mut Scratch) -> bool {
+/// S_k of bin `k` of `x` into `ws.sum` (row-major M × M, Hermitian, real diagonal).
+/// Returns false if a value of the bin is not finite (the sum is then meaningless).
+pub(super) fn bin_sum(x: &FramesView<'_>, k: usize, ws: &mut Scratch) -> bool {
     let [m, _, s] = x.shape;
+    ws.sum.resize(m * m, Complex::new(0.0, 0.0));
     let [st_mic, st_bin, st_snap] = x.strides;
     ws.re.resize(m * BLOCK, 0.0);
     ws.im.resize(m * BLOCK, 0.0);
@@ -79,10 +85,10 @@ pub(super) fn bin_sum(x: &FramesView<'_>, k: usize, sum: &mut [Complex<f64>], ws
                 ws.sum_re[o..o + LANES].iter().sum(),
                 ws.sum_im[o..o + LANES].iter().sum(),
             );
-            sum[i * m + j] = v;
-            sum[j * m + i] = v.conj();
+            ws.sum[i * m + j] = v;
+            ws.sum[j * m + i] = v.conj();
         }
-        sum[i * m + i].im = 0.0;
+        ws.sum[i * m + i].im = 0.0;
     }
     finite
 }
@@ -118,27 +124,28 @@ fn add_block_impl(re: &[f64], im: &[f64], m: usize, len: usize, sum_re: &mut [f6
     }
 }
 
-/// The M frames of one bin from its sum `sum` (row-major M × M, Hermitian) over
-/// `snapshots` snapshots: frame c's vector √(M / snapshots) · l_c (the pivoted factor's
-/// c-th column, in microphone order), written at `out[c * stride .. c * stride + M]` (the
-/// frame layout of [`crate::backend::Spectra`]). `work` is scratch.
+/// The M frames of one bin from its sum `ws.sum` (row-major M × M, Hermitian, from
+/// [`bin_sum`]) over `snapshots` snapshots: frame c's vector √(M / snapshots) · l_c (the
+/// pivoted factor's c-th column, in microphone order), written at
+/// `out[c * stride .. c * stride + M]` (the frame layout of [`crate::backend::Spectra`]).
 pub(super) fn factor_frames<T: Real>(
-    sum: &[Complex<f64>],
+    ws: &mut Scratch,
     m: usize,
     snapshots: usize,
-    work: &mut Vec<Complex<f64>>,
     out: &mut [C<T>],
     stride: usize,
 ) {
     // `a`: the part of S not yet taken by frames (its rows and columns `rest`); `col`:
     // the frame being formed.
+    let Scratch { sum, work, rest, .. } = ws;
     work.clear();
     work.extend_from_slice(&sum[..m * m]);
     work.resize(m * m + m, Complex::new(0.0, 0.0));
     let (a, col) = work.split_at_mut(m * m);
     let floor = (0..m).map(|i| sum[i * m + i].re).fold(0.0f64, f64::max) * PIVOT_FLOOR;
     let scale = (m as f64 / snapshots as f64).sqrt();
-    let mut rest: Vec<usize> = (0..m).collect();
+    rest.clear();
+    rest.extend(0..m);
     for c in 0..m {
         // Diagonal pivoting (LAPACK's pstrf): the largest remaining power goes next, and
         // once it is at rounding level the rest — whose entries are at most that, S being
@@ -160,13 +167,13 @@ pub(super) fn factor_frames<T: Real>(
         }
         let s = d.sqrt();
         col.fill(Complex::new(0.0, 0.0));
-        for &i in &rest {
+        for &i in rest.iter() {
             col[i] = a[i * m + p] / s;
         }
         col[p] = Complex::new(s, 0.0);
         rest.swap_remove(pos);
-        for &i in &rest {
-            for &k in &rest {
+        for &i in rest.iter() {
+            for &k in rest.iter() {
                 a[i * m + k] -= col[i] * col[k].conj();
             }
         }
@@ -210,10 +217,10 @@ mod tests {
         let sfm = FramesView::new(&t, [m, f, s], [1, m, f * m]).unwrap();
         let mut ws = Scratch::default();
         for k in 0..f {
-            let mut sum = vec![Complex::new(0.0, 0.0); m * m];
-            assert!(bin_sum(&view, k, &mut sum, &mut ws));
-            let mut other = vec![Complex::new(0.0, 0.0); m * m];
-            assert!(bin_sum(&sfm, k, &mut other, &mut ws));
+            assert!(bin_sum(&sfm, k, &mut ws));
+            let other = ws.sum.clone();
+            assert!(bin_sum(&view, k, &mut ws));
+            let sum = ws.sum.clone();
             assert_eq!(other, sum);
             for i in 0..m {
                 for j in 0..m {
@@ -223,9 +230,8 @@ mod tests {
                     assert!((sum[i * m + j] - want).norm() < 1e-12 * s as f64, "{k} {i} {j}");
                 }
             }
-            let mut l = Vec::new();
             let mut frames = vec![C::<f64>::new(0.0, 0.0); m * m];
-            factor_frames(&sum, m, s, &mut l, &mut frames, m);
+            factor_frames(&mut ws, m, s, &mut frames, m);
             for i in 0..m {
                 for j in 0..m {
                     let r: C<f64> = (0..m).map(|c| frames[c * m + i] * frames[c * m + j].conj()).sum();
@@ -240,8 +246,7 @@ mod tests {
         }
         x[(3 * f + 1) * s + 77].im = f64::NAN;
         let view = FramesView::new(&x, [m, f, s], [f * s, s, 1]).unwrap();
-        let mut sum = vec![Complex::new(0.0, 0.0); m * m];
-        assert!(!bin_sum(&view, 1, &mut sum, &mut ws));
-        assert!(bin_sum(&view, 0, &mut sum, &mut ws));
+        assert!(!bin_sum(&view, 1, &mut ws));
+        assert!(bin_sum(&view, 0, &mut ws));
     }
 }
