@@ -128,32 +128,44 @@ impl<T: Real> Prepared<T> {
     }
 
     /// The window's M factor frames into `self.spectra` (factor.rs); false if a value
-    /// of a used bin is not finite; `None` if a sum or a factor frame overflows (values
-    /// too large for f64 sums or for frames in T), and nothing is written: the caller then
-    /// copies the snapshots, whose path reports or handles such values.
-    fn factor(&mut self, x: &FramesView<'_>) -> Option<bool> {
+    /// of a used bin is not finite; `None` if a sum or a factor frame overflows and T is
+    /// f32, and nothing is written: the caller then copies the snapshots, whose path names
+    /// the value beyond f32. In f64 an overflowing sum is an error here (the snapshots'
+    /// path would only fail later, in the decomposition).
+    fn factor(&mut self, x: &FramesView<'_>) -> Result<Option<bool>> {
         let [m, _, s] = x.shape;
         let bins = self.plan.bins.clone();
         let nb = bins.len();
         let mut per_bin = std::mem::take(&mut self.factors);
         per_bin.resize(nb * m * m, C::new(T::zero(), T::zero()));
         let ok = |v: &C<T>| v.re.to_f64().is_finite() & v.im.to_f64().is_finite();
-        let (finite, held) = per_bin
+        // (finite input, sums held in f64, frames held in T)
+        let (finite, sums_held, held) = per_bin
             .par_chunks_mut(m * m)
             .zip(bins.into_par_iter())
             .map_init(factor::Scratch::default, |ws, (out, k)| {
                 if !factor::bin_sum(x, k, ws) {
-                    return (false, true);
+                    return (false, true, true);
                 }
                 factor::factor_frames(ws, m, s, out, m);
                 let sums_held = ws.sum.iter().all(|z| z.re.is_finite() & z.im.is_finite());
-                (true, sums_held && out.iter().all(ok))
+                (true, sums_held, sums_held && out.iter().all(ok))
             })
-            .reduce(|| (true, true), |a, b| (a.0 & b.0, a.1 & b.1));
-        if !held {
-            self.factors = per_bin;
-            return None;
+            .reduce(|| (true, true, true), |a, b| (a.0 & b.0, a.1 & b.1, a.2 & b.2));
+        self.factors = per_bin;
+        if finite && !sums_held && std::mem::size_of::<T>() == 8 {
+            return Err(Error::Numerical {
+                stage: "input",
+                message: format!(
+                    "frames: Σ|x|² over the {s} snapshots overflows double precision (values \
+                     beyond about 1e150); scale the input"
+                ),
+            });
         }
+        if !held {
+            return Ok(None);
+        }
+        let per_bin = &self.factors;
         // Frame c of bin b at (c · nb + b) · M.
         for (b, fb) in per_bin.chunks_exact(m * m).enumerate() {
             for (c, y) in fb.chunks_exact(m).enumerate() {
@@ -161,8 +173,7 @@ impl<T: Real> Prepared<T> {
                 self.spectra.data[o..o + m].copy_from_slice(y);
             }
         }
-        self.factors = per_bin;
-        Some(finite)
+        Ok(Some(finite))
     }
 
     /// The snapshots of the used bins into `self.spectra` (converted to T); false if one
@@ -232,7 +243,7 @@ impl<T: Real> Prepared<T> {
         let mut finite = None;
         if factored {
             self.reshape(m);
-            finite = self.factor(x);
+            finite = self.factor(x)?;
         }
         // `copied`: the snapshots went in as values of T, which must hold them.
         let (finite, copied) = match finite {
@@ -477,7 +488,7 @@ mod tests {
         assert!(p.copy(view));
         let snapshots = p.localize().unwrap();
         p.spectra = Spectra::zeros(m, nb, m);
-        assert_eq!(p.factor(view), Some(true));
+        assert_eq!(p.factor(view).unwrap(), Some(true));
         let factored = p.localize().unwrap();
         let worst = factored
             .spectrum_db
@@ -547,6 +558,16 @@ mod tests {
         let e = fl.process(&c, &FramesView::contiguous(&huge, shape).unwrap());
         let e = e.unwrap_err().to_string();
         assert!(e.contains("beyond f32") && e.contains("precision f64"), "{e}");
+        // In f64 the sums' overflow is named where it happens.
+        let mut fl64 = FramesLocalizer::new(
+            fl.geometry.clone(),
+            fl.grid.clone(),
+            343.0,
+            DeviceChoice::Cpu,
+            Precision::F64,
+        );
+        let e = fl64.process(&c, &FramesView::contiguous(&huge, shape).unwrap());
+        assert!(e.unwrap_err().to_string().contains("overflows double precision"));
         // SRP-PHAT (the snapshots' path) said nothing and found no peak before.
         let srp = config(crate::Algorithm::SrpPhat);
         let e = fl.process(&srp, &FramesView::contiguous(&huge, shape).unwrap());
