@@ -9,8 +9,9 @@
 //                             T (TR = T), which its spectrum reads directly
 // scale   [window][bin]       the divisor max|Re R_ij| + 1 in TR (for the decomposition's
 //                             factor form, which rebuilds R's factor from the frames)
-// phat    SRP-PHAT: every coefficient reduced to its phase x/|x| (0 where |x| = 0) as it is
-//         loaded, and R̃ = (1/W) Σ x̃ x̃ᴴ unscaled (scale = 1; srp.rs)
+// phat    SRP-PHAT: R̃ = (1/W) Σ x̃ x̃ᴴ unscaled (scale = 1; srp.rs); 1: every coefficient
+//         reduced to its phase x/|x| (0 where |x| = 0) as it is loaded; 2: the frames are
+//         x̃ already (`Spectra::phased`) and are summed as they are
 // Grid: (windows × bins) blocks, matrix index = window * nb + bin; threads: any multiple
 // of 32 (the host gives one per tile, `corr_threads`). Dynamic shared memory: fc × M
 // complex doubles (a chunk of fc frames, converted once as they are loaded) + 32 doubles.
@@ -25,12 +26,12 @@
 // Position of microphone i in a shared frame (h2 = ⌈M/2⌉ even microphones first).
 __device__ __forceinline__ int corr_pos(int i, int h2) { return (i & 1) * h2 + (i >> 1); }
 
-// Frame coefficient x, or its phase x/|x| (0 where |x| is 0 or not finite) with `phat`;
+// Frame coefficient x, or its phase x/|x| (0 where |x| is 0 or not finite) with phat 1;
 // |x| = √(re² + im²) in double, or hypot where re² + im² leaves double's normal range
 // (srp.rs `phase`, the same rule).
 template <typename T>
 __device__ __forceinline__ cplx<T> load_x(const cplx<T>& x, int phat) {
-    if (!phat) return x;
+    if (phat != 1) return x;
     const double re = (double)x.re, im = (double)x.im, n2 = re * re + im * im;
     const double n = (n2 >= 2.2250738585072014e-308 && n2 - n2 == 0.0) ? sl_sqrt(n2) : hypot(re, im);
     if (n > 0.0 && n - n == 0.0) return cx<T>((T)((double)x.re / n), (T)((double)x.im / n));  // n finite

@@ -4,10 +4,10 @@
 //! the grid and its peaks. The Python drop-in (`soundloc.doa`) calls this; the plan,
 //! backends, spectrum and peak rules are the engine's own.
 //!
-//! With more snapshots than microphones, MUSIC's window reaches the backend as the M
-//! frames of a factor of its correlation ([`factor`]: one pass over X in its own memory
-//! order, no copy of every snapshot); SRP-PHAT, whose phase transform acts on each
-//! snapshot, and short windows get the snapshots themselves.
+//! With more snapshots than microphones, the window reaches the backend as the M frames
+//! of a factor of its correlation ([`factor`]: one pass over X in its own memory order,
+//! no copy of every snapshot; for SRP-PHAT of the phase-transformed snapshots' correlation,
+//! the frames marked as transformed); short windows get the snapshots themselves.
 
 use crate::array::freefield::free_field;
 use crate::array::{Geometry, Grid, TransferFunctions};
@@ -127,13 +127,15 @@ impl<T: Real> Prepared<T> {
         })
     }
 
-    /// The window's M factor frames into `self.spectra` (factor.rs); false if a value
-    /// of a used bin is not finite; `None` if a sum or a factor frame overflows and T is
-    /// f32, and nothing is written: the caller then copies the snapshots, whose path names
-    /// the value beyond f32. In f64 an overflowing sum is an error here (the snapshots'
-    /// path would only fail later, in the decomposition).
+    /// The window's M factor frames into `self.spectra` (factor.rs; for SRP-PHAT those
+    /// of the phase-transformed snapshots, marked `phased`); false if a value of a used
+    /// bin is not finite; `None` if a sum or a factor frame overflows and T is f32, or a
+    /// value is beyond T for SRP-PHAT, and nothing is written: the caller then copies the
+    /// snapshots, whose path names the value beyond f32. In f64 an overflowing sum is an
+    /// error here (the snapshots' path would only fail later, in the decomposition).
     fn factor(&mut self, x: &FramesView<'_>) -> Result<Option<bool>> {
         let [m, _, s] = x.shape;
+        let phat = !self.plan.config.algorithm.is_music();
         let bins = self.plan.bins.clone();
         let nb = bins.len();
         let mut per_bin = std::mem::take(&mut self.factors);
@@ -144,12 +146,13 @@ impl<T: Real> Prepared<T> {
             .par_chunks_mut(m * m)
             .zip(bins.into_par_iter())
             .map_init(factor::Scratch::default, |ws, (out, k)| {
-                if !factor::bin_sum(x, k, ws) {
+                let read = factor::bin_sum::<T>(x, k, phat, ws);
+                if !read.finite {
                     return (false, true, true);
                 }
                 factor::factor_frames(ws, m, s, out, m);
                 let sums_held = ws.sum.iter().all(|z| z.re.is_finite() & z.im.is_finite());
-                (true, sums_held, sums_held && out.iter().all(ok))
+                (true, sums_held, read.held && sums_held && out.iter().all(ok))
             })
             .reduce(|| (true, true, true), |a, b| (a.0 & b.0, a.1 & b.1, a.2 & b.2));
         self.factors = per_bin;
@@ -173,6 +176,7 @@ impl<T: Real> Prepared<T> {
                 self.spectra.data[o..o + m].copy_from_slice(y);
             }
         }
+        self.spectra.phased = phat;
         Ok(Some(finite))
     }
 
@@ -180,6 +184,7 @@ impl<T: Real> Prepared<T> {
     /// is not finite.
     fn copy(&mut self, x: &FramesView<'_>) -> bool {
         let [m, _, s] = x.shape;
+        self.spectra.phased = false;
         let bins = self.plan.bins.clone();
         let nb = bins.len();
         // Only the used bins are read (and must be finite), in the order of the source's
@@ -237,9 +242,9 @@ impl<T: Real> Prepared<T> {
             )));
         }
         let bins = self.plan.bins.clone();
-        // More snapshots than microphones (MUSIC): the window goes to the backend as the
-        // M frames of its correlation's factor (factor.rs), else as the snapshots.
-        let factored = self.plan.config.algorithm.is_music() && s > m;
+        // More snapshots than microphones: the window goes to the backend as the M frames
+        // of its correlation's factor (factor.rs), else as the snapshots.
+        let factored = s > m;
         let mut finite = None;
         if factored {
             self.reshape(m);
@@ -506,7 +511,7 @@ mod tests {
     /// The window as the M frames of its correlation's factor gives the spectrum and
     /// peaks of its S snapshots: in f64 to rounding, in f32 within the f32 path's own
     /// rounding (the snapshots are rounded to f32 on one path, the factor frames on the
-    /// other), for plain and normalised MUSIC.
+    /// other), for plain and normalised MUSIC and SRP-PHAT.
     #[test]
     fn factor_frames_localize_as_the_snapshots() {
         let (geo, x, shape) = plane_wave(40);
@@ -520,19 +525,30 @@ mod tests {
             343.0,
         )
         .unwrap();
-        for normalize_bins in [false, true] {
+        for (alg, normalize_bins) in [
+            (crate::Algorithm::Sevd, false),
+            (crate::Algorithm::Sevd, true),
+            (crate::Algorithm::SrpPhat, false),
+            (crate::Algorithm::SrpPhat, true),
+        ] {
             let c = LocalizeConfig {
                 normalize_bins,
                 subspace_dim: Some(2),
-                ..config(crate::Algorithm::Sevd)
+                ..config(alg)
             };
             let (factored, snapshots, worst) = both_paths::<f64>(&c, &tf, &view);
             assert_eq!(factored.len(), 1);
             assert_eq!(factored, snapshots);
-            assert!(worst < 1e-5, "f64, normalize_bins {normalize_bins}: {worst} dB");
+            assert!(
+                worst < 1e-5,
+                "f64, {alg:?}, normalize_bins {normalize_bins}: {worst} dB"
+            );
             let (factored, snapshots, worst) = both_paths::<f32>(&c, &tf, &view);
             assert_eq!(factored, snapshots);
-            assert!(worst < 2e-4, "f32, normalize_bins {normalize_bins}: {worst} dB");
+            assert!(
+                worst < 2e-4,
+                "f32, {alg:?}, normalize_bins {normalize_bins}: {worst} dB"
+            );
         }
         // Values whose sums overflow f64 take the snapshots' path, and its error, instead
         // of a silent all-zero factor; large values that the sums hold are factored.

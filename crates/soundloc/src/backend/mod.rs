@@ -132,6 +132,11 @@ pub struct Spectra<T: Real> {
     pub num_mics: usize,
     /// The frames.
     pub data: Vec<C<T>>,
+    /// The frames are already reduced to their phase (SRP-PHAT's x̃ = x/|x|, or frames
+    /// whose correlation is that of such frames: `frames`' factor of a long window), so
+    /// SRP-PHAT's correlation sums them as they are. Every job of one `process` call
+    /// agrees on it.
+    pub phased: bool,
 }
 
 impl<T: Real> Spectra<T> {
@@ -142,6 +147,7 @@ impl<T: Real> Spectra<T> {
             num_bins,
             num_mics,
             data: vec![C::new(T::zero(), T::zero()); num_frames * num_bins * num_mics],
+            phased: false,
         }
     }
     /// x_{f,b} (length `num_mics`).
@@ -222,8 +228,17 @@ pub struct WindowSpec {
 }
 
 /// Check that a batch fits a plan: each job's spectra have the plan's mics and bins and
-/// hold every frame of its windows. `who` names the backend in the message.
+/// hold every frame of its windows, and the jobs agree on [`Spectra::phased`]. `who`
+/// names the backend in the message.
 pub fn check_jobs<T: Real>(who: &str, plan: &Plan<T>, jobs: &[Job<'_, T>]) -> Result<()> {
+    if jobs
+        .windows(2)
+        .any(|p| p[0].spectra.phased != p[1].spectra.phased)
+    {
+        return Err(crate::Error::Mismatch(format!(
+            "{who}: one call mixes phase-transformed frames with plain ones"
+        )));
+    }
     for j in jobs {
         if let Some(w) = j.windows.iter().find(|w| w.start < j.first) {
             return Err(crate::Error::Mismatch(format!(
@@ -372,5 +387,39 @@ pub trait Backend<T: Real>: Send {
     /// push's wait on the pool and change the thread's current device context.
     fn runs_on_pool(&self) -> bool {
         false
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every job of a call agrees on [`Spectra::phased`] (the GPU tells its correlation
+    /// kernel once per call); a call that mixes them is refused, one that agrees runs.
+    #[test]
+    fn a_call_mixing_phased_and_plain_frames_is_refused() {
+        use crate::bench::{inputs, BenchConfig};
+        let cfg = BenchConfig {
+            algorithm: crate::config::Algorithm::SrpPhat,
+            num_mics: 8,
+            num_dirs: 72,
+            batch: 2,
+            ..Default::default()
+        };
+        let inp = inputs::<f64>(&cfg).unwrap();
+        let mut phased = inp.spectra.clone();
+        phased.phased = true;
+        let mut be = cpu::CpuBackend::new(inp.plan.clone());
+        let mut out = BatchOutput::default();
+        let (w0, w1) = (&inp.windows[..1], &inp.windows[1..]);
+        let mixed = [Job::once(&inp.spectra, w0), Job::once(&phased, w1)];
+        let e = be.process(&mixed, false, &mut out).unwrap_err().to_string();
+        assert!(
+            e.contains("mixes phase-transformed frames with plain ones"),
+            "{e}"
+        );
+        let agreed = [Job::once(&phased, w0), Job::once(&phased, w1)];
+        be.process(&agreed, false, &mut out).unwrap();
+        assert_eq!(out.peaks.len(), 2);
     }
 }

@@ -207,7 +207,8 @@ fn add_columns_impl<const N: usize>(sum: &mut [C<f64>], y: &[C<f64>], m: usize, 
 
 /// Carry bin `bin`'s sum (`sum`: M × M column-major) through `step` to window `w` of
 /// `job`, then write R (row-major M × M, exactly Hermitian, real diagonal) into `out`;
-/// `phat` applies the phase transform to the frames and skips HARK's scaling. `y` is
+/// `phat` applies the phase transform to the frames (unless they are
+/// [`crate::backend::Spectra::phased`] already) and skips HARK's scaling. `y` is
 /// scratch. Returns the scale divisor (1 without scaling). R is written in `U` (f64 for
 /// the CPU's decompositions, which whiten it in double precision).
 #[allow(clippy::too_many_arguments)]
@@ -235,7 +236,7 @@ pub fn run_bin<T: Real, U: Real>(
                     .map(|&z| C::new(z.re.to_f64(), z.im.to_f64())),
             );
         }
-        if phat {
+        if phat && !sp.phased {
             phase_in_place::<T>(y);
         }
     };

@@ -9,7 +9,13 @@
 //! (Σ_c y_c y_cᴴ) / M is S_k / S_snap: the window's R to rounding. A backend given those
 //! M frames computes the same R, decomposition, spectrum and peaks as from the S_snap
 //! frames themselves, without the transposing copy of every snapshot into its frame
-//! layout. Only for MUSIC: SRP-PHAT transforms each frame before summing.
+//! layout.
+//!
+//! For SRP-PHAT, whose phase transform acts on each snapshot before the sum, the sum is
+//! S̃_k = Σ_s x̃ x̃ᴴ of the transformed snapshots x̃ = x/|x| (rounded as the backend
+//! rounds them, [`crate::srp::phase_in_place`]); its factor frames are handed on marked
+//! as already transformed ([`crate::backend::Spectra::phased`]), so the backend sums them
+//! as they are: R̃ = S̃_k / S_snap.
 
 use super::FramesView;
 use crate::real::{Real, C};
@@ -27,8 +33,8 @@ const LANES: usize = 8;
 const PIVOT_FLOOR: f64 = 1e-14;
 
 /// Scratch of one thread: a block of snapshots in split parts, the lanes' sums, the
-/// bin's sum S (row-major M × M, [`bin_sum`]'s result), and the factor's working matrix
-/// and pivot list.
+/// bin's sum S (row-major M × M, [`bin_sum`]'s result), the factor's working matrix and
+/// pivot list.
 #[derive(Default)]
 pub(super) struct Scratch {
     re: Vec<f64>,
@@ -40,9 +46,20 @@ pub(super) struct Scratch {
     rest: Vec<usize>,
 }
 
-/// S_k of bin `k` of `x` into `ws.sum` (row-major M × M, Hermitian, real diagonal).
-/// Returns false if a value of the bin is not finite (the sum is then meaningless).
-pub(super) fn bin_sum(x: &FramesView<'_>, k: usize, ws: &mut Scratch) -> bool {
+/// What [`bin_sum`] found in a bin's values.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) struct Read {
+    /// Every value is finite (else the sum is meaningless).
+    pub finite: bool,
+    /// With the phase transform: every value stays finite when rounded to the plan's
+    /// type, as the snapshots' path rounds it (else that path names the value).
+    pub held: bool,
+}
+
+/// S_k of bin `k` of `x` into `ws.sum` (row-major M × M, Hermitian, real diagonal); with
+/// `phat`, S̃_k of the snapshots rounded to `T` and reduced to their phase as the
+/// backend's copy path does ([`phase_split`]).
+pub(super) fn bin_sum<T: Real>(x: &FramesView<'_>, k: usize, phat: bool, ws: &mut Scratch) -> Read {
     let [m, _, s] = x.shape;
     ws.sum.resize(m * m, Complex::new(0.0, 0.0));
     let [st_mic, st_bin, st_snap] = x.strides;
@@ -52,7 +69,7 @@ pub(super) fn bin_sum(x: &FramesView<'_>, k: usize, ws: &mut Scratch) -> bool {
     ws.sum_re.resize(m * m * LANES, 0.0);
     ws.sum_im.clear();
     ws.sum_im.resize(m * m * LANES, 0.0);
-    let mut finite = true;
+    let (mut finite, mut held) = (true, true);
     for first in (0..s).step_by(BLOCK) {
         let n = BLOCK.min(s - first);
         // The block's snapshots rounded up to whole lanes; zeros past the last add nothing.
@@ -61,7 +78,23 @@ pub(super) fn bin_sum(x: &FramesView<'_>, k: usize, ws: &mut Scratch) -> bool {
             let o = mic * st_mic + k * st_bin + first * st_snap;
             let re = &mut ws.re[mic * BLOCK..mic * BLOCK + len];
             let im = &mut ws.im[mic * BLOCK..mic * BLOCK + len];
-            if st_snap == 1 {
+            if phat {
+                // As the copy path: rounded to T, then the phase in f64, rounded to T.
+                let round = |v: f64| T::of_f64(v).to_f64();
+                if st_snap == 1 {
+                    let mut ok = [true; 2];
+                    load_rounded::<T>(&x.data[o..o + n], &mut re[..n], &mut im[..n], &mut ok);
+                    (finite, held) = (finite & ok[0], held & ok[1]);
+                } else {
+                    for (t, (r, i)) in re.iter_mut().zip(im.iter_mut()).take(n).enumerate() {
+                        let v = x.data[o + t * st_snap];
+                        finite &= v.re.is_finite() & v.im.is_finite();
+                        (*r, *i) = (round(v.re), round(v.im));
+                        held &= r.is_finite() & i.is_finite();
+                    }
+                }
+                phase_split::<T>(&mut re[..n], &mut im[..n]);
+            } else if st_snap == 1 {
                 for ((r, i), v) in re.iter_mut().zip(im.iter_mut()).zip(&x.data[o..o + n]) {
                     finite &= v.re.is_finite() & v.im.is_finite();
                     (*r, *i) = (v.re, v.im);
@@ -90,7 +123,48 @@ pub(super) fn bin_sum(x: &FramesView<'_>, k: usize, ws: &mut Scratch) -> bool {
         }
         ws.sum[i * m + i].im = 0.0;
     }
-    finite
+    Read { finite, held }
+}
+
+crate::subspace::simd::dispatch!(
+    /// `src` rounded to `T` (widened, in split parts) into `re`, `im`; `ok` becomes
+    /// [every value finite, every rounded value finite].
+    fn load_rounded<T: Real>(src: &[Complex<f64>], re: &mut [f64], im: &mut [f64], ok: &mut [bool; 2]) => load_rounded_imp
+);
+
+#[inline(always)]
+fn load_rounded_imp<T: Real>(src: &[Complex<f64>], re: &mut [f64], im: &mut [f64], ok: &mut [bool; 2]) {
+    let (mut finite, mut held) = (true, true);
+    for ((r, i), v) in re.iter_mut().zip(im.iter_mut()).zip(src) {
+        finite &= v.re.is_finite() & v.im.is_finite();
+        (*r, *i) = (T::of_f64(v.re).to_f64(), T::of_f64(v.im).to_f64());
+        held &= r.is_finite() & i.is_finite();
+    }
+    *ok = [finite, held];
+}
+
+crate::subspace::simd::dispatch!(
+    /// The phase transform of values of `T` (widened, in split parts) in place, rounded to
+    /// `T`: the bits of [`crate::srp::phase_in_place`], without its interleaved copy.
+    fn phase_split<T: Real>(re: &mut [f64], im: &mut [f64]) => phase_split_imp
+);
+
+#[inline(always)]
+fn phase_split_imp<T: Real>(re: &mut [f64], im: &mut [f64]) {
+    let ordinary = re.iter().zip(im.iter()).fold(true, |ok, (r, i)| {
+        ok & (f64::MIN_POSITIVE..f64::INFINITY).contains(&(r * r + i * i))
+    });
+    if ordinary {
+        for (r, i) in re.iter_mut().zip(im.iter_mut()) {
+            let n = (*r * *r + *i * *i).sqrt();
+            (*r, *i) = (T::of_f64(*r / n).to_f64(), T::of_f64(*i / n).to_f64());
+        }
+    } else {
+        for (r, i) in re.iter_mut().zip(im.iter_mut()) {
+            let p = crate::srp::phase(C::new(T::of_f64(*r), T::of_f64(*i)));
+            (*r, *i) = (p.re.to_f64(), p.im.to_f64());
+        }
+    }
 }
 
 crate::subspace::simd::dispatch!(
@@ -187,6 +261,50 @@ pub(super) fn factor_frames<T: Real>(
 mod tests {
     use super::*;
 
+    /// The split phase transform gives the bits of the copy path's, in both of its
+    /// branches (ordinary blocks, and blocks with a zero, a subnormal or a huge value).
+    #[test]
+    fn split_phase_equals_the_copy_paths_bits() {
+        fn check<T: Real>(values: &[Complex<f64>]) {
+            let widened: Vec<Complex<f64>> = values
+                .iter()
+                .map(|v| Complex::new(T::of_f64(v.re).to_f64(), T::of_f64(v.im).to_f64()))
+                .collect();
+            let mut want = widened.clone();
+            crate::srp::phase_in_place::<T>(&mut want);
+            let mut re: Vec<f64> = widened.iter().map(|v| v.re).collect();
+            let mut im: Vec<f64> = widened.iter().map(|v| v.im).collect();
+            phase_split::<T>(&mut re, &mut im);
+            for (k, w) in want.iter().enumerate() {
+                assert_eq!(
+                    (re[k].to_bits(), im[k].to_bits()),
+                    (w.re.to_bits(), w.im.to_bits()),
+                    "{}",
+                    T::NAME
+                );
+            }
+        }
+        let mut seed = 3u64;
+        let mut rnd = || {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+        };
+        let mut values: Vec<Complex<f64>> = (0..67).map(|_| Complex::new(rnd() * 1e3, rnd())).collect();
+        check::<f32>(&values);
+        check::<f64>(&values);
+        for special in [
+            Complex::new(0.0, 0.0),
+            Complex::new(1e-160, -3e-170),
+            Complex::new(1e200, 1.0),
+        ] {
+            values[17] = special;
+            check::<f32>(&values);
+            check::<f64>(&values);
+        }
+    }
+
     /// The sum equals the defined Σ x xᴴ (snapshots not a multiple of the block), the same
     /// read through the strides of an (S, F, M) array, and the factor frames' Σ y yᴴ
     /// reproduces it, also when it is singular and when a channel is 160 dB below the
@@ -217,9 +335,9 @@ mod tests {
         let sfm = FramesView::new(&t, [m, f, s], [1, m, f * m]).unwrap();
         let mut ws = Scratch::default();
         for k in 0..f {
-            assert!(bin_sum(&sfm, k, &mut ws));
+            assert!(bin_sum::<f64>(&sfm, k, false, &mut ws).finite);
             let other = ws.sum.clone();
-            assert!(bin_sum(&view, k, &mut ws));
+            assert!(bin_sum::<f64>(&view, k, false, &mut ws).finite);
             let sum = ws.sum.clone();
             assert_eq!(other, sum);
             for i in 0..m {
@@ -246,7 +364,7 @@ mod tests {
         }
         x[(3 * f + 1) * s + 77].im = f64::NAN;
         let view = FramesView::new(&x, [m, f, s], [f * s, s, 1]).unwrap();
-        assert!(!bin_sum(&view, 1, &mut ws));
-        assert!(bin_sum(&view, 0, &mut ws));
+        assert!(!bin_sum::<f64>(&view, 1, false, &mut ws).finite);
+        assert!(bin_sum::<f64>(&view, 0, false, &mut ws).finite);
     }
 }

@@ -249,7 +249,11 @@ impl<T: Real> CudaBackend<T> {
             .p(self.d_win.ptr)
             .i(l.corr_fc)
             .i(mat0)
-            .i(usize::from(l.srp))
+            .i(match (l.srp, self.phased) {
+                (false, _) => 0,
+                (true, false) => 1,
+                (true, true) => 2, // the frames are x̃ already
+            })
             .p(self.d_r.ptr)
             .p(self.d_scale.ptr)
             .launch(g, self.f.correlate, [nmat, 1, 1], l.corr_threads, l.corr_smem)?;
@@ -301,7 +305,11 @@ impl<T: Real> CudaBackend<T> {
                 .r(T::of_f64(crate::music::REFINE_RATIO))
                 .i(l.spec_dt)
                 .i(usize::from(l.spec_e_smem))
-                .i(usize::from(l.srp))
+                .i(match (l.srp, self.phased) {
+                    (false, _) => 0,
+                    (true, false) => 1,
+                    (true, true) => 2, // the frames are x̃ already
+                })
                 .i(pass)
                 .p(self.d_weights.ptr)
                 .p(self.d_binmax.ptr)

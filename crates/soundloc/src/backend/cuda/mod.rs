@@ -301,6 +301,8 @@ pub struct CudaBackend<T: Real> {
     /// Where streams' frames are in `d_x`.
     arena: frames::FrameArena,
     events: Vec<Event>,
+    /// The present call's frames are [`crate::backend::Spectra::phased`].
+    phased: bool,
 }
 
 // SAFETY: the pinned pointers are owned by this struct and only touched by the thread
@@ -364,6 +366,7 @@ impl<T: Real> CudaBackend<T> {
             h_zero: Pinned::default(),
             chunk_ev: [0, 0, 0],
             arena: frames::FrameArena::default(),
+            phased: false,
             events: Vec::new(),
         };
         b.load_functions()?;

@@ -13,6 +13,7 @@ impl<T: Real> CudaBackend<T> {
     ) -> Result<()> {
         let (m, nb, d) = (self.lay.m, self.lay.nb, self.lay.d);
         crate::backend::check_jobs("cuda backend", &self.plan, jobs)?;
+        self.phased = jobs.first().is_some_and(|j| j.spectra.phased);
         out.peaks.clear();
         out.spectrum_db.clear();
         out.bin_weight.clear();
