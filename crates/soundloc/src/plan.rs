@@ -517,6 +517,9 @@ fn bin_whitening<T: Real>(
         }
     }
     let llt = k.llt(Side::Lower).map_err(|_| not_positive_definite(&k))?;
+    if let Some(why) = singular::numerically_singular(&k, llt.L()) {
+        return Err(why);
+    }
     let row_major = |w: &Mat<c64>| -> Vec<c64> {
         let mut v = Vec::with_capacity(m * m);
         for i in 0..m {

@@ -553,8 +553,22 @@ fn sevd_rejects_online_updates_and_bad_rules_are_errors() {
     assert!(e.to_string().contains("noise segment 0"), "{e}");
     // A segment the input ends inside of is not used, with a note.
     spec.noise_update = NoiseUpdate::Segments(vec![(2.0, 3.0)]);
-    let loud: Vec<Vec<f32>> = (0..8)
-        .map(|c| (0..40000).map(|i| ((i * (c + 3)) % 17) as f32 - 8.0).collect())
+    // Periodic sequences plus a little independent noise per channel: without it, K of
+    // these line spectra is singular to rounding at bins between the lines (a
+    // combination of channels), which the plan refuses.
+    let loud: Vec<Vec<f32>> = (0..8u64)
+        .map(|c| {
+            let mut seed = 17 + c;
+            (0..40000u64)
+                .map(|i| {
+                    seed = seed
+                        .wrapping_mul(6364136223846793005)
+                        .wrapping_add(1442695040888963407);
+                    ((i * (c + 3)) % 17) as f32 - 8.0
+                        + ((seed >> 40) as f32 / (1u64 << 24) as f32 - 0.5) * 0.1
+                })
+                .collect()
+        })
         .collect();
     let run = Localizer::new(&spec).unwrap().localize(&loud).unwrap();
     assert!(
