@@ -261,6 +261,16 @@ pub(super) fn factor_frames<T: Real>(
 mod tests {
     use super::*;
 
+    /// Uniform values in [−0.5, 0.5) from a seed (a linear congruential generator).
+    fn uniform(mut seed: u64) -> impl FnMut() -> f64 {
+        move || {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+        }
+    }
+
     /// The split phase transform gives the bits of the copy path's, in both of its
     /// branches (ordinary blocks, and blocks with a zero, a subnormal or a huge value).
     #[test]
@@ -284,13 +294,7 @@ mod tests {
                 );
             }
         }
-        let mut seed = 3u64;
-        let mut rnd = || {
-            seed = seed
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
-        };
+        let mut rnd = uniform(3);
         let mut values: Vec<Complex<f64>> = (0..67).map(|_| Complex::new(rnd() * 1e3, rnd())).collect();
         check::<f32>(&values);
         check::<f64>(&values);
@@ -312,13 +316,7 @@ mod tests {
     #[test]
     fn sums_and_factors_reproduce_the_correlation() {
         let (m, f, s) = (5, 3, 150);
-        let mut seed = 7u64;
-        let mut rnd = || {
-            seed = seed
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
-        };
+        let mut rnd = uniform(7);
         let mut x: Vec<Complex<f64>> = (0..m * f * s).map(|_| Complex::new(rnd(), rnd())).collect();
         // Microphone 4 = 2 × microphone 1 at bin 2: S_2 has rank 4. Microphone 0 at bin 1
         // is 160 dB below the others.
