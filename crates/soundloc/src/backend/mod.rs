@@ -231,14 +231,7 @@ pub struct WindowSpec {
 /// hold every frame of its windows, and the jobs agree on [`Spectra::phased`]. `who`
 /// names the backend in the message.
 pub fn check_jobs<T: Real>(who: &str, plan: &Plan<T>, jobs: &[Job<'_, T>]) -> Result<()> {
-    if jobs
-        .windows(2)
-        .any(|p| p[0].spectra.phased != p[1].spectra.phased)
-    {
-        return Err(crate::Error::Mismatch(format!(
-            "{who}: one call mixes phase-transformed frames with plain ones"
-        )));
-    }
+    check_phased(who, jobs)?;
     for j in jobs {
         if let Some(w) = j.windows.iter().find(|w| w.start < j.first) {
             return Err(crate::Error::Mismatch(format!(
@@ -255,6 +248,19 @@ pub fn check_jobs<T: Real>(who: &str, plan: &Plan<T>, jobs: &[Job<'_, T>]) -> Re
             })
             .collect();
         check_batch(who, plan, j.spectra, &local)?;
+    }
+    Ok(())
+}
+
+/// Every job of one call agrees on [`Spectra::phased`].
+pub fn check_phased<T: Real>(who: &str, jobs: &[Job<'_, T>]) -> Result<()> {
+    if jobs
+        .windows(2)
+        .any(|p| p[0].spectra.phased != p[1].spectra.phased)
+    {
+        return Err(crate::Error::Mismatch(format!(
+            "{who}: one call mixes phase-transformed frames with plain ones"
+        )));
     }
     Ok(())
 }

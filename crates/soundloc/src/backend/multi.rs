@@ -86,6 +86,9 @@ impl<T: Real> Backend<T> for MultiBackend<T> {
     }
 
     fn process(&mut self, jobs: &[Job<'_, T>], want_spectrum: bool, out: &mut BatchOutput) -> Result<()> {
+        // The parts check their own share; jobs that disagree on `phased` could be split
+        // apart, so that is checked for the whole call.
+        super::check_phased("multi-device backend", jobs)?;
         let caps: Vec<usize> = self.parts.iter().map(|p| p.max_windows_per_batch()).collect();
         let cut = shares(super::count_windows(jobs), &caps);
         let parts: Vec<Vec<Job<'_, T>>> = cut.iter().map(|r| sub_jobs(jobs, r.clone())).collect();

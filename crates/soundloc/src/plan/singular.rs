@@ -99,15 +99,16 @@ fn diagnose(k: &Mat<c64>, head: &str) -> String {
                 "{head}: channels {} (0-based, of those in use) are linearly \
                  dependent in the noise (one is a combination of the others: a summed, bridged \
                  or mis-wired channel?); leave one of them out with the TF channel selection \
-                 (--channels, channels=[...])",
+                 (--channels, channels=[...]), or, for noise-free synthetic input, use diagonal \
+                 loading",
                 list(&involved)
             );
         }
     }
     format!(
         "{head}: it has rank {} of {m} (too few noise frames for the channel \
-         count, at least {m} and better {}, or one coherent noise source?); give more noise \
-         frames or use diagonal loading",
+         count, at least {m} and better {}, one coherent noise source, or a channel that \
+         combines all the others?); give more noise frames or use diagonal loading",
         m - null.len().max(1),
         10 * m
     )

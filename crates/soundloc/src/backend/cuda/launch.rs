@@ -305,11 +305,7 @@ impl<T: Real> CudaBackend<T> {
                 .r(T::of_f64(crate::music::REFINE_RATIO))
                 .i(l.spec_dt)
                 .i(usize::from(l.spec_e_smem))
-                .i(match (l.srp, self.phased) {
-                    (false, _) => 0,
-                    (true, false) => 1,
-                    (true, true) => 2, // the frames are x̃ already
-                })
+                .i(usize::from(l.srp))
                 .i(pass)
                 .p(self.d_weights.ptr)
                 .p(self.d_binmax.ptr)

@@ -21,6 +21,10 @@ impl NoiseCm {
             nfft: self.nfft,
             num_bins: self.num_bins(),
             not_positive_definite: bins.iter().filter(|b| !b.condition.is_finite()).count(),
+            near_singular: bins
+                .iter()
+                .filter(|b| (NEAR_SINGULAR..f64::INFINITY).contains(&b.condition))
+                .count(),
             trace_min: traces.iter().copied().fold(f64::INFINITY, f64::min),
             trace_median: median(&traces),
             trace_max: traces.iter().copied().fold(f64::NEG_INFINITY, f64::max),
@@ -34,6 +38,11 @@ impl NoiseCm {
         }
     }
 }
+
+/// A condition number from which K is singular to rounding as far as whitening goes: the
+/// plan refuses such a K where its Cholesky factor shows a channel that combines others
+/// to twelve digits (a pivot L_ii² ≤ 10⁻¹² K_ii, which needs this condition or more).
+pub const NEAR_SINGULAR: f64 = 1e12;
 
 /// One bin's numbers in a [`NoiseCmSummary`].
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
@@ -60,6 +69,8 @@ pub struct NoiseCmSummary {
     pub num_bins: usize,
     /// Bins whose K is not positive definite.
     pub not_positive_definite: usize,
+    /// Positive definite bins with a condition number of at least [`NEAR_SINGULAR`].
+    pub near_singular: usize,
     /// Smallest trace over the bins.
     pub trace_min: f64,
     /// Median trace.
@@ -97,7 +108,13 @@ impl std::fmt::Display for NoiseCmSummary {
             self.bins.get(self.worst_bin).map_or(f64::NAN, |b| b.condition),
             self.worst_bin
         )?;
-        writeln!(f, "not pos. def.    {} bin(s)", self.not_positive_definite)
+        writeln!(f, "not pos. def.    {} bin(s)", self.not_positive_definite)?;
+        writeln!(
+            f,
+            "cond >= 1e12     {} bin(s) (singular to rounding where a channel combines others: \
+             refused for localization)",
+            self.near_singular
+        )
     }
 }
 
@@ -158,10 +175,16 @@ mod tests {
         assert!((s.bins[1].condition - 4.0).abs() < 1e-12);
         assert!((s.bins[1].trace - 5.0).abs() < 1e-12);
         assert!(!s.bins[2].condition.is_finite());
-        assert_eq!((s.not_positive_definite, s.worst_bin), (1, 2));
+        assert_eq!((s.not_positive_definite, s.worst_bin, s.near_singular), (1, 2, 0));
         assert!((s.condition_median - 1.0).abs() < 1e-12);
         let text = s.to_string();
         assert!(text.contains("not pos. def.    1 bin"), "{text}");
+        assert!(text.contains("cond >= 1e12     0 bin"), "{text}");
+        // Bin 3: diag(1, 1e-13), positive definite but singular to rounding.
+        cm.data[15] = Complex::new(1e-13, 0.0);
+        let s = cm.summary();
+        assert_eq!((s.not_positive_definite, s.near_singular), (1, 1));
+        assert!(s.to_string().contains("cond >= 1e12     1 bin"));
         let json = serde_json::to_string(&s).unwrap();
         assert!(json.contains("\"condition\":null"), "{json}");
     }
