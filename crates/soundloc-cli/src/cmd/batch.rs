@@ -3,7 +3,8 @@
 //! and resumable runs (inputs whose result file exists are skipped).
 
 use super::input::{spawn_reader, InputArgs};
-use super::localize::{drive, FormatArg, RunArgs};
+use super::localize::{drive, FormatArg};
+use super::run_args::RunArgs;
 use anyhow::{anyhow, bail, Context};
 use soundloc::formats::noise_cm::NoiseCm;
 use std::collections::HashMap;

@@ -267,7 +267,7 @@ fn run_e2e(a: &Args, alg: AlgorithmArg) -> anyhow::Result<ExitCode> {
     let (Some(tf), Some(input)) = (&a.tf, &a.input) else {
         anyhow::bail!("--e2e needs --tf and --input");
     };
-    let (start_s, end_s) = super::localize::parse_range(&a.noise_range)?;
+    let (start_s, end_s) = super::run_args::parse_range(&a.noise_range)?;
     let mut spec = LocalizerSpec::with_array(ArraySpec::TransferFunctions { path: tf.clone() });
     spec.algorithm = Some(alg.into());
     spec.analysis.period = a.period;

@@ -7,7 +7,7 @@
 //! audio callback never waits: blocks beyond `--max-buffer` seconds are dropped and
 //! counted (see `cmd::input`). Ctrl-C (or `--seconds`) ends the session cleanly.
 
-use super::localize::RunArgs;
+use super::run_args::RunArgs;
 use std::process::ExitCode;
 
 #[derive(clap::Args, Debug)]

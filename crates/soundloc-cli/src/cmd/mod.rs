@@ -7,6 +7,7 @@ pub mod input;
 pub mod listen;
 pub mod localize;
 pub mod noisecm;
+pub mod run_args;
 pub mod sinks;
 pub mod tf;
 

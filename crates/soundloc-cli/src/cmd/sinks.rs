@@ -15,7 +15,8 @@ use soundloc::output::netsink::NetSender;
 use soundloc::output::odas::{self, SstSlots};
 use std::time::Duration;
 
-use super::localize::{note, FormatArg, RunArgs};
+use super::localize::{note, FormatArg};
+use super::run_args::RunArgs;
 use anyhow::{bail, Context};
 use soundloc::output::atomic::{write_atomically, AtomicFile};
 use soundloc::output::hark_stream::HarkStreamSender;
