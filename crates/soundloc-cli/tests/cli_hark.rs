@@ -445,6 +445,16 @@ fn bad_inputs_fail_with_a_message_naming_the_file() {
     ]);
     assert!(e.contains("--grid-radius"), "{e}");
     assert!(!out.exists());
+    // Outputs that cannot be files: a folder, a file in a missing folder (both commands).
+    for args in [
+        &["tf", "make", "--builtin", "circle8", "--grid", "ring:5", "-o"][..],
+        &["noisecm", "make", s(&wav), "-o"][..],
+    ] {
+        let e = fails(&[args, &[s(&d)]].concat());
+        assert!(e.contains("-o: is a directory"), "{e}");
+        let e = fails(&[args, &[s(&d.join("nodir").join("K.zip"))]].concat());
+        assert!(e.contains("nodir does not exist"), "{e}");
+    }
 
     // noisecm make: missing input, range past the end, bad range, bad channel.
     let e = fails(&["noisecm", "make", s(&d.join("none.wav")), "-o", s(&d.join("K"))]);

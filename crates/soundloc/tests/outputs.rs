@@ -77,11 +77,88 @@ fn all_writers_produce_consistent_files() {
         .contains("time (s)"));
 
     // Exactly the six files, no temporaries.
+    let temps: Vec<String> = std::fs::read_dir(&d)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|n| n.contains("tmp"))
+        .collect();
+    assert!(temps.is_empty(), "{temps:?}");
+    std::fs::remove_dir_all(&d).unwrap();
+}
+
+/// Zips (transfer functions, noise matrices) are written like every other output: a pipe
+/// or device in place, never replaced by a regular file; a full device, a folder or a
+/// missing folder is an error naming the file.
+#[cfg(unix)]
+#[test]
+fn zips_write_devices_and_pipes_in_place_and_refuse_folders() {
+    use soundloc::formats::hark_zip::{read_zip_entries, write_zip_entries};
+    use soundloc::output::atomic::check_output_path;
+    let d = std::env::temp_dir().join(format!("soundloc-it-zip-{}", std::process::id()));
+    std::fs::create_dir_all(&d).unwrap();
+    let entries = vec![
+        ("k/".to_string(), Vec::new()),
+        ("k/a.txt".to_string(), b"first entry".to_vec()),
+        (
+            "k/b.bin".to_string(),
+            (0..5000u32).map(|i| (i * 7 % 251) as u8).collect(),
+        ),
+    ];
+    // A FIFO: the reader gets the whole zip, and the FIFO stays a FIFO.
+    let fifo = d.join("pipe");
+    let made = std::process::Command::new("mkfifo").arg(&fifo).status();
+    if made.is_ok_and(|s| s.success()) {
+        let p = fifo.clone();
+        let reader = std::thread::spawn(move || std::fs::read(p).unwrap());
+        write_zip_entries(&fifo, &entries).unwrap();
+        // Checked before waiting on the reader, which a replaced FIFO would leave blocked.
+        assert!(!std::fs::metadata(&fifo).unwrap().is_file());
+        let got = reader.join().unwrap();
+        let copy = d.join("copy.zip");
+        std::fs::write(&copy, &got).unwrap();
+        let back = read_zip_entries(&copy).unwrap();
+        assert_eq!(back["k/a.txt"], b"first entry");
+        assert_eq!(back["k/b.bin"], entries[2].1);
+    } else {
+        println!("SKIPPED zips_write_devices_and_pipes_in_place_and_refuse_folders (FIFO part): no mkfifo");
+    }
+    // A full device: an error, and the device is still a device.
+    if std::path::Path::new("/dev/full").exists() {
+        let e = write_zip_entries(std::path::Path::new("/dev/full"), &entries).unwrap_err();
+        assert!(e.to_string().contains("/dev/full"), "{e}");
+        assert!(!std::fs::metadata("/dev/full").unwrap().is_file());
+    }
+    // A folder, and a file in a folder that does not exist.
+    let e = write_zip_entries(&d, &entries).unwrap_err().to_string();
+    assert!(e.contains("is a directory"), "{e}");
+    let e = check_output_path(&d, "-o").unwrap_err().to_string();
+    assert!(e.contains("-o: is a directory"), "{e}");
+    let missing = d.join("nodir").join("K.zip");
+    let e = write_zip_entries(&missing, &entries).unwrap_err().to_string();
+    assert!(e.contains("K.zip") && e.contains("does not exist"), "{e}");
+    let e = check_output_path(&missing, "-o").unwrap_err().to_string();
+    assert!(
+        e.contains("the directory") && e.contains("nodir does not exist"),
+        "{e}"
+    );
+    assert!(!d.join("nodir").exists());
+    // A regular file: replaced whole; nothing else left in the folder.
+    let out = d.join("out.zip");
+    std::fs::write(&out, b"old").unwrap();
+    write_zip_entries(&out, &entries).unwrap();
+    assert_eq!(read_zip_entries(&out).unwrap()["k/a.txt"], b"first entry");
     let mut names: Vec<String> = std::fs::read_dir(&d)
         .unwrap()
         .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
         .collect();
     names.sort();
-    assert_eq!(names, ["r.csv", "r.jsonl", "s.npy", "s.png", "s.svg"]);
+    assert_eq!(
+        names,
+        ["copy.zip", "out.zip", "pipe"]
+            .iter()
+            .filter(|n| **n != "copy.zip" || d.join(n).exists())
+            .map(|s| s.to_string())
+            .collect::<Vec<_>>()
+    );
     std::fs::remove_dir_all(&d).unwrap();
 }

@@ -118,6 +118,7 @@ fn parse_range(s: &str) -> Result<(f64, f64), String> {
 }
 
 fn make(a: MakeArgs) -> anyhow::Result<ExitCode> {
+    soundloc::output::atomic::check_output_path(&a.output, "-o")?;
     let zip_name = a
         .output
         .extension()

@@ -202,22 +202,6 @@ fn status(p: &Progress, finished: bool) -> live::Status {
     }
 }
 
-fn check_dir(p: &Path, what: &str) -> anyhow::Result<()> {
-    if let Some(d) = p.parent().filter(|d| !d.as_os_str().is_empty()) {
-        if d.exists() && !d.is_dir() {
-            bail!("{}: {what}: {} is a file, not a folder", p.display(), d.display());
-        }
-        if !d.is_dir() {
-            bail!(
-                "{}: {what}: the directory {} does not exist",
-                p.display(),
-                d.display()
-            );
-        }
-    }
-    Ok(())
-}
-
 impl Sinks {
     /// Check every output path before anything is computed: its folder exists, it is not
     /// a folder, and it replaces neither an input (`input`: the recording's path, if any,
@@ -242,10 +226,7 @@ impl Sinks {
             (file.map(Path::new), *what)
         })) {
             if let Some(p) = p {
-                check_dir(p, what)?;
-                if p.is_dir() {
-                    bail!("{}: {what}: is a directory; name a file", p.display());
-                }
+                soundloc::output::atomic::check_output_path(p, what)?;
                 outputs.push((p, what));
             }
         }

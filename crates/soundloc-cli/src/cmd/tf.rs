@@ -118,6 +118,7 @@ fn inspect(a: InspectArgs) -> anyhow::Result<ExitCode> {
 }
 
 fn make(a: MakeArgs) -> anyhow::Result<ExitCode> {
+    soundloc::output::atomic::check_output_path(&a.output, "-o")?;
     if let Some(g) = &a.geometry {
         soundloc::output::atomic::check_outputs(&[(&a.output, "-o")], &[(g, "--geometry")])?;
     }

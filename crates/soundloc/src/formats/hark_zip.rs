@@ -34,9 +34,10 @@ use crate::array::TransferFunctions;
 use crate::formats::hark_mat::{write_mat, MatData};
 use crate::formats::xml::Element;
 use crate::formats::zip_archive::ZipReader;
+use crate::output::atomic::AtomicFile;
 use crate::{Error, Result};
 use std::collections::BTreeMap;
-use std::io::Write;
+use std::io::{Seek, Write};
 use std::path::{Path, PathBuf};
 
 /// Root folder of a transfer-function zip.
@@ -95,53 +96,38 @@ pub fn read_zip_entries_where(path: &Path, keep: impl Fn(&str) -> bool) -> Resul
 }
 
 /// Write a zip holding `entries` in the given order (names ending in `/` are folders,
-/// their bytes ignored; files are deflated). Written atomically: to a temporary file in
-/// the same folder, synced, then renamed over `path`; on error the temporary file is
-/// removed and `path` is untouched.
+/// their bytes ignored; files are deflated). Written atomically ([`AtomicFile`]): on error
+/// `path` is untouched. A device, FIFO or socket is written in place (the zip is built in
+/// memory first, since it cannot seek), never replaced.
 pub fn write_zip_entries(path: &Path, entries: &[(String, Vec<u8>)]) -> Result<()> {
-    let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
-        _ => PathBuf::from("."),
+    // Errors name the file asked for, not the hidden temporary one.
+    let zerr = |e: zip::result::ZipError| match e {
+        zip::result::ZipError::Io(e) => Error::io(path, e),
+        e => Error::io(path, std::io::Error::other(e.to_string())),
     };
-    let fname = path
-        .file_name()
-        .map(|s| s.to_string_lossy().into_owned())
-        .unwrap_or_else(|| "out.zip".into());
-    let stamp = std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .map(|d| d.as_nanos())
-        .unwrap_or(0);
-    let tmp = dir.join(format!(".{fname}.tmp-{}-{stamp}", std::process::id()));
-    let result = (|| -> Result<()> {
-        // Errors name the file asked for, not the hidden temporary one.
-        let file = std::fs::File::create(&tmp).map_err(|e| Error::io(path, e))?;
-        let mut w = zip::ZipWriter::new(std::io::BufWriter::new(file));
-        let opts =
-            zip::write::SimpleFileOptions::default().compression_method(zip::CompressionMethod::Deflated);
-        let zerr = |e: zip::result::ZipError| Error::io(path, std::io::Error::other(e.to_string()));
-        for (name, bytes) in entries {
-            if name.ends_with('/') {
-                w.add_directory(name.as_str(), opts).map_err(zerr)?;
-            } else {
-                w.start_file(name.as_str(), opts).map_err(zerr)?;
-                w.write_all(bytes).map_err(|e| Error::io(path, e))?;
-            }
-        }
-        let buf = w.finish().map_err(zerr)?;
-        let file = buf.into_inner().map_err(|e| Error::io(path, e.into_error()))?;
-        file.sync_all().map_err(|e| Error::io(path, e))?;
-        Ok(())
-    })();
-    match result {
-        Ok(()) => std::fs::rename(&tmp, path).map_err(|e| {
-            let _ = std::fs::remove_file(&tmp);
-            Error::io(path, e)
-        }),
-        Err(e) => {
-            let _ = std::fs::remove_file(&tmp);
-            Err(e)
+    let mut out = AtomicFile::create(path)?;
+    if out.is_special() {
+        let buf = zip_into(std::io::Cursor::new(Vec::new()), entries).map_err(zerr)?;
+        out.write_all(buf.get_ref()).map_err(|e| Error::io(path, e))?;
+    } else {
+        zip_into(&mut out, entries).map_err(zerr)?;
+    }
+    out.commit()
+}
+
+/// The zip of `entries` written to `w` (see [`write_zip_entries`]).
+fn zip_into<W: Write + Seek>(w: W, entries: &[(String, Vec<u8>)]) -> zip::result::ZipResult<W> {
+    let mut w = zip::ZipWriter::new(w);
+    let opts = zip::write::SimpleFileOptions::default().compression_method(zip::CompressionMethod::Deflated);
+    for (name, bytes) in entries {
+        if name.ends_with('/') {
+            w.add_directory(name.as_str(), opts)?;
+        } else {
+            w.start_file(name.as_str(), opts)?;
+            w.write_all(bytes)?;
         }
     }
+    w.finish()
 }
 
 /// Find the container's root folder (with trailing `/`, e.g. `transferFunction/`) and

@@ -103,6 +103,15 @@ impl AtomicFile {
                     })
                 }
                 Err(e) if e.kind() == io::ErrorKind::AlreadyExists => last_err = Some(e),
+                Err(e) if e.kind() == io::ErrorKind::NotFound && !dir.is_dir() => {
+                    return Err(Error::io(
+                        &target,
+                        io::Error::new(
+                            io::ErrorKind::NotFound,
+                            format!("the folder {} does not exist", dir.display()),
+                        ),
+                    ))
+                }
                 Err(e) => return Err(Error::io(&target, e)),
             }
         }
@@ -115,6 +124,12 @@ impl AtomicFile {
     /// The path the file will have after `commit`.
     pub fn target(&self) -> &Path {
         &self.target
+    }
+
+    /// Whether the target is a device, FIFO or socket, written in place: such a target
+    /// cannot seek, so a writer that needs to seek builds its bytes first.
+    pub fn is_special(&self) -> bool {
+        self.temp.as_os_str().is_empty()
     }
 
     /// The temporary file's path (for libraries that insist on writing by path; whatever
@@ -216,6 +231,27 @@ fn identity(path: &Path) -> Option<PathBuf> {
             .unwrap_or_else(|_| dir.to_path_buf())
             .join(name),
     )
+}
+
+/// Checks, before any work, that `path` can be an output: not a folder, and in a folder
+/// that exists. `what` names the option for the message.
+pub fn check_output_path(path: &Path, what: &str) -> Result<()> {
+    let bad = |msg: String| Error::Config(format!("{}: {what}: {msg}", path.display()));
+    if path.as_os_str().is_empty() {
+        return Err(Error::Config(format!("{what}: the file name is empty")));
+    }
+    if path.is_dir() {
+        return Err(bad("is a directory; name a file".into()));
+    }
+    if let Some(d) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
+        if d.exists() && !d.is_dir() {
+            return Err(bad(format!("{} is a file, not a folder", d.display())));
+        }
+        if !d.is_dir() {
+            return Err(bad(format!("the directory {} does not exist", d.display())));
+        }
+    }
+    Ok(())
 }
 
 /// Refuses, before any work, outputs that would replace one of the run's inputs or each
