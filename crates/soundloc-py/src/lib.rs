@@ -75,7 +75,24 @@ pub(crate) fn samples<'py>(x: &Bound<'py, PyAny>) -> PyResult<Samples<'py>> {
     }
     conv!(i16);
     conv!(i32);
-    conv!(f64);
+    if let Ok(a) = x.downcast::<PyArray2<f64>>() {
+        let a = a.readonly();
+        let s = [a.shape()[0], a.shape()[1]];
+        // A finite value beyond f32 would become an infinity, reported as one.
+        let big = a
+            .as_array()
+            .indexed_iter()
+            .find(|(_, v)| v.is_finite() && v.abs() > f32::MAX as f64)
+            .map(|(i, &v)| (i, v));
+        if let Some(((r, c), v)) = big {
+            return Err(PyValueError::new_err(format!(
+                "audio[{r}, {c}] is {v:e}, beyond the range of the 32-bit floats soundloc holds samples in (±{:e}); scale the audio down",
+                f32::MAX
+            )));
+        }
+        let v: Vec<f32> = a.as_array().iter().map(|&v| v as f32).collect();
+        return Ok(Samples::Owned(v, s));
+    }
     let ndim = x.getattr("ndim").and_then(|n| n.extract::<usize>()).ok();
     match ndim {
         Some(2) => Err(PyTypeError::new_err(format!(

@@ -112,13 +112,38 @@ fn read_full<R: Read + ?Sized>(r: &mut R, buf: &mut [u8]) -> std::io::Result<usi
     Ok(got)
 }
 
-fn check_finite(name: &Path, buf: &[f32], channels: usize, first_frame: u64) -> Result<()> {
+/// `raw`: the bytes `buf` was decoded from and their encoding, to tell a float64 sample
+/// beyond f32's range (infinite once read) from an infinite one.
+fn check_finite(
+    name: &Path,
+    buf: &[f32],
+    channels: usize,
+    first_frame: u64,
+    raw: Option<(&[u8], RawEncoding)>,
+) -> Result<()> {
     if let Some(i) = buf.iter().position(|v| !v.is_finite()) {
-        let what = if buf[i].is_nan() { "NaN" } else { "infinite" };
+        let wide = match raw {
+            Some((b, RawEncoding::F64le)) => b
+                .get(i * 8..i * 8 + 8)
+                .map(|b| f64::from_le_bytes(b.try_into().unwrap_or([0; 8])))
+                .filter(|v| v.is_finite()),
+            _ => None,
+        };
+        let (what, tail) = match wide {
+            Some(v) => (
+                format!("{v:e}"),
+                format!(
+                    ", beyond the range of the 32-bit floats soundloc reads samples into (±{:e}); scale the recording down",
+                    f32::MAX
+                ),
+            ),
+            None if buf[i].is_nan() => ("NaN".to_string(), String::new()),
+            None => ("infinite".to_string(), String::new()),
+        };
         return Err(Error::format(
             name,
             format!(
-                "sample {} of channel {} is {what} (0-based)",
+                "sample {} of channel {} is {what} (0-based){tail}",
                 first_frame + (i / channels) as u64,
                 i % channels
             ),
@@ -233,6 +258,13 @@ impl<R: Read> PcmReader<R> {
         for s in self.bytes[..used].chunks_exact(self.enc.bytes()) {
             buf.push(self.enc.decode(s));
         }
+        check_finite(
+            name,
+            buf,
+            self.channels,
+            self.frames_read,
+            Some((&self.bytes[..used], self.enc)),
+        )?;
         self.bytes.copy_within(used..have, 0);
         self.carry = have - used;
         if self.ended && frames == 0 && self.carry > 0 {
@@ -243,7 +275,6 @@ impl<R: Read> PcmReader<R> {
             ));
             self.carry = 0;
         }
-        check_finite(name, buf, self.channels, self.frames_read)?;
         self.frames_read += frames as u64;
         Ok(frames)
     }
@@ -551,7 +582,7 @@ impl<R: Read + Send> AudioSource for FlacSource<R> {
         let n = ((self.pending.len() - self.at) / nch).min(max_frames.max(1));
         buf.extend_from_slice(&self.pending[self.at..self.at + n * nch]);
         self.at += n * nch;
-        check_finite(&self.name, buf, nch, self.frames_read)?;
+        check_finite(&self.name, buf, nch, self.frames_read, None)?;
         self.frames_read += n as u64;
         Ok(n)
     }

@@ -55,7 +55,8 @@ impl LocalizerGroup {
         // As Localizer::new: the GPU comes up while the transfer functions load.
         let _warm = crate::engine::device::prewarm(spec.device, config.subspace_tracking);
         let (tf, note) = spec.load_array_noted(&config)?;
-        let mut g = Self::with_transfer_functions(spec, tf, None, streams)?;
+        let mut g = Self::with_transfer_functions(spec, tf, None, streams)
+            .map_err(|e| super::prepare::name_tf_file(spec, e))?;
         g.notes.splice(0..0, note);
         Ok(g)
     }

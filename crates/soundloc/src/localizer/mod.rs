@@ -290,7 +290,8 @@ impl Localizer {
             tf.grid.len(),
             note.as_deref().map(|n| format!(" ({n})")).unwrap_or_default()
         );
-        let mut loc = Self::with_transfer_functions(spec, tf, None)?;
+        let mut loc =
+            Self::with_transfer_functions(spec, tf, None).map_err(|e| prepare::name_tf_file(spec, e))?;
         loc.notes.splice(0..0, note);
         Ok(loc)
     }

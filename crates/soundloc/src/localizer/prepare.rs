@@ -2,7 +2,7 @@
 //! K (from a recording, a correlation file or the caller), the stream's options, and the
 //! plan and engine built from them.
 
-use super::{LocalizerSpec, NoiseSource};
+use super::{ArraySpec, LocalizerSpec, NoiseSource};
 use crate::array::TransferFunctions;
 use crate::backend::DeviceChoice;
 use crate::config::LocalizeConfig;
@@ -186,6 +186,24 @@ pub(crate) fn plan_for<T: Real>(
     })
 }
 
+/// A plan error about the transfer functions (a zero or non-finite direction) names the
+/// file they came from, where `spec` read them from one.
+pub(crate) fn name_tf_file(spec: &LocalizerSpec, e: Error) -> Error {
+    match (e, &spec.array) {
+        (
+            Error::Numerical {
+                stage: "plan",
+                message,
+            },
+            ArraySpec::TransferFunctions { path },
+        ) => Error::Numerical {
+            stage: "plan",
+            message: format!("{}: {message}", path.display()),
+        },
+        (e, _) => e,
+    }
+}
+
 /// K from a noise recording, through the input's channel map.
 fn noise_from_recording(
     path: &Path,
@@ -266,6 +284,34 @@ mod tests {
         assert!(
             e.contains(&five.display().to_string())
                 && e.contains("5 × 5 matrices, expected 3 microphones (or the array's 8"),
+            "{e}"
+        );
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    /// A direction whose transfer function is zero in every used bin is refused at
+    /// planning, naming the file the transfer functions came from.
+    #[test]
+    fn a_zero_direction_is_refused_naming_the_tf_file() {
+        let geo = crate::array::Geometry::circle(8, 0.0365, 0.0);
+        let grid = crate::array::Grid::ring(30.0, 0.0, 1.0);
+        let mut tf = crate::array::freefield::free_field(&geo, &grid, 512, 16000, 0..257, 343.0).unwrap();
+        let dir = crate::audio::tests::temp_dir("prepare-zero-tf");
+        let good = dir.join("good.zip");
+        crate::formats::hark_zip::write_tf_zip(&tf, &good).unwrap();
+        let mut spec = LocalizerSpec::from_tf(&good);
+        spec.device = DeviceChoice::Cpu;
+        spec.tf_cache = crate::array::tf_cache::TfCache::Off;
+        crate::Localizer::new(&spec).unwrap();
+        // Direction 3 silenced in every bin ([dir][mic][bin] layout).
+        let block = tf.num_mics * tf.num_bins;
+        tf.data[3 * block..4 * block].fill(Complex::new(0.0, 0.0));
+        let zero = dir.join("zero.zip");
+        crate::formats::hark_zip::write_tf_zip(&tf, &zero).unwrap();
+        spec.array = ArraySpec::TransferFunctions { path: zero.clone() };
+        let e = crate::Localizer::new(&spec).err().expect("refused").to_string();
+        assert!(
+            e.contains(&zero.display().to_string()) && e.contains("direction 3 is zero in every used bin"),
             "{e}"
         );
         std::fs::remove_dir_all(&dir).unwrap();
