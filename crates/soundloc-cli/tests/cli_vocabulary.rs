@@ -62,6 +62,18 @@ fn grid_options_with_a_tf_file_are_refused_not_ignored() {
     assert!(o.status.success());
 }
 
+/// --resample converts to the TF file's rate; free-field transfer functions (--geometry)
+/// are made at the input's rate, so there it would do nothing: refused.
+#[test]
+fn resample_with_a_geometry_is_refused_not_ignored() {
+    let (wav, geo, _) = scene("resample_with_a_geometry_is_refused_not_ignored");
+    let (w, g) = (wav.to_str().unwrap(), geo.to_str().unwrap());
+    fails_with(
+        &["localize", w, "--geometry", g, "--grid", "ring:5", "--resample"],
+        &["--resample", "--geometry"],
+    );
+}
+
 #[test]
 fn old_and_new_spellings_give_the_same_files() {
     let (wav, geo, tf) = scene("old_and_new_spellings_give_the_same_files");

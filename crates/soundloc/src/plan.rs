@@ -122,9 +122,17 @@ impl<T: Real> Plan<T> {
             )));
         }
         let bins = config.bin_range();
-        if bins.is_empty() {
+        if bins.is_empty() || bins == (0..1) {
+            let step = config.sample_rate_hz as f64 / config.nfft as f64;
+            let what = if bins.is_empty() {
+                "no frequency bin".to_string()
+            } else {
+                "only bin 0 (0 Hz, which carries no direction)".to_string()
+            };
             return Err(Error::Config(format!(
-                "no frequency bin between {} Hz and {} Hz at N = {}, fs = {} Hz",
+                "{what} between {} Hz and {} Hz at N = {}, fs = {} Hz: bins are {step} Hz apart, and the \
+                 band uses bins k from floor(lower·N/fs) up to, not including, floor(upper·N/fs) (HARK's \
+                 rule); widen the band or lengthen the FFT",
                 config.lower_freq_hz, config.upper_freq_hz, config.nfft, config.sample_rate_hz
             )));
         }
@@ -377,6 +385,12 @@ fn spectrum_weights<T: Real>(c: &LocalizeConfig, bins: &Range<usize>) -> Result<
                 return Err(Error::Config(format!(
                     "manual spectrum weight {i} is {}, must be finite and >= 0",
                     w[i]
+                )));
+            }
+            if w.iter().all(|&x| x == 0.0) {
+                return Err(Error::Config(format!(
+                    "manual spectrum weights are all zero: no bin of {}..{} would count, and the spectrum would be flat",
+                    bins.start, bins.end
                 )));
             }
             w.iter().map(|&x| T::of_f64(x)).collect()

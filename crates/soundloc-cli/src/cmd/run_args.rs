@@ -134,8 +134,9 @@ pub struct RunArgs {
     pub speed_of_sound: f64,
     /// Convert audio (the input and --noise) at another sampling rate than the transfer
     /// functions' to theirs (band-limited, no delay added), e.g. a 48 kHz sound card with a
-    /// 16 kHz TF file; without it a different rate is an error.
-    #[arg(long)]
+    /// 16 kHz TF file; without it a different rate is an error. Not with --geometry,
+    /// whose transfer functions are made at the input's rate.
+    #[arg(long, conflicts_with = "geometry")]
     pub resample: bool,
     /// TF_CHANNEL_SELECTION: TF channels to use, comma-separated (0-based). Applied to the
     /// audio, a --noise recording and a --noise-cm file too when they have the TF's full

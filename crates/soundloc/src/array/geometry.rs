@@ -102,6 +102,11 @@ impl Geometry {
         let value: toml::Table = text
             .parse()
             .map_err(|e: toml::de::Error| fail(format!("invalid TOML: {}", e.message())))?;
+        if let Some(k) = value.keys().find(|k| !matches!(k.as_str(), "mics" | "mic")) {
+            return Err(fail(format!(
+                "unknown key `{k}` (a geometry file holds `mics = [[x, y, z], ...]` or `[[mic]]` tables)"
+            )));
+        }
         let mut mics = Vec::new();
         match (value.get("mics"), value.get("mic")) {
             (Some(_), Some(_)) => {
@@ -293,6 +298,7 @@ mod tests {
         assert!(e("mics = [[0,\"a\",0]]").contains("mic 0: coordinate 1 must be a number"));
         assert!(e("[[mic]]\nx=1\n").contains("mic 0: missing y"));
         assert!(e("[[mic]]\nx=1\ny=2\nw=3").contains("unknown key `w`"));
+        assert!(e("mics = [[0, 0, 0], [1, 0, 0]]\nextra = 5").contains("unknown key `extra`"));
         assert!(e("mics = [").starts_with("ring8.toml: invalid TOML"));
         assert!(e("").contains("no microphones"));
         let missing = Geometry::load(Path::new("/nonexistent/ring8.toml")).unwrap_err();

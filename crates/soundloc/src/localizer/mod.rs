@@ -205,6 +205,7 @@ impl LocalizerSpec {
     /// [`LocalizerSpec::load_array`], with a note on what the TF cache did.
     pub fn load_array_noted(&self, config: &LocalizeConfig) -> Result<(TransferFunctions, Option<String>)> {
         let used = config.bin_range();
+        let mut note = None;
         let tf = match &self.array {
             ArraySpec::TransferFunctions { path } => {
                 // Resampling runs the analysis at the file's rate, whatever the input's:
@@ -238,6 +239,17 @@ impl LocalizerSpec {
                     )));
                 }
                 let geometry = Geometry::new(mics.clone(), Path::new("microphone positions"))?;
+                let reach = mics
+                    .iter()
+                    .map(|p| (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt())
+                    .fold(0.0, f64::max);
+                if *radius_m < reach {
+                    note = Some(format!(
+                        "the grid radius {radius_m} m is inside the array (its farthest microphone is {reach} m \
+                         from the origin): the directions are points among the microphones, not far-field \
+                         directions; HARK's free-field TFs use 1 m or more"
+                    ));
+                }
                 free_field(
                     &geometry,
                     &grid.build(*radius_m),
@@ -252,7 +264,7 @@ impl LocalizerSpec {
                 )
             }
         }?;
-        Ok((tf, None))
+        Ok((tf, note))
     }
 }
 
@@ -489,5 +501,56 @@ mod tests {
         spec.tracking = track(25.0);
         spec.algorithm = Some(Algorithm::Sevd);
         assert!(Localizer::new(&spec).is_ok(), "HARK's scale has no ceiling");
+    }
+
+    /// Settings that would run without a word but do not do what they say: a grid inside
+    /// the array and a band past Nyquist get notes; a band of only DC and all-zero
+    /// manual weights are refused (the spectrum would be flat).
+    #[test]
+    fn settings_that_would_silently_do_nothing_are_noted_or_refused() {
+        let geo = crate::array::Geometry::circle(8, 0.0365, 0.0);
+        let ring = GridSpec::Ring {
+            step_deg: 30.0,
+            elevation_deg: 0.0,
+        };
+        let mut spec = LocalizerSpec::free_field(geo.mics.clone(), ring);
+        spec.device = DeviceChoice::Cpu;
+        let plain = Localizer::new(&spec).unwrap();
+        assert!(plain
+            .notes()
+            .iter()
+            .all(|n| !n.contains("inside the array") && !n.contains("Nyquist")));
+        if let ArraySpec::FreeField { radius_m, .. } = &mut spec.array {
+            *radius_m = 0.01;
+        }
+        spec.analysis.upper_freq_hz = 12000.0;
+        let l = Localizer::new(&spec).unwrap();
+        let notes = l.notes().join("\n");
+        assert!(
+            notes.contains("grid radius 0.01 m is inside the array"),
+            "{notes}"
+        );
+        assert!(
+            notes.contains("upper edge 12000 Hz is above the Nyquist frequency (8000 Hz"),
+            "{notes}"
+        );
+        // 1000..3000 Hz at N = 8: bins 0..1, DC only.
+        let mut dc = LocalizerSpec::free_field(geo.mics.clone(), ring);
+        dc.device = DeviceChoice::Cpu;
+        dc.analysis.nfft = 8;
+        dc.analysis.hop = 4;
+        dc.analysis.lower_freq_hz = 1000.0;
+        dc.analysis.upper_freq_hz = 3000.0;
+        let e = Localizer::new(&dc).err().expect("DC only").to_string();
+        assert!(e.contains("only bin 0 (0 Hz, which carries no direction)"), "{e}");
+        let mut zero = LocalizerSpec::free_field(geo.mics.clone(), ring);
+        zero.device = DeviceChoice::Cpu;
+        let nb = zero.analysis.bin_range().len();
+        zero.analysis.spectrum_weight = crate::config::SpectrumWeight::Manual(vec![0.0; nb]);
+        let e = Localizer::new(&zero).err().expect("all zero").to_string();
+        assert!(e.contains("manual spectrum weights are all zero"), "{e}");
+        zero.analysis.spectrum_weight =
+            crate::config::SpectrumWeight::Manual((0..nb).map(|i| (i % 2) as f64).collect());
+        Localizer::new(&zero).unwrap();
     }
 }

@@ -104,6 +104,13 @@ pub(crate) fn prepare(
     if !algorithm.uses_noise() && spec.noise != NoiseSource::None {
         notes.push(format!("{} ignores the noise matrix", algorithm.name()));
     }
+    let nyquist = config.sample_rate_hz as f64 / 2.0;
+    if config.upper_freq_hz > nyquist {
+        notes.push(format!(
+            "the band's upper edge {} Hz is above the Nyquist frequency ({nyquist} Hz at {} Hz): the band ends there",
+            config.upper_freq_hz, config.sample_rate_hz
+        ));
+    }
     // A tracker threshold that no peak of a normalised spectrum can reach would drop
     // every result without a word (HARK thresholds are tuned on SEVD's scale).
     if let (Some(t), Some(ceiling)) = (&spec.tracking, crate::plan::normalized_power_ceiling_db(&config)?) {
