@@ -6,6 +6,11 @@
 //!   records (name, CRC-32, size) of every entry that is read (all but the separation
 //!   TFs), the kept bins, N and fs, and the cache format version. A changed TF file changes
 //!   its CRCs, so a stale entry is never hit; copying the file elsewhere still hits.
+//!   The key is what the zip *declares* (its directory), not a hash of every byte, which
+//!   would cost reading the whole file on every run: a copy damaged after its entry was
+//!   stored (directory intact, data not) still hits and gives the data its CRCs describe,
+//!   checked when the entry was built. `--no-cache` or `tf inspect --verify` reads the
+//!   file itself (and names a damaged entry).
 //! - **Entry.** `DIR/tf-<key>.bin`: magic `SLTFCACHE1\n`, a u64 header length, a JSON
 //!   header (key, shape, grid, microphone positions, CRC-32 of the data), the data
 //!   `[direction][mic][bin]` as (re, im) f32 pairs. Nothing is trusted blindly: magic, key,

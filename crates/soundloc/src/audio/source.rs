@@ -424,6 +424,29 @@ impl<R: Read + Send> WavSource<R> {
                             ))
                         }
                     };
+                    // A header that contradicts itself is not guessed at (a 24-bit sample in
+                    // a 4-byte slot, say, would be misread as packed).
+                    let align = u16_at(&f, 12) as usize;
+                    if align != channels * enc.bytes() {
+                        return Err(Error::format(
+                            name,
+                            format!(
+                                "WAV header contradicts itself: block align {align} bytes, but {channels} channels of {bits}-bit samples make {} bytes per frame",
+                                channels * enc.bytes()
+                            ),
+                        ));
+                    }
+                    if u16_at(&f, 0) == 0xFFFE && size >= 24 {
+                        let valid = u16_at(&f, 18);
+                        if valid > bits {
+                            return Err(Error::format(
+                                name,
+                                format!(
+                                    "WAV header contradicts itself: {valid} valid bits in {bits}-bit samples"
+                                ),
+                            ));
+                        }
+                    }
                     fmt = Some((enc, channels, rate));
                 }
                 b"data" => {

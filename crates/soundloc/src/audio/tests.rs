@@ -474,3 +474,56 @@ fn a_whole_recording_resampled() {
     assert!(b.channels[1][100..1500].iter().all(|&x| (x + 0.25).abs() < 1e-3));
     assert_eq!(super::resample::resample_audio(&b, 16000).unwrap(), b);
 }
+
+/// WAVE_FORMAT_EXTENSIBLE (the sub-format GUID's tag, valid bits ≤ container) is read like
+/// the plain header; a header that contradicts itself (block align against channels ×
+/// sample size, more valid bits than the container holds) is refused, not guessed at.
+#[test]
+fn extensible_headers_read_and_contradicting_headers_are_refused() {
+    let d = temp_dir("wavext");
+    let samples: [i16; 4] = [1000, -2000, 3000, -4000];
+    let data: Vec<u8> = samples.iter().flat_map(|v| v.to_le_bytes()).collect();
+    // 2 channels × 16 bits, extensible: cbSize 22, valid bits, channel mask, PCM GUID.
+    let ext = |valid: u16| -> Vec<u8> {
+        let mut v = b"RIFF".to_vec();
+        v.extend((60 + data.len() as u32).to_le_bytes());
+        v.extend(b"WAVEfmt ");
+        v.extend(40u32.to_le_bytes());
+        v.extend(0xFFFEu16.to_le_bytes());
+        v.extend(2u16.to_le_bytes());
+        v.extend(16000u32.to_le_bytes());
+        v.extend((16000u32 * 4).to_le_bytes());
+        v.extend(4u16.to_le_bytes());
+        v.extend(16u16.to_le_bytes());
+        v.extend(22u16.to_le_bytes());
+        v.extend(valid.to_le_bytes());
+        v.extend(3u32.to_le_bytes());
+        v.extend([1, 0, 0, 0, 0, 0, 0x10, 0, 0x80, 0, 0, 0xAA, 0, 0x38, 0x9B, 0x71]);
+        v.extend(b"data");
+        v.extend((data.len() as u32).to_le_bytes());
+        v.extend(&data);
+        v
+    };
+    let p = d.join("ext.wav");
+    std::fs::write(&p, ext(16)).unwrap();
+    let a = read_audio(&p).unwrap();
+    assert_eq!(a.channels, vec![vec![1000.0, 3000.0], vec![-2000.0, -4000.0]]);
+    let p = d.join("ext30.wav");
+    std::fs::write(&p, ext(30)).unwrap();
+    let e = read_audio(&p).unwrap_err().to_string();
+    assert!(
+        e.contains("ext30.wav") && e.contains("30 valid bits in 16-bit samples"),
+        "{e}"
+    );
+    // Block align 4 for 8 channels of 16 bits (16 bytes per frame).
+    let mut v = wav_bytes(1, 16, 8, &[0u8; 64]);
+    v[32..34].copy_from_slice(&4u16.to_le_bytes());
+    let p = d.join("align.wav");
+    std::fs::write(&p, v).unwrap();
+    let e = read_audio(&p).unwrap_err().to_string();
+    assert!(
+        e.contains("align.wav")
+            && e.contains("block align 4 bytes, but 8 channels of 16-bit samples make 16"),
+        "{e}"
+    );
+}
