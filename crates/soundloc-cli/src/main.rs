@@ -9,6 +9,7 @@ use std::process::ExitCode;
 
 fn main() -> ExitCode {
     init_log();
+    cmd::input::install_signal_handler();
     // This thread pushes the audio: as one of the pool's workers it runs each push
     // itself instead of handing it over and sleeping (`soundloc::pool`).
     soundloc::pool::adopt_current_thread();

@@ -492,3 +492,63 @@ fn bad_inputs_fail_with_a_message_naming_the_file() {
     assert!(!d.join("K_r").exists());
     let _ = std::fs::remove_dir_all(&d);
 }
+
+/// SIGTERM while `tf make` writes its zip: the process exits (status 130), deleting the
+/// temporary file; the file it was replacing keeps its old content.
+#[cfg(unix)]
+#[test]
+fn a_terminated_write_leaves_no_temporary_file_and_the_old_target() {
+    let d = tmp("sigterm");
+    let out = d.join("big.zip");
+    std::fs::write(&out, b"old content").unwrap();
+    let temps = || -> Vec<String> {
+        std::fs::read_dir(&d)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .filter(|n| n.starts_with(".big.zip."))
+            .collect()
+    };
+    // A few tries: the write (~60 MB, over a second here) must still be running when the
+    // signal comes.
+    for grid in ["sphere:2000", "sphere:8000"] {
+        let mut child = Command::new(BIN)
+            .args([
+                "tf",
+                "make",
+                "--builtin",
+                "circle8",
+                "--grid",
+                grid,
+                "-o",
+                s(&out),
+            ])
+            .stdout(std::process::Stdio::null())
+            .stderr(std::process::Stdio::null())
+            .spawn()
+            .unwrap();
+        let start = std::time::Instant::now();
+        while temps().is_empty() && child.try_wait().unwrap().is_none() && start.elapsed().as_secs() < 60 {
+            std::thread::sleep(std::time::Duration::from_millis(5));
+        }
+        if child.try_wait().unwrap().is_some() {
+            std::fs::write(&out, b"old content").unwrap();
+            continue;
+        }
+        let killed = Command::new("kill")
+            .args(["-TERM", &child.id().to_string()])
+            .status()
+            .unwrap();
+        assert!(killed.success());
+        let status = child.wait().unwrap();
+        if status.success() {
+            // It finished before the signal arrived: try a larger grid.
+            std::fs::write(&out, b"old content").unwrap();
+            continue;
+        }
+        assert_eq!(status.code(), Some(130), "{status:?}");
+        assert!(temps().is_empty(), "{:?}", temps());
+        assert_eq!(std::fs::read(&out).unwrap(), b"old content");
+        return;
+    }
+    println!("SKIPPED a_terminated_write_leaves_no_temporary_file_and_the_old_target: every write finished before the signal");
+}

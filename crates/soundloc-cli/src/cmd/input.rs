@@ -256,24 +256,33 @@ pub fn wait_for_ctrl_c() {
     }
 }
 
-/// A live session ends with Ctrl-C: the first one ends the input (what is queued is
-/// localized, outputs are completed and `-o` renamed into place); a second one exits at
-/// once (status 130).
-pub fn stop_on_ctrl_c(tx: SyncSender<Msg>) {
-    let mut pressed = false;
+/// Where the first Ctrl-C (or SIGTERM, SIGHUP) of a live session sends the end of input.
+static STOP: std::sync::Mutex<Option<SyncSender<Msg>>> = std::sync::Mutex::new(None);
+
+/// Installed once at start: Ctrl-C, SIGTERM and SIGHUP. In a live, paced or serving
+/// session ([`stop_on_ctrl_c`]) the first one ends the input (what is queued is localized,
+/// outputs are completed and `-o` renamed into place); otherwise, or the second time, the
+/// process exits at once (status 130), first deleting the temporary files of outputs
+/// being written (their targets keep their old content, or stay absent).
+pub fn install_signal_handler() {
     let _ = ctrlc::set_handler(move || {
-        if pressed {
+        let stop = STOP.lock().unwrap_or_else(|e| e.into_inner()).take();
+        let Some(tx) = stop else {
+            soundloc::output::atomic::remove_temporary_files();
             std::process::exit(130);
-        }
-        pressed = true;
+        };
         INTERRUPTED.store(true, Ordering::Relaxed);
         eprintln!("soundloc: stopping (Ctrl-C again to quit at once)");
         // Never block the handler: the queue may be full, or nobody reads it any more.
-        let tx = tx.clone();
         std::thread::spawn(move || {
             let _ = tx.send(Msg::End { gap: 0 });
         });
     });
+}
+
+/// A live session ends with Ctrl-C (see [`install_signal_handler`]).
+pub fn stop_on_ctrl_c(tx: SyncSender<Msg>) {
+    *STOP.lock().unwrap_or_else(|e| e.into_inner()) = Some(tx);
 }
 
 /// `live`: the input's `--max-buffer` (seconds) where it is live.

@@ -115,33 +115,17 @@ pub(crate) fn fnv1a(h: &mut u64, bytes: &[u8]) {
 /// The FNV-1a offset basis.
 pub(crate) const FNV_START: u64 = 0xcbf2_9ce4_8422_2325;
 
-/// Write `parts` to `file` in `dir` (created if need be) atomically: a temporary file
-/// unique to this process and thread in the same folder, renamed over `file`, so
-/// concurrent readers never see half an entry. No fsync: a torn entry after a crash
-/// fails its checksum and is rebuilt.
+/// Write `parts` to `file` in `dir` (created if need be) atomically
+/// ([`AtomicFile`](crate::output::atomic::AtomicFile)), so concurrent readers never see
+/// half an entry. No fsync: a torn entry after a crash fails its checksum and is rebuilt.
 pub(crate) fn write_atomic(dir: &Path, file: &Path, parts: &[&[u8]]) -> std::io::Result<()> {
     std::fs::create_dir_all(dir)?;
-    let name = file
-        .file_name()
-        .map(|n| n.to_string_lossy().into_owned())
-        .unwrap_or_default();
-    let tmp = dir.join(format!(
-        ".{name}.{}.{:?}.tmp",
-        std::process::id(),
-        std::thread::current().id()
-    ));
-    let res = (|| {
-        let mut f = std::io::BufWriter::new(std::fs::File::create(&tmp)?);
-        for p in parts {
-            f.write_all(p)?;
-        }
-        f.into_inner().map_err(|e| e.into_error())?;
-        std::fs::rename(&tmp, file)
-    })();
-    if res.is_err() {
-        let _ = std::fs::remove_file(&tmp);
+    let io = |e: crate::Error| std::io::Error::other(e.to_string());
+    let mut f = crate::output::atomic::AtomicFile::create(file).map_err(io)?;
+    for p in parts {
+        f.write_all(p)?;
     }
-    res
+    f.commit_unsynced().map_err(io)
 }
 
 /// The content key of TF zip `path` read with `want` (N, fs, bins).

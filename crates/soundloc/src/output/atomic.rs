@@ -22,6 +22,22 @@ use std::sync::atomic::{AtomicU64, Ordering};
 
 static COUNTER: AtomicU64 = AtomicU64::new(0);
 
+/// The temporary files being written now (for [`remove_temporary_files`]).
+static LIVE: std::sync::Mutex<Vec<PathBuf>> = std::sync::Mutex::new(Vec::new());
+
+fn live() -> std::sync::MutexGuard<'static, Vec<PathBuf>> {
+    LIVE.lock().unwrap_or_else(|e| e.into_inner())
+}
+
+/// Delete every temporary file an [`AtomicFile`] of this process is writing now, leaving
+/// the targets as they were. For a signal handler that is about to end the process
+/// (SIGTERM, Ctrl-C) without unwinding, which would otherwise leave them behind.
+pub fn remove_temporary_files() {
+    for t in live().drain(..) {
+        let _ = std::fs::remove_file(t);
+    }
+}
+
 /// A file being written that appears at its target path only on [`commit`](Self::commit).
 ///
 /// Implements [`Write`] and [`Seek`] (buffered), so it can be handed to any writer,
@@ -96,11 +112,12 @@ impl AtomicFile {
             let temp = dir.join(temp_name);
             match OpenOptions::new().write(true).create_new(true).open(&temp) {
                 Ok(f) => {
+                    live().push(temp.clone());
                     return Ok(AtomicFile {
                         target,
                         temp,
                         file: Some(BufWriter::new(f)),
-                    })
+                    });
                 }
                 Err(e) if e.kind() == io::ErrorKind::AlreadyExists => last_err = Some(e),
                 Err(e) if e.kind() == io::ErrorKind::NotFound && !dir.is_dir() => {
@@ -139,7 +156,17 @@ impl AtomicFile {
     }
 
     /// Flush, sync to disk and rename over the target (a special file: flush only).
-    pub fn commit(mut self) -> Result<()> {
+    pub fn commit(self) -> Result<()> {
+        self.finish(true)
+    }
+
+    /// As [`commit`](Self::commit) without the sync to disk: for caches whose entries
+    /// carry their own checksum (a torn entry after a crash fails it and is rebuilt).
+    pub fn commit_unsynced(self) -> Result<()> {
+        self.finish(false)
+    }
+
+    fn finish(mut self, sync: bool) -> Result<()> {
         let direct = self.temp.as_os_str().is_empty();
         if let Some(w) = self.file.take() {
             let f = w
@@ -148,10 +175,13 @@ impl AtomicFile {
             if direct {
                 return Ok(());
             }
-            f.sync_all().map_err(|e| Error::io(&self.target, e))?;
+            if sync {
+                f.sync_all().map_err(|e| Error::io(&self.target, e))?;
+            }
         }
         std::fs::rename(&self.temp, &self.target).map_err(|e| Error::io(&self.target, e))?;
         // Renamed: nothing left to clean up.
+        live().retain(|t| *t != self.temp);
         self.temp = PathBuf::new();
         Ok(())
     }
@@ -186,6 +216,7 @@ impl Drop for AtomicFile {
         drop(self.file.take());
         if !self.temp.as_os_str().is_empty() {
             let _ = std::fs::remove_file(&self.temp);
+            live().retain(|t| *t != self.temp);
         }
     }
 }
