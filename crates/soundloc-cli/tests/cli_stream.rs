@@ -338,6 +338,22 @@ fn a_reset_connection_ends_the_input_and_keeps_the_outputs() {
     assert_eq!(std::fs::read_to_string(&out).unwrap(), want, "{rest}");
 }
 
+/// `soundloc listen` without an array says so before looking for a microphone.
+#[test]
+fn listen_without_an_array_names_the_missing_option_first() {
+    if !cfg!(feature = "capture") {
+        let _ = writeln!(
+            std::io::stderr(),
+            "SKIPPED listen_without_an_array_names_the_missing_option_first: built without the capture feature"
+        );
+        return;
+    }
+    let o = bin().args(["listen", "--seconds", "1"]).output().unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(err.contains("no transfer functions: give --tf FILE"), "{err}");
+}
+
 /// `soundloc listen` through ALSA: a capture PCM of ALSA's `file` plugin (over the `null`
 /// device) plays the scene's samples as a microphone would deliver them.
 #[test]
@@ -380,7 +396,10 @@ fn listen_through_alsa_equals_the_file() {
         .output()
         .unwrap();
     let err = String::from_utf8_lossy(&o.stderr);
-    if err.contains("no input configuration") || err.contains("opening a") {
+    if err.contains("no input configuration")
+        || err.contains("opening a")
+        || err.contains("no capture device found")
+    {
         let _ = writeln!(
             std::io::stderr(),
             "SKIPPED listen_through_alsa_equals_the_file: no ALSA capture device ({err})"

@@ -138,10 +138,21 @@ mod capture {
             return Ok(ExitCode::SUCCESS);
         }
         super::super::sinks::Sinks::check_paths(&a.run, None)?;
+        // The arguments' own errors (no array, a bad geometry file or range) before the
+        // device's (the rate is the device's; 16 kHz stands in for it here).
+        a.run.spec(a.rate.unwrap_or(16000))?;
+        let no_device = || {
+            anyhow!("no capture device found (`soundloc listen --list-devices` lists them; on Linux, ALSA's `arecord -l`)")
+        };
+        if host
+            .input_devices()
+            .map(|mut d| d.next().is_none())
+            .unwrap_or(true)
+        {
+            return Err(no_device());
+        }
         let device = match &a.input_device {
-            None => host
-                .default_input_device()
-                .ok_or_else(|| anyhow!("no capture device: none is the default input"))?,
+            None => host.default_input_device().ok_or_else(no_device)?,
             Some(want) => host
                 .input_devices()
                 .context("listing capture devices")?
@@ -149,9 +160,12 @@ mod capture {
                 .ok_or_else(|| anyhow!("no capture device named like {want:?} (see --list-devices)"))?,
         };
         let dname = device.name().unwrap_or_else(|_| "capture device".into());
-        let def = device
-            .default_input_config()
-            .with_context(|| format!("{dname}: no input configuration"))?;
+        let def = device.default_input_config().with_context(|| {
+            format!(
+                "{dname}: cannot capture from it (no input configuration; is a microphone connected? \
+                     `soundloc listen --list-devices` lists the devices)"
+            )
+        })?;
         let mut config: cpal::StreamConfig = def.config();
         if let Some(r) = a.rate {
             config.sample_rate = cpal::SampleRate(r);
