@@ -49,6 +49,9 @@ fn batch_writes_one_file_per_input_shards_and_resumes() {
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     assert!(!out_dir.join("a.jsonl").exists() && out_dir.join("b.jsonl").exists());
     assert!(out_dir.join("d.jsonl").exists() && !out_dir.join("c.jsonl").exists());
+    // The set-up note (the room default's NormMUSIC) once, not once per recording.
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(err.matches("NormMUSIC").count(), 1, "{err}");
     // The rest: shard 0 of 2; then a rerun of everything skips all four.
     assert!(run(&["--shard", "0/2"]).status.success());
     for n in ["a", "b", "c", "d"] {

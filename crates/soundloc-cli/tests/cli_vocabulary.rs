@@ -322,3 +322,12 @@ fn coherence_switches_say_what_ran() {
     let s = summary(&["localize", w, "--geometry", g, "--algorithm", "sevd"]);
     assert!(!s.contains("coherence"), "{s}");
 }
+
+/// An empty input name is named as such, not as a file called "".
+#[test]
+fn an_empty_input_name_is_a_clear_error() {
+    fails_with(
+        &["localize", "", "--geometry", "x.toml"],
+        &["the input's name is empty"],
+    );
+}

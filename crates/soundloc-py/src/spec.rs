@@ -204,6 +204,11 @@ pub(crate) fn spec(
         .map(samples)
         .transpose()?
         .map(|n| (n.data().to_vec(), n.shape()));
+    if noise_audio.as_ref().is_some_and(|(d, _)| d.is_empty()) {
+        return Err(PyValueError::new_err(
+            "noise: the array holds no samples (a noise recording of at least one analysis frame is needed)",
+        ));
+    }
     let noise_given = noise_audio.is_some();
     if noise_given && spec.noise == NoiseSource::None {
         // Make the spec say a noise source is given (the default algorithm depends on it).
@@ -243,7 +248,14 @@ pub(crate) fn rate(v: &Bound<'_, PyAny>) -> PyResult<u32> {
     if v.is_instance_of::<pyo3::types::PyBool>() {
         return Err(bad());
     }
-    let f: f64 = v.extract().map_err(|_| bad())?;
+    // Not a number at all (a string, say): the wrong type, as Python's own calls say.
+    let f: f64 = v.extract().map_err(|_| {
+        pyo3::exceptions::PyTypeError::new_err(format!(
+            "fs must be a number of Hz, got {} of type {}",
+            v.repr().map(|r| r.to_string()).unwrap_or_default(),
+            v.get_type().name().map(|n| n.to_string()).unwrap_or_default()
+        ))
+    })?;
     if f.fract() == 0.0 && f >= 1.0 && f <= u32::MAX as f64 {
         Ok(f as u32)
     } else {

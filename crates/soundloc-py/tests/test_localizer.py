@@ -238,6 +238,10 @@ def test_bad_input_raises_the_right_exception(tmp_path):
         loc.localize(x[:, :4], FS)
     with pytest.raises(ValueError, match="48000 Hz"):
         loc.localize(x, 48000)
+    with pytest.raises(TypeError, match="fs must be a number of Hz, got '16000' of type str"):
+        loc.localize(x, "16000")
+    with pytest.raises(ValueError, match="fs must be a positive whole number"):
+        loc.localize(x, 16000.5)
     bad = x.astype(np.float32)
     bad[100, 3] = np.nan
     with pytest.raises(ValueError, match="NaN"):
@@ -256,6 +260,8 @@ def test_bad_input_raises_the_right_exception(tmp_path):
         localizer(num_sources=8)
     with pytest.raises(ValueError, match="no array"):
         soundloc.Localizer()
+    with pytest.raises(ValueError, match="noise: the array holds no samples"):
+        localizer(noise=np.zeros((0, 8), np.float32))
     # Negative counts and indices are bad values (not OverflowError).
     with pytest.raises(ValueError, match="num_sources: must be a non-negative integer"):
         localizer(num_sources=-1)

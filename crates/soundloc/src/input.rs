@@ -232,7 +232,7 @@ impl ChannelMap {
         if !self.tf_channels.is_empty() && idx.len() != self.tf_channels.len() {
             if idx.len() != self.full_mics {
                 return Err(Error::Mismatch(format!(
-                    "has {} channels; --channels selects {} of the transfer functions' {} microphones, so it takes an input of {} (pick the input's channels with --input-channels)",
+                    "has {} channels; --channels selects {} of the transfer functions' {} microphones, so it takes an input of {} (pick the input's channels: --input-channels, input_channels=[...] in Python)",
                     idx.len(),
                     self.tf_channels.len(),
                     self.full_mics,
@@ -243,7 +243,7 @@ impl ChannelMap {
         }
         if idx.len() != self.mics {
             return Err(Error::Mismatch(format!(
-                "has {} channels, but the transfer functions have {} microphones (pick {} input channels with --input-channels)",
+                "has {} channels, but the transfer functions have {} microphones (pick {} input channels: --input-channels, input_channels=[...] in Python)",
                 idx.len(),
                 self.mics,
                 self.mics

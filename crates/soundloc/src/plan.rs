@@ -111,8 +111,10 @@ impl<T: Real> Plan<T> {
         }
         if tf.nfft != config.nfft {
             return Err(Error::Mismatch(format!(
-                "transfer functions are for a {}-point FFT but the analysis uses {} (set --fft-length {})",
-                tf.nfft, config.nfft, tf.nfft
+                "transfer functions are for a {}-point FFT but the analysis uses {} (set --fft-length {n}, nfft={n} in Python)",
+                tf.nfft,
+                config.nfft,
+                n = tf.nfft
             )));
         }
         if tf.sample_rate_hz != config.sample_rate_hz {

@@ -114,6 +114,9 @@ impl InputArgs {
                 self.max_buffer
             );
         }
+        if self.input.is_empty() {
+            bail!("the input's name is empty: give a recording (WAV, FLAC), - for standard input, or a network source (see --help)");
+        }
         if self.input == "-" {
             let live = !stdin_is_file();
             return Ok(Input {

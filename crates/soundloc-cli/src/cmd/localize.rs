@@ -52,8 +52,15 @@ pub fn drive(
     tracing::debug!("localizer: setting up");
     let mut loc = Localizer::new(&spec)?;
     tracing::debug!("localizer ready");
+    // Set-up notes (the algorithm run, the TF cache) once per process: `batch` sets up
+    // one localizer per recording.
+    static SEEN: std::sync::Mutex<Vec<String>> = std::sync::Mutex::new(Vec::new());
     for n in loc.notes() {
-        note(a.quiet, n);
+        let mut seen = SEEN.lock().unwrap_or_else(|e| e.into_inner());
+        if !seen.contains(n) {
+            seen.push(n.clone());
+            note(a.quiet, n);
+        }
     }
     let mut resampler = loc
         .input_converter(fmt.sample_rate_hz, fmt.channels)

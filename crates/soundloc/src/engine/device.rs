@@ -21,7 +21,7 @@ pub fn make_backend<T: Real>(
         return match device {
             DeviceChoice::Cpu | DeviceChoice::Auto => Ok(Box::new(CpuBackend::new(plan))),
             _ => Err(crate::Error::Config(format!(
-                "subspace tracking (the approximate mode) runs on the CPU only; got --device {device} (use --device cpu)"
+                "subspace tracking (the approximate mode) runs on the CPU only; got --device {device} (use --device cpu, device=\"cpu\" in Python)"
             ))),
         };
     }

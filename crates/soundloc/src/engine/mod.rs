@@ -345,7 +345,7 @@ impl<T: Real> Engine<T> {
                 "infinite".to_string()
             } else {
                 format!(
-                    "{v:e}, beyond what {} correlation matrices hold (|x| <= {:e}; use --precision f64 or scale the input)",
+                    "{v:e}, beyond what {} correlation matrices hold (|x| <= {:e}; use --precision f64, precision=\"f64\" in Python, or scale the input)",
                     T::NAME,
                     T::MAX_SAMPLE
                 )

@@ -68,7 +68,7 @@ impl LocalizerSpec {
             // power scale (tracker thresholds tuned on SEVD's do not carry over).
             let dim = c.signal_dim();
             let coherence = if c.coherence {
-                "coherence normalisation (the microphones' gain mismatch cancels; off: --no-coherence)"
+                "coherence normalisation (the microphones' gain mismatch cancels; off: --no-coherence, coherence=False in Python)"
             } else {
                 "no coherence normalisation"
             };
