@@ -267,19 +267,29 @@ fn identity(path: &Path) -> Option<PathBuf> {
 /// Checks, before any work, that `path` can be an output: not a folder, and in a folder
 /// that exists. `what` names the option for the message.
 pub fn check_output_path(path: &Path, what: &str) -> Result<()> {
-    let bad = |msg: String| Error::Config(format!("{}: {what}: {msg}", path.display()));
+    let bad =
+        |kind: io::ErrorKind, msg: String| Error::io(path, io::Error::new(kind, format!("{what}: {msg}")));
     if path.as_os_str().is_empty() {
         return Err(Error::Config(format!("{what}: the file name is empty")));
     }
     if path.is_dir() {
-        return Err(bad("is a directory; name a file".into()));
+        return Err(bad(
+            io::ErrorKind::InvalidInput,
+            "is a directory; name a file".into(),
+        ));
     }
     if let Some(d) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
         if d.exists() && !d.is_dir() {
-            return Err(bad(format!("{} is a file, not a folder", d.display())));
+            return Err(bad(
+                io::ErrorKind::InvalidInput,
+                format!("{} is a file, not a folder", d.display()),
+            ));
         }
         if !d.is_dir() {
-            return Err(bad(format!("the directory {} does not exist", d.display())));
+            return Err(bad(
+                io::ErrorKind::NotFound,
+                format!("the directory {} does not exist", d.display()),
+            ));
         }
     }
     Ok(())
