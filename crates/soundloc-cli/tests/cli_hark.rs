@@ -493,8 +493,9 @@ fn bad_inputs_fail_with_a_message_naming_the_file() {
     let _ = std::fs::remove_dir_all(&d);
 }
 
-/// SIGTERM while `tf make` writes its zip: the process exits (status 130), deleting the
-/// temporary file; the file it was replacing keeps its old content.
+/// SIGTERM while `tf make` writes its zip: the process dies of the signal (as it would
+/// without a handler), having deleted its temporary file; the file it was replacing keeps
+/// its old content.
 #[cfg(unix)]
 #[test]
 fn a_terminated_write_leaves_no_temporary_file_and_the_old_target() {
@@ -545,9 +546,29 @@ fn a_terminated_write_leaves_no_temporary_file_and_the_old_target() {
             std::fs::write(&out, b"old content").unwrap();
             continue;
         }
-        assert_eq!(status.code(), Some(130), "{status:?}");
+        use std::os::unix::process::ExitStatusExt;
+        assert_eq!(status.signal(), Some(libc::SIGTERM), "{status:?}");
         assert!(temps().is_empty(), "{:?}", temps());
         assert_eq!(std::fs::read(&out).unwrap(), b"old content");
+        // A signal its parent set to be ignored (nohup) stays ignored: the write finishes.
+        let mut child = Command::new("sh")
+            .arg("-c")
+            .arg(format!(
+                "trap '' HUP; exec '{BIN}' tf make --builtin circle8 --grid sphere:500 -o '{}'",
+                s(&out)
+            ))
+            .stdout(std::process::Stdio::null())
+            .spawn()
+            .unwrap();
+        let start = std::time::Instant::now();
+        while temps().is_empty() && child.try_wait().unwrap().is_none() && start.elapsed().as_secs() < 60 {
+            std::thread::sleep(std::time::Duration::from_millis(5));
+        }
+        let _ = Command::new("kill")
+            .args(["-HUP", &child.id().to_string()])
+            .status();
+        assert!(child.wait().unwrap().success());
+        assert!(std::fs::read(&out).unwrap().starts_with(b"PK"));
         return;
     }
     println!("SKIPPED a_terminated_write_leaves_no_temporary_file_and_the_old_target: every write finished before the signal");

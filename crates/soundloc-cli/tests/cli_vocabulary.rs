@@ -63,15 +63,32 @@ fn grid_options_with_a_tf_file_are_refused_not_ignored() {
 }
 
 /// --resample converts to the TF file's rate; free-field transfer functions (--geometry)
-/// are made at the input's rate, so there it would do nothing: refused.
+/// are made at the input's rate, so there it converts only a --noise recording: without
+/// one it would do nothing, and is refused.
 #[test]
-fn resample_with_a_geometry_is_refused_not_ignored() {
-    let (wav, geo, _) = scene("resample_with_a_geometry_is_refused_not_ignored");
+fn resample_with_a_geometry_and_no_noise_is_refused_not_ignored() {
+    let (wav, geo, _) = scene("resample_with_a_geometry_and_no_noise_is_refused_not_ignored");
     let (w, g) = (wav.to_str().unwrap(), geo.to_str().unwrap());
     fails_with(
         &["localize", w, "--geometry", g, "--grid", "ring:5", "--resample"],
-        &["--resample", "--geometry"],
+        &["--resample with --geometry converts only a --noise recording"],
     );
+    let o = bin()
+        .args([
+            "localize",
+            w,
+            "--geometry",
+            g,
+            "--grid",
+            "ring:5",
+            "--resample",
+            "--noise",
+            w,
+            "-q",
+        ])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
 }
 
 #[test]

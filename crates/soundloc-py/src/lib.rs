@@ -86,7 +86,7 @@ pub(crate) fn samples<'py>(x: &Bound<'py, PyAny>) -> PyResult<Samples<'py>> {
             .map(|(i, &v)| (i, v));
         if let Some(((r, c), v)) = big {
             return Err(PyValueError::new_err(format!(
-                "audio[{r}, {c}] is {v:e}, beyond the range of the 32-bit floats soundloc holds samples in (±{:e}); scale the audio down",
+                "sample [{r}, {c}] of the array is {v:e}, beyond the range of the 32-bit floats soundloc holds samples in (±{:e}); scale the audio down",
                 f32::MAX
             )));
         }

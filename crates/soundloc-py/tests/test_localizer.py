@@ -248,7 +248,7 @@ def test_bad_input_raises_the_right_exception(tmp_path):
         loc.localize(bad, FS)
     huge = x.astype(np.float64)
     huge[7, 2] = 1e300  # finite, but not a float32
-    with pytest.raises(ValueError, match=r"audio\[7, 2\] is 1e300, beyond the range of the 32-bit floats"):
+    with pytest.raises(ValueError, match=r"sample \[7, 2\] of the array is 1e300, beyond the range of the 32-bit floats"):
         loc.localize(huge, FS)
     with pytest.raises(ValueError, match="needs at least"):
         loc.localize(x[:1000], FS)

@@ -15,6 +15,7 @@
 use anyhow::{bail, Context};
 use clap::ValueEnum;
 use soundloc::audio::{open_source, open_stream, AudioFormat, AudioSource, RawEncoding, RawSource};
+use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::{sync_channel, Receiver, SyncSender, TrySendError};
@@ -262,24 +263,69 @@ pub fn wait_for_ctrl_c() {
 /// Where the first Ctrl-C (or SIGTERM, SIGHUP) of a live session sends the end of input.
 static STOP: std::sync::Mutex<Option<SyncSender<Msg>>> = std::sync::Mutex::new(None);
 
-/// Installed once at start: Ctrl-C, SIGTERM and SIGHUP. In a live, paced or serving
-/// session ([`stop_on_ctrl_c`]) the first one ends the input (what is queued is localized,
-/// outputs are completed and `-o` renamed into place); otherwise, or the second time, the
-/// process exits at once (status 130), first deleting the temporary files of outputs
-/// being written (their targets keep their old content, or stay absent).
+/// The first interrupt of a live session: end its input. False when none is running.
+fn stop_live_session() -> bool {
+    let Some(tx) = STOP.lock().unwrap_or_else(|e| e.into_inner()).take() else {
+        return false;
+    };
+    INTERRUPTED.store(true, Ordering::Relaxed);
+    // Never block here: the queue may be full, or nobody reads it any more.
+    std::thread::spawn(move || {
+        let _ = tx.send(Msg::End { gap: 0 });
+    });
+    // stderr may be a closed terminal (SIGHUP): never fail on it.
+    let _ = writeln!(
+        std::io::stderr(),
+        "soundloc: stopping (interrupt again to quit at once)"
+    );
+    true
+}
+
+/// Installed once at start, for Ctrl-C (SIGINT), SIGTERM and SIGHUP — those not set to be
+/// ignored by whoever started soundloc (`nohup`, a shell's background job). In a live,
+/// paced or serving session ([`stop_on_ctrl_c`]) the first one ends the input (what is
+/// queued is localized, outputs are completed and `-o` renamed into place); otherwise, or
+/// the second time, the temporary files of outputs being written are deleted (their
+/// targets keep their old content, or stay absent) and soundloc dies of that signal, as it
+/// would have without a handler (so a shell loop stops on Ctrl-C).
+#[cfg(unix)]
 pub fn install_signal_handler() {
-    let _ = ctrlc::set_handler(move || {
-        let stop = STOP.lock().unwrap_or_else(|e| e.into_inner()).take();
-        let Some(tx) = stop else {
+    use signal_hook::consts::signal::{SIGHUP, SIGINT, SIGTERM};
+    let ignored = |sig: libc::c_int| {
+        // SAFETY: a query (null new action) into a zeroed, caller-owned struct.
+        unsafe {
+            let mut old: libc::sigaction = std::mem::zeroed();
+            libc::sigaction(sig, std::ptr::null(), &mut old) == 0 && old.sa_sigaction == libc::SIG_IGN
+        }
+    };
+    let wanted: Vec<libc::c_int> = [SIGINT, SIGTERM, SIGHUP]
+        .into_iter()
+        .filter(|&s| !ignored(s))
+        .collect();
+    let Ok(mut signals) = signal_hook::iterator::Signals::new(&wanted) else {
+        return;
+    };
+    let _ = std::thread::Builder::new()
+        .name("soundloc-signals".into())
+        .spawn(move || {
+            for sig in signals.forever() {
+                if !stop_live_session() {
+                    soundloc::output::atomic::remove_temporary_files();
+                    let _ = signal_hook::low_level::emulate_default_handler(sig);
+                    std::process::exit(128 + sig);
+                }
+            }
+        });
+}
+
+/// Ctrl-C only, elsewhere (see the Unix version).
+#[cfg(not(unix))]
+pub fn install_signal_handler() {
+    let _ = ctrlc::set_handler(|| {
+        if !stop_live_session() {
             soundloc::output::atomic::remove_temporary_files();
             std::process::exit(130);
-        };
-        INTERRUPTED.store(true, Ordering::Relaxed);
-        eprintln!("soundloc: stopping (Ctrl-C again to quit at once)");
-        // Never block the handler: the queue may be full, or nobody reads it any more.
-        std::thread::spawn(move || {
-            let _ = tx.send(Msg::End { gap: 0 });
-        });
+        }
     });
 }
 

@@ -144,13 +144,6 @@ mod capture {
         let no_device = || {
             anyhow!("no capture device found (`soundloc listen --list-devices` lists them; on Linux, ALSA's `arecord -l`)")
         };
-        if host
-            .input_devices()
-            .map(|mut d| d.next().is_none())
-            .unwrap_or(true)
-        {
-            return Err(no_device());
-        }
         let device = match &a.input_device {
             None => host.default_input_device().ok_or_else(no_device)?,
             Some(want) => host

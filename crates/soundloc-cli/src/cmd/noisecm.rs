@@ -118,7 +118,6 @@ fn parse_range(s: &str) -> Result<(f64, f64), String> {
 }
 
 fn make(a: MakeArgs) -> anyhow::Result<ExitCode> {
-    soundloc::output::atomic::check_output_path(&a.output, "-o")?;
     let zip_name = a
         .output
         .extension()
@@ -146,6 +145,11 @@ fn make(a: MakeArgs) -> anyhow::Result<ExitCode> {
     } else {
         vec![(&a.output, "-o")]
     };
+    // The name given (a text pair's stem too: a folder there is a mistake) and the files.
+    soundloc::output::atomic::check_output_path(&a.output, "-o")?;
+    for (p, what) in &outs {
+        soundloc::output::atomic::check_output_path(p, what)?;
+    }
     soundloc::output::atomic::check_outputs(&outs, &[(&a.input, "the recording")])?;
     let audio = read_audio(&a.input)?;
     let audio = if a.input_channels.is_empty() {

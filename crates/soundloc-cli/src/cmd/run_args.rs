@@ -113,7 +113,7 @@ pub struct AnalysisArgs {
 }
 
 /// Everything but the input: array, analysis, noise, tracking, outputs, device (shared by
-/// `localize` and `listen`).
+/// `localize`, `listen` and `batch`).
 #[derive(clap::Args, Debug)]
 pub struct RunArgs {
     /// HARK transfer-function zip or old HGTF (*_loc.dat).
@@ -134,9 +134,9 @@ pub struct RunArgs {
     pub speed_of_sound: f64,
     /// Convert audio (the input and --noise) at another sampling rate than the transfer
     /// functions' to theirs (band-limited, no delay added), e.g. a 48 kHz sound card with a
-    /// 16 kHz TF file; without it a different rate is an error. Not with --geometry,
-    /// whose transfer functions are made at the input's rate.
-    #[arg(long, conflicts_with = "geometry")]
+    /// 16 kHz TF file; without it a different rate is an error. With --geometry (whose
+    /// transfer functions are made at the input's rate) it converts a --noise recording.
+    #[arg(long)]
     pub resample: bool,
     /// TF_CHANNEL_SELECTION: TF channels to use, comma-separated (0-based). Applied to the
     /// audio, a --noise recording and a --noise-cm file too when they have the TF's full
@@ -339,6 +339,12 @@ impl RunArgs {
                 "no transfer functions: give --tf FILE (HARK TF zip or *_loc.dat) or --geometry array.toml --grid ring:5"
             ),
         };
+        if self.resample && self.geometry.is_some() && self.noise.is_none() {
+            bail!(
+                "--resample with --geometry converts only a --noise recording (free-field transfer functions \
+                 are made at the input's rate), and none is given: drop --resample"
+            );
+        }
         let noise = if let Some(p) = &self.noise {
             NoiseSource::Recording { path: p.clone() }
         } else if let Some(r) = &self.noise_range {

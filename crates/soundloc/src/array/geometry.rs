@@ -18,7 +18,7 @@
 //! Built-in shapes: [`Geometry::circle`] puts mic i at
 //! (r cos 2πi/n, r sin 2πi/n, z) — the TAMAGO-03 array is `circle(8, 0.0365, 0.0)`;
 //! [`Geometry::sphere`] spreads n mics near-uniformly over a sphere (Fibonacci lattice).
-//! Non-finite or duplicate positions (closer than 1 µm) are errors.
+//! Non-finite or duplicate positions (closer than 1 µm) and unknown keys are errors.
 
 use crate::{Error, Result};
 use std::path::Path;

@@ -20,6 +20,9 @@
 //! Every block is checked for non-finite samples; the error names the source, the sample
 //! (0-based, counted from the start) and the channel.
 
+mod flac;
+pub use flac::FlacSource;
+
 use crate::{Error, Result};
 use std::io::{BufReader, ErrorKind, Read};
 use std::path::{Path, PathBuf};
@@ -366,6 +369,7 @@ impl<R: Read + Send> WavSource<R> {
             return Err(Error::format(name, "bad WAV file: no RIFF/WAVE header"));
         }
         let mut fmt: Option<(RawEncoding, usize, u32)> = None;
+        let mut header_notes = Vec::new();
         loop {
             let mut ch = [0u8; 8];
             if read_full(&mut r, &mut ch).map_err(|e| Error::io(name, e))? < 8 {
@@ -424,28 +428,33 @@ impl<R: Read + Send> WavSource<R> {
                             ))
                         }
                     };
-                    // A header that contradicts itself is not guessed at (a 24-bit sample in
-                    // a 4-byte slot, say, would be misread as packed).
+                    // Block align is redundant for packed samples: a wrong one (0, or one
+                    // channel's size, as some hand-written headers have) is noted and the
+                    // samples read packed; a larger one (24-bit samples in 4-byte slots,
+                    // say) would be misread as packed, so it is refused.
                     let align = u16_at(&f, 12) as usize;
-                    if align != channels * enc.bytes() {
+                    let packed = channels * enc.bytes();
+                    let contradicts = format!(
+                        "WAV header contradicts itself: block align {align} bytes, but {channels} channels of {bits}-bit samples make {packed} bytes per frame"
+                    );
+                    if align > packed {
                         return Err(Error::format(
                             name,
-                            format!(
-                                "WAV header contradicts itself: block align {align} bytes, but {channels} channels of {bits}-bit samples make {} bytes per frame",
-                                channels * enc.bytes()
-                            ),
+                            format!("{contradicts} (samples in wider slots are not supported)"),
                         ));
                     }
-                    if u16_at(&f, 0) == 0xFFFE && size >= 24 {
-                        let valid = u16_at(&f, 18);
-                        if valid > bits {
-                            return Err(Error::format(
-                                name,
-                                format!(
-                                    "WAV header contradicts itself: {valid} valid bits in {bits}-bit samples"
-                                ),
-                            ));
-                        }
+                    if align != packed {
+                        header_notes.push(format!(
+                            "{}: {contradicts}; read as packed {bits}-bit samples",
+                            name.display()
+                        ));
+                    }
+                    if u16_at(&f, 0) == 0xFFFE && size >= 24 && u16_at(&f, 18) > bits {
+                        header_notes.push(format!(
+                            "{}: WAV header contradicts itself: {} valid bits in {bits}-bit samples; read as {bits}-bit samples",
+                            name.display(),
+                            u16_at(&f, 18)
+                        ));
                     }
                     fmt = Some((enc, channels, rate));
                 }
@@ -466,7 +475,7 @@ impl<R: Read + Send> WavSource<R> {
                             frames_read: 0,
                             ended: false,
                             greedy,
-                            notes: Vec::new(),
+                            notes: header_notes,
                         },
                         rate,
                         name: name.to_path_buf(),
@@ -503,110 +512,5 @@ impl<R: Read + Send> AudioSource for WavSource<R> {
     }
     fn take_notes(&mut self) -> Vec<String> {
         std::mem::take(&mut self.pcm.notes)
-    }
-}
-
-/// A FLAC stream, decoded frame by frame.
-pub struct FlacSource<R: Read> {
-    reader: claxon::FlacReader<R>,
-    info: claxon::metadata::StreamInfo,
-    name: PathBuf,
-    /// Decoded frames not yet delivered, interleaved.
-    pending: Vec<f32>,
-    at: usize,
-    block: Vec<i32>,
-    frames_read: u64,
-    ended: bool,
-}
-
-impl<R: Read + Send> FlacSource<R> {
-    /// Parse the metadata.
-    pub fn new(r: R, name: &Path) -> Result<Self> {
-        let reader = claxon::FlacReader::new(r).map_err(|e| flac_err(name, e))?;
-        let info = reader.streaminfo();
-        if !matches!(info.bits_per_sample, 16 | 24) {
-            return Err(Error::format(
-                name,
-                format!(
-                    "unsupported bit depth: {}-bit FLAC (supported: 8-, 16-, 24-, 32-bit integer and 32-, 64-bit float WAV; 16- and 24-bit FLAC)",
-                    info.bits_per_sample
-                ),
-            ));
-        }
-        if info.sample_rate == 0 {
-            return Err(Error::format(name, "FLAC stream declares a sample rate of 0 Hz"));
-        }
-        Ok(FlacSource {
-            reader,
-            info,
-            name: name.to_path_buf(),
-            pending: Vec::new(),
-            at: 0,
-            block: Vec::new(),
-            frames_read: 0,
-            ended: false,
-        })
-    }
-}
-
-fn flac_err(name: &Path, e: claxon::Error) -> Error {
-    match e {
-        claxon::Error::IoError(io) if io.kind() == ErrorKind::UnexpectedEof => {
-            Error::format(name, "truncated FLAC file")
-        }
-        claxon::Error::IoError(io) => Error::io(name, io),
-        other => Error::format(name, format!("bad FLAC file: {other}")),
-    }
-}
-
-impl<R: Read + Send> AudioSource for FlacSource<R> {
-    fn format(&self) -> AudioFormat {
-        AudioFormat {
-            sample_rate_hz: self.info.sample_rate,
-            channels: self.info.channels as usize,
-            total_frames: self.info.samples,
-        }
-    }
-    fn name(&self) -> &Path {
-        &self.name
-    }
-    fn read_interleaved(&mut self, max_frames: usize, buf: &mut Vec<f32>) -> Result<usize> {
-        buf.clear();
-        let nch = self.info.channels as usize;
-        while self.pending.len() - self.at < max_frames.max(1) * nch && !self.ended {
-            let frame = {
-                let mut blocks = self.reader.blocks();
-                blocks
-                    .read_next_or_eof(std::mem::take(&mut self.block))
-                    .map_err(|e| flac_err(&self.name, e))?
-            };
-            let Some(block) = frame else {
-                self.ended = true;
-                break;
-            };
-            if block.channels() as usize != nch {
-                return Err(Error::format(
-                    &self.name,
-                    format!(
-                        "FLAC frame has {} channels, stream header says {nch}",
-                        block.channels()
-                    ),
-                ));
-            }
-            self.pending.drain(..self.at);
-            self.at = 0;
-            for i in 0..block.duration() {
-                for c in 0..nch as u32 {
-                    self.pending.push(block.sample(c, i) as f32);
-                }
-            }
-            self.block = block.into_buffer();
-        }
-        let n = ((self.pending.len() - self.at) / nch).min(max_frames.max(1));
-        buf.extend_from_slice(&self.pending[self.at..self.at + n * nch]);
-        self.at += n * nch;
-        check_finite(&self.name, buf, nch, self.frames_read, None)?;
-        self.frames_read += n as u64;
-        Ok(n)
     }
 }

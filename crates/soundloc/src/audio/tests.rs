@@ -475,11 +475,12 @@ fn a_whole_recording_resampled() {
     assert_eq!(super::resample::resample_audio(&b, 16000).unwrap(), b);
 }
 
-/// WAVE_FORMAT_EXTENSIBLE (the sub-format GUID's tag, valid bits ≤ container) is read like
-/// the plain header; a header that contradicts itself (block align against channels ×
-/// sample size, more valid bits than the container holds) is refused, not guessed at.
+/// WAVE_FORMAT_EXTENSIBLE (the sub-format GUID's tag) is read like the plain header. A
+/// header that contradicts itself is read packed with a note where that is unambiguous
+/// (block align 0 or too small, more valid bits than the container), and refused where it
+/// is not (a block align larger than the packed frame: samples in wider slots).
 #[test]
-fn extensible_headers_read_and_contradicting_headers_are_refused() {
+fn extensible_headers_read_and_contradicting_headers_are_noted_or_refused() {
     let d = temp_dir("wavext");
     let samples: [i16; 4] = [1000, -2000, 3000, -4000];
     let data: Vec<u8> = samples.iter().flat_map(|v| v.to_le_bytes()).collect();
@@ -504,26 +505,48 @@ fn extensible_headers_read_and_contradicting_headers_are_refused() {
         v.extend(&data);
         v
     };
+    let want = vec![vec![1000.0, 3000.0], vec![-2000.0, -4000.0]];
+    let notes_of = |p: &Path| -> Vec<String> {
+        let mut src = crate::audio::open_source(p).unwrap();
+        let mut buf = Vec::new();
+        while src.read_interleaved(1024, &mut buf).unwrap() > 0 {}
+        src.take_notes()
+    };
     let p = d.join("ext.wav");
     std::fs::write(&p, ext(16)).unwrap();
-    let a = read_audio(&p).unwrap();
-    assert_eq!(a.channels, vec![vec![1000.0, 3000.0], vec![-2000.0, -4000.0]]);
+    assert_eq!(read_audio(&p).unwrap().channels, want);
+    assert!(notes_of(&p).is_empty());
     let p = d.join("ext30.wav");
     std::fs::write(&p, ext(30)).unwrap();
-    let e = read_audio(&p).unwrap_err().to_string();
+    assert_eq!(read_audio(&p).unwrap().channels, want);
+    let n = notes_of(&p).join("\n");
     assert!(
-        e.contains("ext30.wav") && e.contains("30 valid bits in 16-bit samples"),
-        "{e}"
+        n.contains("ext30.wav") && n.contains("30 valid bits in 16-bit samples"),
+        "{n}"
     );
-    // Block align 4 for 8 channels of 16 bits (16 bytes per frame).
-    let mut v = wav_bytes(1, 16, 8, &[0u8; 64]);
-    v[32..34].copy_from_slice(&4u16.to_le_bytes());
-    let p = d.join("align.wav");
+    // Block align 2 (one channel's size) and 0 for 2 channels of 16 bits: read packed, noted.
+    for align in [2u16, 0] {
+        let mut v = ext(16);
+        v[32..34].copy_from_slice(&align.to_le_bytes());
+        let p = d.join(format!("align{align}.wav"));
+        std::fs::write(&p, v).unwrap();
+        assert_eq!(read_audio(&p).unwrap().channels, want);
+        let n = notes_of(&p).join("\n");
+        assert!(
+            n.contains(&format!(
+                "block align {align} bytes, but 2 channels of 16-bit samples make 4"
+            )),
+            "{n}"
+        );
+    }
+    // Block align 6 > 4: the samples may sit in wider slots; refused.
+    let mut v = ext(16);
+    v[32..34].copy_from_slice(&6u16.to_le_bytes());
+    let p = d.join("align6.wav");
     std::fs::write(&p, v).unwrap();
     let e = read_audio(&p).unwrap_err().to_string();
     assert!(
-        e.contains("align.wav")
-            && e.contains("block align 4 bytes, but 8 channels of 16-bit samples make 16"),
+        e.contains("align6.wav") && e.contains("block align 6 bytes") && e.contains("wider slots"),
         "{e}"
     );
 }

@@ -202,7 +202,8 @@ impl LocalizerSpec {
         Ok(self.load_array_noted(config)?.0)
     }
 
-    /// [`LocalizerSpec::load_array`], with a note on what the TF cache did.
+    /// [`LocalizerSpec::load_array`], with a note for the user: what the TF cache did, or
+    /// that a free-field grid's radius puts its points inside the array.
     pub fn load_array_noted(&self, config: &LocalizeConfig) -> Result<(TransferFunctions, Option<String>)> {
         let used = config.bin_range();
         let mut note = None;
@@ -246,7 +247,7 @@ impl LocalizerSpec {
                 if *radius_m < reach {
                     note = Some(format!(
                         "the grid radius {radius_m} m is inside the array (its farthest microphone is {reach} m \
-                         from the origin): the directions are points among the microphones, not far-field \
+                         from the origin, the grid's centre): the directions are points among the microphones, not far-field \
                          directions; HARK's free-field TFs use 1 m or more"
                     ));
                 }

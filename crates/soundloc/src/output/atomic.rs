@@ -31,11 +31,15 @@ fn live() -> std::sync::MutexGuard<'static, Vec<PathBuf>> {
 
 /// Delete every temporary file an [`AtomicFile`] of this process is writing now, leaving
 /// the targets as they were. For a signal handler that is about to end the process
-/// (SIGTERM, Ctrl-C) without unwinding, which would otherwise leave them behind.
+/// (SIGTERM, Ctrl-C) without unwinding, which would otherwise leave them behind. The
+/// registry stays locked afterwards, so no other thread creates or renames one before the
+/// process ends: call it only on the way out.
 pub fn remove_temporary_files() {
-    for t in live().drain(..) {
+    let mut l = live();
+    for t in l.drain(..) {
         let _ = std::fs::remove_file(t);
     }
+    std::mem::forget(l);
 }
 
 /// A file being written that appears at its target path only on [`commit`](Self::commit).
@@ -110,9 +114,12 @@ impl AtomicFile {
             temp_name.push(name);
             temp_name.push(format!(".{pid}-{n}.tmp{suffix}"));
             let temp = dir.join(temp_name);
+            // Created and registered under the lock: a signal between the two cannot
+            // leave it behind.
+            let mut registry = live();
             match OpenOptions::new().write(true).create_new(true).open(&temp) {
                 Ok(f) => {
-                    live().push(temp.clone());
+                    registry.push(temp.clone());
                     return Ok(AtomicFile {
                         target,
                         temp,
@@ -125,7 +132,7 @@ impl AtomicFile {
                         &target,
                         io::Error::new(
                             io::ErrorKind::NotFound,
-                            format!("the folder {} does not exist", dir.display()),
+                            format!("the directory {} does not exist", dir.display()),
                         ),
                     ))
                 }
@@ -179,9 +186,12 @@ impl AtomicFile {
                 f.sync_all().map_err(|e| Error::io(&self.target, e))?;
             }
         }
+        // Under the registry's lock, as a signal's clean-up takes it.
+        let mut registry = live();
         std::fs::rename(&self.temp, &self.target).map_err(|e| Error::io(&self.target, e))?;
         // Renamed: nothing left to clean up.
-        live().retain(|t| *t != self.temp);
+        registry.retain(|t| *t != self.temp);
+        drop(registry);
         self.temp = PathBuf::new();
         Ok(())
     }
@@ -215,8 +225,9 @@ impl Drop for AtomicFile {
     fn drop(&mut self) {
         drop(self.file.take());
         if !self.temp.as_os_str().is_empty() {
+            let mut registry = live();
             let _ = std::fs::remove_file(&self.temp);
-            live().retain(|t| *t != self.temp);
+            registry.retain(|t| *t != self.temp);
         }
     }
 }
