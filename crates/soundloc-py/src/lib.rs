@@ -78,19 +78,24 @@ pub(crate) fn samples<'py>(x: &Bound<'py, PyAny>) -> PyResult<Samples<'py>> {
     if let Ok(a) = x.downcast::<PyArray2<f64>>() {
         let a = a.readonly();
         let s = [a.shape()[0], a.shape()[1]];
-        // A finite value beyond f32 would become an infinity, reported as one.
-        let big = a
-            .as_array()
-            .indexed_iter()
-            .find(|(_, v)| v.is_finite() && v.abs() > f32::MAX as f64)
-            .map(|(i, &v)| (i, v));
-        if let Some(((r, c), v)) = big {
+        // One pass: convert, and note the first finite value that f32 cannot hold (it
+        // would become an infinity and be reported as one).
+        let mut v: Vec<f32> = Vec::with_capacity(s[0] * s[1]);
+        let mut big = None;
+        for &x in a.as_array().iter() {
+            let y = x as f32;
+            if big.is_none() && y.is_infinite() && x.is_finite() {
+                big = Some((v.len(), x));
+            }
+            v.push(y);
+        }
+        if let Some((i, x)) = big {
+            let (r, c) = (i / s[1].max(1), i % s[1].max(1));
             return Err(PyValueError::new_err(format!(
-                "sample [{r}, {c}] of the array is {v:e}, beyond the range of the 32-bit floats soundloc holds samples in (±{:e}); scale the audio down",
+                "sample [{r}, {c}] of the array is {x:e}, beyond the range of the 32-bit floats soundloc holds samples in (±{:e}); scale the audio down",
                 f32::MAX
             )));
         }
-        let v: Vec<f32> = a.as_array().iter().map(|&v| v as f32).collect();
         return Ok(Samples::Owned(v, s));
     }
     let ndim = x.getattr("ndim").and_then(|n| n.extract::<usize>()).ok();
