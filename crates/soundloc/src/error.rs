@@ -44,6 +44,9 @@ pub enum Error {
         /// What failed.
         message: String,
     },
+    /// A call the object's present state does not allow (input after a stream's end).
+    #[error("{0}")]
+    State(String),
     /// A compute device (CUDA) problem: missing library, no GPU, kernel compile error...
     #[error("device: {0}")]
     Device(String),

@@ -155,6 +155,21 @@ fn one_sample_pushes_and_f64_equal_batch() {
     }
     loc.flush(&mut out).unwrap();
     assert_same(&out, &batch, "one-sample pushes");
+
+    // The stream is closed now: a push is refused as a state error (not a configuration
+    // one) and changes nothing; after reset the same pushes give the same results.
+    let e = loc.push(Block::Planar(&short), &mut out).unwrap_err();
+    assert!(matches!(e, soundloc::Error::State(_)), "{e:?}");
+    assert_eq!(
+        e.to_string(),
+        "push after flush: call reset to start a new stream"
+    );
+    assert_same(&out, &batch, "after a refused push");
+    loc.reset().unwrap();
+    let mut again = Output::default();
+    loc.push(Block::Planar(&short), &mut again).unwrap();
+    loc.flush(&mut again).unwrap();
+    assert_same(&again, &batch, "after reset");
 }
 
 /// The whole-file path without the engine: STFT of everything, the window schedule, one

@@ -116,7 +116,7 @@ impl Resampler {
     /// frames that are ready to `out` (interleaved).
     pub fn process(&mut self, data: &[f32], out: &mut Vec<f32>) -> Result<()> {
         if self.finished {
-            return Err(Error::Config("resampler: input after the end".into()));
+            return Err(Error::State("resampler: input after the end".into()));
         }
         if !data.len().is_multiple_of(self.channels) {
             return Err(Error::Mismatch(format!(
@@ -156,7 +156,7 @@ impl Resampler {
     /// times stay true (within one output sample, never accumulating over gaps).
     pub fn gap(&mut self, frames: u64, out: &mut Vec<f32>) -> Result<u64> {
         if self.finished {
-            return Err(Error::Config("resampler: input after the end".into()));
+            return Err(Error::State("resampler: input after the end".into()));
         }
         self.end_stretch(out)?;
         self.frames_in += frames;

@@ -319,7 +319,7 @@ impl<T: Real> Engine<T> {
     /// channels to take and the block's length.
     pub(crate) fn check(&self, block: &Block<'_>) -> Result<(Arc<[usize]>, usize)> {
         if self.finished {
-            return Err(Error::Config(
+            return Err(Error::State(
                 "push after flush: call reset to start a new stream".into(),
             ));
         }
