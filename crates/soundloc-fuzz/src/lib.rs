@@ -363,6 +363,18 @@ pub fn targets() -> Vec<Target> {
             reader: |p| Geometry::load(p).map(drop).map_err(|e| e.to_string()),
         },
         Target {
+            name: "odas-cfg",
+            file_name: "array.cfg",
+            seeds: vec![odas_cfg_seed().into_bytes()],
+            zip_seeds: Vec::new(),
+            companions: Vec::new(),
+            reader: |p| {
+                soundloc::array::Geometry::load_with_mapping(p)
+                    .map(drop)
+                    .map_err(|e| e.to_string())
+            },
+        },
+        Target {
             name: "source-log",
             file_name: "log.txt",
             seeds: vec![
@@ -374,6 +386,27 @@ pub fn targets() -> Vec<Target> {
             reader: log_reader,
         },
     ]
+}
+
+/// An ODAS configuration of the 8-mic ring on a 10-channel device, in ODAS's layout
+/// (comments, nested groups, lists, strings, hex and exponent numbers).
+fn odas_cfg_seed() -> String {
+    let mics: Vec<String> = Geometry::circle(8, 0.0365, 0.0)
+        .mics
+        .iter()
+        .enumerate()
+        .map(|(i, m)| {
+            format!(
+                "        # Microphone {i}\n        {{ mu = ( {:+.4}, {:+.4}, {:+.4} ); sigma2 = ( 0.0, 0.0, 0.0 ); angle = ( 80.0, 90.0 ); }}",
+                m[0], m[1], m[2]
+            )
+        })
+        .collect();
+    format!(
+        "version = \"2.1\";\nraw: {{\n    fS = 16000; nBits = 0x20; nChannels = 10;\n    interface: {{ type = \"soundcard\"; card = 1; }}\n}}\n\
+         mapping: {{ map: (10, 9, 8, 7, 6, 5, 4, 3); }}\n/* general */\ngeneral: {{\n    epsilon = 1E-20;\n    mics = (\n{}\n    );\n}};\n",
+        mics.join(",\n")
+    )
 }
 
 const INTERESTING: [u64; 14] = [

@@ -112,7 +112,19 @@ pub(crate) fn spec(
         (Some(g), None) => Some(points(g, "grid")?),
         _ => None,
     };
-    let mics = geometry.map(|g| points(g, "geometry")).transpose()?;
+    // A file name (TOML or an ODAS configuration, with its device map) or positions.
+    let mut raw_mapping = None;
+    let mics = match geometry {
+        None => None,
+        Some(g) => match g.extract::<PathBuf>() {
+            Ok(path) => {
+                let (geometry, mapping) = Geometry::load_with_mapping(&path).map_err(err)?;
+                raw_mapping = mapping;
+                Some(geometry.mics)
+            }
+            Err(_) => Some(points(g, "geometry")?),
+        },
+    };
     let array = match (&tf, &mics) {
         (Some(p), None) => ArraySpec::TransferFunctions { path: p.clone() },
         (None, Some(m)) => ArraySpec::FreeField {
@@ -155,6 +167,7 @@ pub(crate) fn spec(
     a.diagonal_loading = diagonal_loading;
     spec.channels = channels.unwrap_or_default();
     spec.input_channels = input_channels.unwrap_or_default();
+    spec.raw_mapping = raw_mapping;
     let given = [noise.is_some(), noise_range.is_some(), noise_cm.is_some()];
     if given.iter().filter(|&&g| g).count() > 1 {
         return Err(PyValueError::new_err(
@@ -337,16 +350,7 @@ fn noise_matrices(
     } else {
         (cols, rows)
     };
-    let map = soundloc::ChannelMap {
-        input_channels: spec.input_channels.clone(),
-        tf_channels: spec.channels.clone(),
-        full_mics: tf.num_mics,
-        mics: if spec.channels.is_empty() {
-            tf.num_mics
-        } else {
-            spec.channels.len()
-        },
-    };
+    let map = spec.channel_map(tf.num_mics)?;
     let idx = map
         .resolve(nch)
         .map_err(|e| soundloc::Error::Mismatch(format!("noise of shape ({rows}, {cols}): {e}")))?;

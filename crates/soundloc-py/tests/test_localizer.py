@@ -365,3 +365,30 @@ def test_arguments_as_pyroomacoustics_users_write_them():
     rest = loc.push(x[12000:])
     np.testing.assert_array_equal(np.concatenate([first.frames, rest.frames]), want.frames)
     np.testing.assert_array_equal(np.concatenate([first.azimuth_deg, rest.azimuth_deg]), want.azimuth_deg)
+
+
+def test_geometry_files_toml_and_odas_configuration(tmp_path):
+    """geometry= takes a file name too: TOML gives the same results as the array; an ODAS
+    configuration's mapping.map picks the microphones among the device's channels."""
+    x = scene()
+    want = localizer().localize(x, FS)
+    got = localizer(geometry=str(write_geometry(tmp_path / "ring8.toml"))).localize(x, FS)
+    assert np.array_equal(got.azimuth_deg, want.azimuth_deg)
+    # A 10-channel device: microphone i on device channel 10 - i (1-based), two channels of something else.
+    mics = ",\n".join("{ mu = ( %r, %r, %r ); }" % tuple(float(v) for v in m) for m in MICS)
+    cfg = tmp_path / "ring8.cfg"
+    cfg.write_text(
+        "raw: { fS = 16000; nChannels = 10; }\nmapping: { map: (10, 9, 8, 7, 6, 5, 4, 3); }\n"
+        "general: { mics = (\n" + mics + "\n); };\n"
+    )
+    device = np.zeros((x.shape[0], 10), dtype=np.int16)
+    device[:, :2] = np.random.default_rng(5).integers(-9000, 9000, (x.shape[0], 2))
+    for i in range(8):
+        device[:, 9 - i] = x[:, i]
+    got = localizer(geometry=cfg).localize(device, FS)
+    assert np.array_equal(got.azimuth_deg, want.azimuth_deg)
+    with pytest.raises(ValueError, match="maps 8 of a 10-channel device"):
+        localizer(geometry=cfg).localize(device[:, :9], FS)
+    cfg.write_text(cfg.read_text().replace("(10,", "(11,"))
+    with pytest.raises(ValueError, match=r"ring8.cfg: mapping.map\[0\] is 11"):
+        localizer(geometry=cfg)

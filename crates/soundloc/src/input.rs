@@ -196,6 +196,50 @@ pub struct ChannelMap {
     pub full_mics: usize,
     /// Microphones after `tf_channels` (what the engine computes with).
     pub mics: usize,
+    /// A capture device's layout from the array file (an ODAS configuration), used when
+    /// `input_channels` is empty: see [`RawMapping`].
+    #[serde(default)]
+    pub raw: Option<RawMapping>,
+}
+
+/// A capture device's channel layout, as an ODAS configuration gives it (`raw.nChannels`
+/// and `mapping.map`): an input of `channels` channels (the device's own, e.g. the 6 of a
+/// ReSpeaker USB array) is reduced to the microphones `map` (0-based input channels, in
+/// the array file's microphone order); an input that already holds exactly the
+/// microphones, in that order, is taken as it is.
+#[derive(Debug, Clone, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RawMapping {
+    /// Channels the device delivers.
+    pub channels: usize,
+    /// The input channel of each microphone, 0-based.
+    pub map: Vec<usize>,
+}
+
+impl RawMapping {
+    /// Check the layout against an array of `mics` microphones: one map entry per
+    /// microphone, each a channel the device has, none twice.
+    pub fn validate(&self, mics: usize) -> Result<()> {
+        let bad = |m: String| Err(Error::Config(format!("device channel map: {m}")));
+        if self.map.len() != mics {
+            return bad(format!(
+                "it maps {} channels but the array has {mics} microphones",
+                self.map.len()
+            ));
+        }
+        if let Some(&c) = self.map.iter().find(|&&c| c >= self.channels) {
+            return bad(format!(
+                "channel {c} (0-based) does not exist on a {}-channel device",
+                self.channels
+            ));
+        }
+        if let Some((c, first, again)) = repeated(&self.map) {
+            return bad(format!(
+                "channel {c} feeds microphones {first} and {again} (each channel one microphone)"
+            ));
+        }
+        Ok(())
+    }
 }
 
 impl ChannelMap {
@@ -206,6 +250,7 @@ impl ChannelMap {
             tf_channels: Vec::new(),
             full_mics: mics,
             mics,
+            raw: None,
         }
     }
 
@@ -213,7 +258,21 @@ impl ChannelMap {
     /// saying what does not fit.
     pub fn resolve(&self, n: usize) -> Result<Vec<usize>> {
         let mut idx: Vec<usize> = if self.input_channels.is_empty() {
-            (0..n).collect()
+            match &self.raw {
+                Some(r) if n == r.channels => r.map.clone(),
+                Some(r) if n != r.map.len() => {
+                    return Err(Error::Mismatch(format!(
+                        "has {n} channels; the array file maps {} of a {}-channel device's channels to its microphones \
+                         (mapping.map), so give the device's {} channels, or {} holding the microphones in the file's order \
+                         (or pick them: --input-channels, input_channels=[...] in Python)",
+                        r.map.len(),
+                        r.channels,
+                        r.channels,
+                        r.map.len()
+                    )))
+                }
+                _ => (0..n).collect(),
+            }
         } else {
             if let Some(&c) = self.input_channels.iter().find(|&&c| c >= n) {
                 return Err(Error::Mismatch(format!(
@@ -322,6 +381,7 @@ mod tests {
             tf_channels: vec![0, 2],
             full_mics: 4,
             mics: 2,
+            raw: None,
         };
         assert_eq!(m.resolve(5).unwrap(), vec![1, 3]);
         assert!(m.resolve(3).unwrap_err().to_string().contains("input channel 3"));
@@ -339,11 +399,45 @@ mod tests {
             tf_channels: vec![0, 2],
             full_mics: 4,
             mics: 2,
+            raw: None,
         };
         assert_eq!(m.resolve(2).unwrap(), vec![0, 1]);
         assert_eq!(m.resolve(4).unwrap(), vec![0, 2]);
         assert!(m.resolve(3).unwrap_err().to_string().contains("has 3 channels"));
         let e = ChannelMap::identity(8).resolve(4).unwrap_err().to_string();
         assert!(e.contains("4 channels") && e.contains("8 microphones"), "{e}");
+    }
+
+    /// An ODAS-style device layout: the device's 6 channels are reduced to the 4
+    /// microphones; 4 channels are the microphones already; anything else is named; an
+    /// explicit input-channel list wins.
+    #[test]
+    fn a_device_layout_maps_the_devices_channels_only() {
+        let m = ChannelMap {
+            raw: Some(RawMapping {
+                channels: 6,
+                map: vec![1, 2, 3, 4],
+            }),
+            ..ChannelMap::identity(4)
+        };
+        assert_eq!(m.resolve(6).unwrap(), vec![1, 2, 3, 4]);
+        assert_eq!(m.resolve(4).unwrap(), vec![0, 1, 2, 3]);
+        let e = m.resolve(5).unwrap_err().to_string();
+        assert!(
+            e.contains("has 5 channels") && e.contains("4 of a 6-channel device"),
+            "{e}"
+        );
+        let chosen = ChannelMap {
+            input_channels: vec![5, 4, 3, 2],
+            ..m.clone()
+        };
+        assert_eq!(chosen.resolve(6).unwrap(), vec![5, 4, 3, 2]);
+        // TF_CHANNEL_SELECTION still applies after the device map.
+        let sel = ChannelMap {
+            tf_channels: vec![0, 3],
+            mics: 2,
+            ..m
+        };
+        assert_eq!(sel.resolve(6).unwrap(), vec![1, 4]);
     }
 }

@@ -70,7 +70,7 @@ pub mod tracking;
 pub use config::{Algorithm, LocalizeConfig, Precision, WindowFunction, WindowType};
 pub use engine::{Localization, Output, SpectrumTable, StreamGroup, TrackingSpec};
 pub use error::{Error, Result};
-pub use input::{Block, ChannelMap};
+pub use input::{Block, ChannelMap, RawMapping};
 pub use localizer::{ArraySpec, Localizer, LocalizerGroup, LocalizerSpec, NoiseSource};
 pub use noise::policy::NoiseUpdate;
 pub use real::Real;

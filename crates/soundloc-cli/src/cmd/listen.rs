@@ -21,7 +21,7 @@ pub struct Args {
     /// Capture rate in Hz (default: the device's default).
     #[arg(long)]
     pub rate: Option<u32>,
-    /// Capture channels (default: the device's default).
+    /// Capture channels (default: an ODAS --geometry file's raw.nChannels, else the device's default).
     #[arg(long)]
     pub channels_in: Option<u16>,
     /// Audio buffered while the localizer is behind, seconds; beyond it blocks are dropped.
@@ -140,7 +140,7 @@ mod capture {
         super::super::sinks::Sinks::check_paths(&a.run, None)?;
         // The arguments' own errors (no array, a bad geometry file or range) before the
         // device's (the rate is the device's; 16 kHz stands in for it here).
-        a.run.spec(a.rate.unwrap_or(16000))?;
+        let spec = a.run.spec(a.rate.unwrap_or(16000))?;
         let no_device = || {
             anyhow!("no capture device found (`soundloc listen --list-devices` lists them; on Linux, ALSA's `arecord -l`)")
         };
@@ -163,7 +163,14 @@ mod capture {
         if let Some(r) = a.rate {
             config.sample_rate = cpal::SampleRate(r);
         }
-        if let Some(c) = a.channels_in {
+        // An array file with a device layout (ODAS's raw.nChannels) asks for the device's
+        // channel count, unless --channels-in or --input-channels choose.
+        let layout = spec
+            .raw_mapping
+            .as_ref()
+            .filter(|_| spec.input_channels.is_empty())
+            .and_then(|r| u16::try_from(r.channels).ok());
+        if let Some(c) = a.channels_in.or(layout) {
             config.channels = c;
         }
         let channels = config.channels as usize;

@@ -119,7 +119,9 @@ pub struct RunArgs {
     /// HARK transfer-function zip or old HGTF (*_loc.dat).
     #[arg(long, conflicts_with = "geometry")]
     pub tf: Option<PathBuf>,
-    /// Microphone positions (TOML, metres) for free-field transfer functions.
+    /// Microphone positions for free-field transfer functions: TOML (metres), or an ODAS
+    /// configuration (*.cfg), whose mapping.map also picks the microphones among the
+    /// device's raw.nChannels channels.
     #[arg(long)]
     pub geometry: Option<PathBuf>,
     /// Direction grid for --geometry: ring:STEP_DEG[:ELEV_DEG] or sphere:N (with --tf the
@@ -327,10 +329,15 @@ pub fn parse_range(s: &str) -> anyhow::Result<(f64, f64)> {
 impl RunArgs {
     /// The library spec these arguments describe, for an input sampled at `rate_hz`.
     pub fn spec(&self, rate_hz: u32) -> anyhow::Result<LocalizerSpec> {
+        let mut raw_mapping = None;
         let array = match (&self.tf, &self.geometry) {
             (Some(p), _) => ArraySpec::TransferFunctions { path: p.clone() },
             (None, Some(g)) => ArraySpec::FreeField {
-                mics: Geometry::load(g)?.mics,
+                mics: {
+                    let (geometry, mapping) = Geometry::load_with_mapping(g)?;
+                    raw_mapping = mapping;
+                    geometry.mics
+                },
                 grid: self.grid.parse::<GridSpec>()?,
                 radius_m: self.grid_radius,
                 speed_of_sound_m_s: self.speed_of_sound,
@@ -379,6 +386,7 @@ impl RunArgs {
             analysis: self.analysis.config(Algorithm::Sevd, rate_hz),
             channels: self.channels.clone(),
             input_channels: self.input_channels.clone(),
+            raw_mapping,
             noise,
             noise_update: noise_update(self)?,
             tracking,

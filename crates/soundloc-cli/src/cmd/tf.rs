@@ -58,7 +58,8 @@ impl BuiltinArray {
 #[derive(clap::Args, Debug)]
 #[command(group(clap::ArgGroup::new("array").required(true).args(["geometry", "builtin"])))]
 pub struct MakeArgs {
-    /// Array geometry TOML (`mics = [[x, y, z], ...]`, metres, channel order).
+    /// Array geometry: TOML (`mics = [[x, y, z], ...]`, metres, channel order) or an ODAS
+    /// configuration (*.cfg: general.mics, in its order).
     #[arg(long)]
     pub geometry: Option<PathBuf>,
     /// A built-in array instead of a geometry file.

@@ -17,7 +17,9 @@ write_source_log (source-location logs, text or XML), read_audio (WAV/FLAC).
 
 Arguments (HARK LocalizeMUSIC name / pyroomacoustics name):
     tf: HARK transfer-function zip or HGTF file; or geometry: (M, 3) mic positions in metres
-        (pyroomacoustics' ``L`` transposed) with grid: "ring:STEP_DEG[:ELEV]", "sphere:N" or
+        (pyroomacoustics' ``L`` transposed), or a geometry file (TOML, or an ODAS
+        configuration ``*.cfg``, whose mapping.map picks the microphones among the device's
+        raw.nChannels channels) with grid: "ring:STEP_DEG[:ELEV]", "sphere:N" or
         a (D, 3) array of unit directions; fs (SAMPLING_RATE, for geometry=).
     algorithm: "sevd" | "gevd" | "gevd-hark" | "gsvd" | "srp-phat" (MUSIC_ALGORITHM); default
         (None): without a noise source the room default (NormMUSIC: sevd with every bin

@@ -15,11 +15,16 @@
 //! z = 0.0       # optional, default 0
 //! ```
 //!
+//! An ODAS configuration (`*.cfg`, libconfig: `general.mics[i].mu`) is read as well, with
+//! its device channel map ([`super::odas_cfg`], [`Geometry::load_with_mapping`]).
+//!
 //! Built-in shapes: [`Geometry::circle`] puts mic i at
 //! (r cos 2πi/n, r sin 2πi/n, z) — the TAMAGO-03 array is `circle(8, 0.0365, 0.0)`;
 //! [`Geometry::sphere`] spreads n mics near-uniformly over a sphere (Fibonacci lattice).
 //! Non-finite or duplicate positions (closer than 1 µm) and unknown keys are errors.
 
+use super::odas_cfg::OdasArray;
+use crate::input::RawMapping;
 use crate::{Error, Result};
 use std::path::Path;
 
@@ -181,11 +186,33 @@ impl Geometry {
         Geometry::new(mics, path_for_errors)
     }
 
-    /// Read a geometry TOML file.
+    /// Read a geometry file: TOML, or an ODAS configuration ([`Self::load_with_mapping`]).
     pub fn load(path: &Path) -> Result<Self> {
+        Ok(Self::load_with_mapping(path)?.0)
+    }
+
+    /// Read a geometry file with the capture device's channel map it may carry: an ODAS
+    /// configuration (named `*.cfg` or `*.conf`, or any file that is not TOML but is
+    /// one; [`super::odas_cfg`]) gives its positions and its `mapping`; a TOML file its
+    /// positions and no map.
+    pub fn load_with_mapping(path: &Path) -> Result<(Self, Option<RawMapping>)> {
         let text =
             crate::formats::read_text_bounded(path, crate::formats::MAX_GEOMETRY_BYTES, "geometry file")?;
-        Self::from_toml_str(&text, path)
+        let odas = |t: &str| OdasArray::from_str(t, path).map(|a| (a.geometry, a.mapping));
+        if path
+            .extension()
+            .is_some_and(|e| e.eq_ignore_ascii_case("cfg") || e.eq_ignore_ascii_case("conf"))
+        {
+            return odas(&text);
+        }
+        match Self::from_toml_str(&text, path) {
+            Ok(g) => Ok((g, None)),
+            // ODAS text under another name; otherwise the TOML error is the one to show.
+            Err(e) => match crate::formats::libconfig::parse(&text, path) {
+                Ok(root) if root.get("general").and_then(|g| g.get("mics")).is_some() => odas(&text),
+                _ => Err(e),
+            },
+        }
     }
 
     /// The geometry as TOML (`mics = [[x, y, z], ...]`, metres), readable by
@@ -303,6 +330,39 @@ mod tests {
         assert!(e("").contains("no microphones"));
         let missing = Geometry::load(Path::new("/nonexistent/ring8.toml")).unwrap_err();
         assert!(missing.to_string().starts_with("/nonexistent/ring8.toml: "));
+        let missing = Geometry::load(Path::new("/nonexistent/respeaker.cfg")).unwrap_err();
+        assert!(missing.to_string().starts_with("/nonexistent/respeaker.cfg: "));
+    }
+
+    /// An ODAS configuration is recognised by its name or, under another name, by its
+    /// content; a broken TOML file still gets the TOML error.
+    #[test]
+    fn odas_configurations_load_by_name_or_content() {
+        let dir = std::env::temp_dir().join(format!("soundloc-geom-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let text = crate::array::odas_cfg::tests::RESPEAKER_USB;
+        for name in ["respeaker.cfg", "respeaker.CONF", "respeaker.txt"] {
+            let p = dir.join(name);
+            std::fs::write(&p, text).unwrap();
+            let (g, map) = Geometry::load_with_mapping(&p).unwrap();
+            assert_eq!(g.num_mics(), 4, "{name}");
+            assert_eq!(map.unwrap().map, vec![1, 2, 3, 4], "{name}");
+            assert_eq!(Geometry::load(&p).unwrap(), g);
+        }
+        let p = dir.join("broken.toml");
+        std::fs::write(&p, "mics = [[0, 0, 0]").unwrap();
+        assert!(Geometry::load(&p)
+            .unwrap_err()
+            .to_string()
+            .contains("invalid TOML"));
+        // A .cfg that is not ODAS's says so.
+        let p = dir.join("other.cfg");
+        std::fs::write(&p, "mics = [[0, 0, 0]]").unwrap();
+        assert!(Geometry::load(&p)
+            .unwrap_err()
+            .to_string()
+            .contains("no `general.mics` list: not an ODAS array configuration"));
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     #[test]

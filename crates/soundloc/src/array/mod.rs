@@ -8,6 +8,7 @@ pub mod freefield;
 pub mod geometry;
 pub mod grid;
 mod neighbors;
+pub mod odas_cfg;
 pub mod tf_cache;
 pub mod transfer;
 

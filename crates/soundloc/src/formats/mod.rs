@@ -1,4 +1,5 @@
-//! File formats robot-audition users already have (HARK's), read and written.
+//! File formats robot-audition users already have (HARK's; ODAS's configuration text), read
+//! and written.
 //! Layouts: `shared/spec/hark-formats.md`.
 
 use crate::{Error, Result};
@@ -7,6 +8,7 @@ use std::path::Path;
 pub mod hark_mat;
 pub mod hark_zip;
 pub mod hgtf;
+pub mod libconfig;
 pub mod noise_cm;
 pub mod source_log;
 pub mod tf_zip_read;

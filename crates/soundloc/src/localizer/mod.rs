@@ -27,7 +27,7 @@ use crate::array::{Geometry, Grid, TransferFunctions};
 use crate::backend::{DeviceChoice, StageTimes};
 use crate::config::{Algorithm, LocalizeConfig, Precision};
 use crate::engine::{Engine, Localization, Output, TrackingSpec};
-use crate::input::Block;
+use crate::input::{Block, ChannelMap, RawMapping};
 use crate::noise::policy::NoiseUpdate;
 use crate::noise::NoiseMatrices;
 use crate::{Error, Result};
@@ -127,6 +127,10 @@ pub struct LocalizerSpec {
     /// ChannelSelector: input channels kept first (empty = all).
     #[serde(default)]
     pub input_channels: Vec<usize>,
+    /// The capture device's channel layout from the array file (an ODAS configuration's
+    /// mapping), used when `input_channels` is empty ([`RawMapping`]).
+    #[serde(default)]
+    pub raw_mapping: Option<RawMapping>,
     /// The noise matrix K.
     #[serde(default)]
     pub noise: NoiseSource,
@@ -176,6 +180,26 @@ impl LocalizerSpec {
         })
     }
 
+    /// Which input channel feeds each microphone, for transfer functions of `tf_mics`
+    /// microphones (before `channels` selects some): the input channels, the device
+    /// layout and the TF channel selection of this spec, checked.
+    pub fn channel_map(&self, tf_mics: usize) -> Result<ChannelMap> {
+        if let Some(r) = &self.raw_mapping {
+            r.validate(tf_mics)?;
+        }
+        Ok(ChannelMap {
+            input_channels: self.input_channels.clone(),
+            tf_channels: self.channels.clone(),
+            full_mics: tf_mics,
+            mics: if self.channels.is_empty() {
+                tf_mics
+            } else {
+                self.channels.len()
+            },
+            raw: self.raw_mapping.clone(),
+        })
+    }
+
     /// Defaults with an array.
     pub fn with_array(array: ArraySpec) -> Self {
         LocalizerSpec {
@@ -184,6 +208,7 @@ impl LocalizerSpec {
             analysis: LocalizeConfig::default(),
             channels: Vec::new(),
             input_channels: Vec::new(),
+            raw_mapping: None,
             noise: NoiseSource::None,
             noise_update: NoiseUpdate::Fixed,
             tracking: None,

@@ -47,12 +47,7 @@ pub(crate) fn prepare(
         sample_rate_hz: tf.sample_rate_hz,
         ..analysis
     };
-    let channels = ChannelMap {
-        input_channels: spec.input_channels.clone(),
-        tf_channels: spec.channels.clone(),
-        full_mics,
-        mics: tf.num_mics,
-    };
+    let channels = spec.channel_map(full_mics)?;
     let mut notes: Vec<String> = note.into_iter().collect();
     let noise_file = match (&noise, &spec.noise) {
         (None, NoiseSource::Recording { path } | NoiseSource::CorrelationFile { path })
