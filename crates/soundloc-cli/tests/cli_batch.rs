@@ -22,14 +22,20 @@ fn localize_one(geo: &PathBuf, wav: &PathBuf) -> String {
 #[test]
 fn batch_writes_one_file_per_input_shards_and_resumes() {
     let (_, geo, wav) = ring_scene(TAG, "", 1);
-    // Four copies under different names, listed in a manifest (relative paths).
+    // Four copies under different names, listed in a manifest (relative paths). Names
+    // with dots keep everything before the extension ("c.take1.wav" → "c.take1.jsonl":
+    // cut at the first dot, the two takes would share one result file).
     let dir = wav.parent().unwrap().to_path_buf();
-    let names = ["a.wav", "b.wav", "c.wav", "d.wav"];
+    let names = ["a.wav", "b.wav", "c.take1.wav", "c.take2.wav"];
     for n in names {
         std::fs::copy(&wav, dir.join(n)).unwrap();
     }
     let manifest = tmp(TAG, "list.txt");
-    std::fs::write(&manifest, "# recordings\na.wav\n\nb.wav\nc.wav\nd.wav\n").unwrap();
+    std::fs::write(
+        &manifest,
+        "# recordings\na.wav\n\nb.wav\nc.take1.wav\nc.take2.wav\n",
+    )
+    .unwrap();
     let want = localize_one(&geo, &wav);
     let out_dir = tmp(TAG, "out");
     let run = |extra: &[&str]| {
@@ -44,17 +50,18 @@ fn batch_writes_one_file_per_input_shards_and_resumes() {
             .output()
             .unwrap()
     };
-    // Shard 1 of 2 takes b and d only.
+    // Shard 1 of 2 takes b and c.take2 only.
     let o = run(&["--shard", "1/2"]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     assert!(!out_dir.join("a.jsonl").exists() && out_dir.join("b.jsonl").exists());
-    assert!(out_dir.join("d.jsonl").exists() && !out_dir.join("c.jsonl").exists());
+    assert!(out_dir.join("c.take2.jsonl").exists() && !out_dir.join("c.take1.jsonl").exists());
+    assert!(!out_dir.join("c.jsonl").exists());
     // The set-up note (the room default's NormMUSIC) once, not once per recording.
     let err = String::from_utf8_lossy(&o.stderr);
     assert_eq!(err.matches("NormMUSIC").count(), 1, "{err}");
     // The rest: shard 0 of 2; then a rerun of everything skips all four.
     assert!(run(&["--shard", "0/2"]).status.success());
-    for n in ["a", "b", "c", "d"] {
+    for n in ["a", "b", "c.take1", "c.take2"] {
         let got = std::fs::read_to_string(out_dir.join(format!("{n}.jsonl"))).unwrap();
         assert_eq!(got, want, "{n}.jsonl differs from localize's output");
     }

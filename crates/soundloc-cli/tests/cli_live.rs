@@ -595,6 +595,26 @@ fn odas_ssl_and_sst_reach_a_receiver_that_restarts() {
     msgs.iter().for_each(|m| drop(decode_odas(m, false, 4)));
     let mut text = std::fs::read_to_string(&fsst).unwrap();
     assert_eq!(odas_messages(&mut text).len(), results);
+    // SSL is each window's own peaks (ODAS's potential sources), not the tracks: the
+    // same bytes without --track (it carried the tracker's held-over sources before).
+    let untracked = tmp("ssl-untracked.json");
+    let o = bin()
+        .args([
+            "localize",
+            wav.to_str().unwrap(),
+            "--geometry",
+            geo.to_str().unwrap(),
+        ])
+        .args(["--grid", "ring:5", "--period", "10", "--device", "cpu", "-q"])
+        .arg("--odas-ssl")
+        .arg(&untracked)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(
+        std::fs::read_to_string(&untracked).unwrap() == std::fs::read_to_string(&fssl).unwrap(),
+        "SSL with --track differs from SSL without it"
+    );
 }
 
 #[test]

@@ -352,6 +352,17 @@ fn listen_without_an_array_names_the_missing_option_first() {
     let err = String::from_utf8_lossy(&o.stderr);
     assert_eq!(o.status.code(), Some(2), "{err}");
     assert!(err.contains("no transfer functions: give --tf FILE"), "{err}");
+    let o = bin()
+        .args(["listen", "--seconds", "1", "--max-buffer", "1e12", "--geometry"])
+        .arg(scene().1)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("--max-buffer must be a number of seconds above 0 and at most 3600"),
+        "{err}"
+    );
 }
 
 /// `soundloc listen` through ALSA: a capture PCM of ALSA's `file` plugin (over the `null`
@@ -440,6 +451,13 @@ fn negative_numbers_parse_and_bad_values_fail_before_any_work() {
         (&["--track", "--thresh", "nan"][..], "THRESH must be finite"),
         (&["--grid", "ring:0.001"][..], "at least 0.1 degrees"),
         (&["--grid-radius", "0"][..], "grid radius must be positive"),
+        // The queue of a live input is sized from it: a huge value is refused, not
+        // allocated (it aborted before).
+        (
+            &["--max-buffer", "1e300"][..],
+            "--max-buffer must be a number of seconds above 0 and at most 3600",
+        ),
+        (&["--max-buffer", "0"][..], "--max-buffer must be"),
     ] {
         let o = run(flags);
         let e = String::from_utf8_lossy(&o.stderr);

@@ -102,7 +102,11 @@ pub fn run(mut a: Args) -> anyhow::Result<ExitCode> {
         let stem = p
             .file_stem()
             .ok_or_else(|| anyhow!("{}: not a file name", p.display()))?;
-        let out = a.out_dir.join(stem).with_extension(ext);
+        // Everything before the recording's extension: "rec.take1.wav" → "rec.take1.jsonl".
+        let mut name = stem.to_os_string();
+        name.push(".");
+        name.push(ext);
+        let out = a.out_dir.join(name);
         if let Some(prev) = seen.insert(out.clone(), p) {
             bail!(
                 "{} and {} would both write {}: rename one or run them separately",

@@ -109,12 +109,7 @@ impl InputArgs {
                     Ok(open_stream(r, name)?)
                 }
             };
-        if !(self.max_buffer.is_finite() && self.max_buffer > 0.0) {
-            bail!(
-                "--max-buffer must be a positive number of seconds, got {}",
-                self.max_buffer
-            );
-        }
+        check_max_buffer(self.max_buffer)?;
         if self.input.is_empty() {
             bail!("the input's name is empty: give a recording (WAV, FLAC), - for standard input, or a network source (see --help)");
         }
@@ -197,6 +192,19 @@ pub fn catch_up(rx: &Receiver<Msg>, data: &mut Vec<f32>, max: usize, held: &mut 
 
 /// Frames per block read from a file.
 const FILE_BLOCK: usize = 1 << 15;
+
+/// Longest `--max-buffer` accepted, seconds. The queue's slots (one per ~20 ms block) are
+/// reserved up front: an hour of them is a few MB; the audio itself takes memory only
+/// while it waits.
+pub const MAX_BUFFER_S: f64 = 3600.0;
+
+/// `--max-buffer` above 0 and at most [`MAX_BUFFER_S`].
+pub fn check_max_buffer(seconds: f64) -> anyhow::Result<()> {
+    if !(seconds.is_finite() && seconds > 0.0 && seconds <= MAX_BUFFER_S) {
+        bail!("--max-buffer must be a number of seconds above 0 and at most {MAX_BUFFER_S} (an hour), got {seconds}");
+    }
+    Ok(())
+}
 
 /// Start reading `source` on its own thread. Live inputs drop blocks beyond
 /// `max_buffer_s` seconds of queued audio (unless they turn out to arrive faster than real

@@ -138,6 +138,7 @@ mod capture {
             return Ok(ExitCode::SUCCESS);
         }
         super::super::sinks::Sinks::check_paths(&a.run, None)?;
+        super::super::input::check_max_buffer(a.max_buffer)?;
         // The arguments' own errors (no array, a bad geometry file or range) before the
         // device's (the rate is the device's; 16 kHz stands in for it here).
         let spec = a.run.spec(a.rate.unwrap_or(16000))?;
@@ -196,9 +197,6 @@ mod capture {
         .into_iter()
         .find(|&f| fits(f))
         .unwrap_or(def.sample_format());
-        if !(a.max_buffer.is_finite() && a.max_buffer > 0.0) {
-            bail!("--max-buffer must be a positive number of seconds");
-        }
         let slots = ((a.max_buffer * rate as f64) / 320.0).ceil().max(4.0) as usize;
         let (tx, rx) = sync_channel(slots);
         let feed = Arc::new(Mutex::new(Feed {

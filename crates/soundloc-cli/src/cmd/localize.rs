@@ -112,6 +112,7 @@ pub fn drive(
     });
     let nch = fmt.channels;
     let mut out = Output::default();
+    sinks.arm(&mut out);
     let (mut audio_frames, mut lost_frames, mut gaps) = (0u64, 0u64, 0usize);
     let mut progress = Progress::default();
     let mut next_report = 10.0;

@@ -185,6 +185,8 @@ pub struct Sinks {
     spectrum: Option<SpectrumTable>,
     count: usize,
     pots: usize,
+    /// Tracking is on: SSL gets the windows' own peaks ([`Output::peaks`]).
+    tracking: bool,
 }
 
 fn status(p: &Progress, finished: bool) -> live::Status {
@@ -356,6 +358,7 @@ impl Sinks {
             spectrum: None,
             count: 0,
             pots: a.live.odas_pots,
+            tracking: a.track,
         })
     }
 
@@ -364,9 +367,20 @@ impl Sinks {
         self.count
     }
 
+    /// Prepare `out` for the stream: ask for the windows' own peaks where SSL needs them
+    /// beside the tracks.
+    pub fn arm(&self, out: &mut Output) {
+        if self.tracking && self.ssl.is_some() {
+            out.peaks = Some(Vec::new());
+        }
+    }
+
     /// Write what `out` holds now and empty it.
     pub fn emit(&mut self, out: &mut Output, progress: &Progress) -> anyhow::Result<()> {
         let results = std::mem::take(&mut out.results);
+        // ODAS's SSL carries each window's own peaks (potential sources), its SST the tracks.
+        let peaks = out.peaks.as_mut().map(std::mem::take).unwrap_or_default();
+        let pots = if self.tracking { &peaks } else { &results };
         let table = out.spectrum.take();
         if let Some(v) = &mut self.view {
             // Spectrum rows and results are both in frame order: one forward cursor.
@@ -403,6 +417,14 @@ impl Sinks {
         for n in notes {
             note(self.quiet, &n);
         }
+        let mut text = String::new();
+        if let Some(o) = &mut self.ssl {
+            for r in pots {
+                text.clear();
+                odas::write_ssl(r, self.pots, &mut text);
+                o.write(&text)?;
+            }
+        }
         if results.is_empty() {
             return Ok(());
         }
@@ -425,13 +447,7 @@ impl Sinks {
                 h.send(r, r.frame as i32)?;
             }
         }
-        let mut text = String::new();
         for r in &results {
-            if let Some(o) = &mut self.ssl {
-                text.clear();
-                odas::write_ssl(r, self.pots, &mut text);
-                o.write(&text)?;
-            }
             if let Some((o, slots)) = &mut self.sst {
                 text.clear();
                 slots.write(r, &mut text);

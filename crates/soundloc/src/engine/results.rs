@@ -42,7 +42,11 @@ impl<T: Real> Engine<T> {
                     .collect(),
             };
             if let Some(t) = &mut self.tracker {
-                r = t.update(&r);
+                let tracked = t.update(&r);
+                let untracked = std::mem::replace(&mut r, tracked);
+                if let Some(p) = &mut out.peaks {
+                    p.push(untracked);
+                }
             }
             match &mut self.extender {
                 Some(e) => out.results.extend(e.push(r)),

@@ -51,6 +51,11 @@ impl SpectrumTable {
 pub struct Output {
     /// Results, in increasing frame order.
     pub results: Vec<LocalizationResult>,
+    /// Each window's own peaks before the tracker (ODAS's "potential sources", its SSL
+    /// stream), in time order and as soon as the window ran — collected only where the
+    /// caller asks by setting `Some` (as `spectrum`) and tracking is on; without tracking
+    /// `results` are those peaks.
+    pub peaks: Option<Vec<LocalizationResult>>,
     /// Spectrum rows, when asked for.
     pub spectrum: Option<SpectrumTable>,
     /// Things the user should know.
