@@ -17,7 +17,7 @@ use std::collections::VecDeque;
 use std::io::{Read, Write};
 use std::net::{SocketAddr, TcpListener, TcpStream};
 use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
-use std::sync::mpsc::{sync_channel, Receiver, SyncSender, TrySendError};
+use std::sync::mpsc::{sync_channel, Receiver, RecvTimeoutError, SyncSender, TrySendError};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 use tungstenite::Message;
@@ -206,8 +206,9 @@ impl LiveServer {
     }
 }
 
-/// Read the request head without consuming it (a WebSocket handshake reads it again).
-fn peek_head(c: &TcpStream) -> Option<String> {
+/// Read the request head without consuming it (a WebSocket handshake reads it again):
+/// its text (invalid UTF-8 replaced) and its length in bytes.
+fn peek_head(c: &TcpStream) -> Option<(String, usize)> {
     let mut buf = vec![0u8; MAX_HEAD];
     let t = Instant::now();
     loop {
@@ -216,7 +217,7 @@ fn peek_head(c: &TcpStream) -> Option<String> {
             return None;
         }
         if let Some(end) = buf[..n].windows(4).position(|w| w == b"\r\n\r\n") {
-            return Some(String::from_utf8_lossy(&buf[..end + 4]).into_owned());
+            return Some((String::from_utf8_lossy(&buf[..end + 4]).into_owned(), end + 4));
         }
         if n == MAX_HEAD || t.elapsed() > Duration::from_secs(5) {
             return None;
@@ -228,23 +229,34 @@ fn peek_head(c: &TcpStream) -> Option<String> {
 fn handle(conn: TcpStream, state: &Mutex<State>) {
     let _ = conn.set_read_timeout(Some(Duration::from_secs(5)));
     let _ = conn.set_write_timeout(Some(WRITE_TIMEOUT));
-    let Some(head) = peek_head(&conn) else { return };
+    let Some((head, head_len)) = peek_head(&conn) else {
+        return;
+    };
     let mut first = head.lines().next().unwrap_or("").split_whitespace();
     let (method, path) = (first.next().unwrap_or(""), first.next().unwrap_or(""));
     let upgrade = head.lines().any(|l| {
         l.to_ascii_lowercase().starts_with("upgrade:") && l.to_ascii_lowercase().contains("websocket")
     });
-    if method == "GET" && path == "/ws" && upgrade {
+    let key = head
+        .lines()
+        .any(|l| l.to_ascii_lowercase().starts_with("sec-websocket-key:"));
+    if method == "GET" && path == "/ws" && upgrade && key {
         websocket(conn, state);
         return;
     }
     // A plain request: consume the head, answer, close.
     let mut conn = conn;
-    let mut sink = vec![0u8; head.len()];
+    let mut sink = vec![0u8; head_len];
     if conn.read_exact(&mut sink).is_err() {
         return;
     }
     let (status, ctype, body) = match (method, path.split('?').next().unwrap_or("")) {
+        _ if head.contains('\u{fffd}') => ("400 Bad Request", "text/plain; charset=utf-8", "not UTF-8\n"),
+        ("GET", "/ws") => (
+            "400 Bad Request",
+            "text/plain; charset=utf-8",
+            "a WebSocket upgrade with Sec-WebSocket-Key is expected here\n",
+        ),
         ("GET", "/" | "/index.html") => ("200 OK", "text/html; charset=utf-8", PAGE),
         ("GET", "/view.js") => ("200 OK", "text/javascript; charset=utf-8", SCRIPT),
         ("GET", _) => ("404 Not Found", "text/plain; charset=utf-8", "not found\n"),
@@ -282,17 +294,122 @@ fn websocket(conn: TcpStream, state: &Mutex<State>) {
             .chain(status)
             .collect()
     };
-    for m in replay.into_iter().chain(rx) {
+    for m in replay {
         if ws.send(m).is_err() {
             return;
+        }
+    }
+    // While nothing is queued (after the input ends, or in a stall) the page's own frames
+    // are read: a page that closed or vanished frees its place within IDLE_CHECK (a ping
+    // every PING_EVERY finds one whose network went away without a word).
+    let mut idle = Duration::ZERO;
+    loop {
+        match rx.recv_timeout(IDLE_CHECK) {
+            Ok(m) => {
+                idle = Duration::ZERO;
+                if ws.send(m).is_err() {
+                    return;
+                }
+            }
+            Err(RecvTimeoutError::Disconnected) => break,
+            Err(RecvTimeoutError::Timeout) => {
+                idle += IDLE_CHECK;
+                if !page_is_there(&mut ws) {
+                    return;
+                }
+                if idle >= PING_EVERY {
+                    idle = Duration::ZERO;
+                    if ws.send(Message::Ping(Vec::new().into())).is_err() {
+                        return;
+                    }
+                }
+            }
         }
     }
     let _ = ws.close(None);
 }
 
+/// How often an idle WebSocket reads what its page sent.
+const IDLE_CHECK: Duration = Duration::from_millis(500);
+/// How long a WebSocket stays idle before it pings its page.
+const PING_EVERY: Duration = Duration::from_secs(10);
+
+/// Read what the page sent without waiting: false once it closed, hung up or broke the
+/// protocol (its pings are answered with the next write).
+fn page_is_there(ws: &mut tungstenite::WebSocket<TcpStream>) -> bool {
+    if ws.get_mut().set_nonblocking(true).is_err() {
+        return false;
+    }
+    let there = loop {
+        match ws.read() {
+            Ok(Message::Close(_)) => break false,
+            Ok(_) => {}
+            Err(tungstenite::Error::Io(e)) if e.kind() == std::io::ErrorKind::WouldBlock => break true,
+            Err(_) => break false,
+        }
+    };
+    there && ws.get_mut().set_nonblocking(false).is_ok()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Pages that closed free their places though nothing is broadcast any more (after
+    /// the input ended): twice the cap of pages come and go, then the page loads. Before,
+    /// each closed page held its thread until the next broadcast, and all later requests
+    /// got 503.
+    #[test]
+    fn closed_pages_free_their_places_when_nothing_is_sent() {
+        let v = LiveServer::bind("127.0.0.1:0").unwrap();
+        v.hello("{\"type\":\"hello\"}".into());
+        let addr = v.local_addr();
+        for round in 0..2 {
+            let pages: Vec<_> = (0..MAX_CLIENTS / 2 + 8)
+                .map(|_| {
+                    let (mut ws, _) = tungstenite::connect(format!("ws://{addr}/ws")).unwrap();
+                    assert!(matches!(ws.read().unwrap(), Message::Text(_)), "hello");
+                    ws
+                })
+                .collect();
+            for mut ws in pages {
+                ws.close(None).unwrap();
+                while ws.read().is_ok() {}
+            }
+            let t = Instant::now();
+            loop {
+                let mut c = TcpStream::connect(addr).unwrap();
+                c.set_read_timeout(Some(Duration::from_secs(4))).unwrap();
+                c.write_all(b"GET / HTTP/1.1\r\nHost: x\r\n\r\n").unwrap();
+                let mut page = String::new();
+                let _ = c.read_to_string(&mut page);
+                if page.starts_with("HTTP/1.1 200") {
+                    break;
+                }
+                assert!(t.elapsed() < Duration::from_secs(10), "round {round}: {page:?}");
+                std::thread::sleep(Duration::from_millis(100));
+            }
+        }
+    }
+
+    /// A head that is not UTF-8 and a /ws request without a key get a 400 at once.
+    #[test]
+    fn malformed_requests_get_400() {
+        let v = LiveServer::bind("127.0.0.1:0").unwrap();
+        for req in [
+            &b"GET /\xff\xfe HTTP/1.1\r\nHost: x\r\n\r\n"[..],
+            b"GET /ws HTTP/1.1\r\nHost: x\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n\r\n",
+        ] {
+            let mut c = TcpStream::connect(v.local_addr()).unwrap();
+            c.set_read_timeout(Some(Duration::from_secs(10))).unwrap();
+            c.write_all(req).unwrap();
+            let t = Instant::now();
+            let mut got = String::new();
+            let _ = c.read_to_string(&mut got);
+            assert!(got.starts_with("HTTP/1.1 400"), "{got:?}");
+            assert!(t.elapsed() < Duration::from_secs(2), "answered at once");
+        }
+    }
 
     /// Idle connections beyond [`MAX_CLIENTS`] get a 503 at once instead of a thread each.
     #[test]

@@ -297,6 +297,47 @@ fn tcp_listen_and_connect_equal_the_file_and_a_cut_frame_is_reported() {
         .unwrap();
     assert_eq!(o.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&o.stderr).contains("connecting"));
+    // Waiting for a sender, a missing TF file or a channel count the array cannot take is
+    // an error at once, not after a sender connected (its audio would be lost).
+    for (tf, channels, want) in [
+        ("/nonexistent/tf.zip", "8", "/nonexistent/tf.zip"),
+        ("", "6", "has 6 channels"),
+    ] {
+        let mut cmd = bin();
+        cmd.args([
+            "localize",
+            "tcp-listen:127.0.0.1:0",
+            "--raw",
+            "s16le",
+            "--rate",
+            "16000",
+        ])
+        .args(["--raw-channels", channels]);
+        if tf.is_empty() {
+            cmd.arg("--geometry").arg(&geo);
+        } else {
+            cmd.args(["--tf", tf]);
+        }
+        let mut child = cmd.stderr(Stdio::piped()).stdout(Stdio::null()).spawn().unwrap();
+        let t = Instant::now();
+        let status = loop {
+            if let Some(s) = child.try_wait().unwrap() {
+                break Some(s);
+            }
+            if t.elapsed() > Duration::from_secs(20) {
+                let _ = child.kill();
+                break None;
+            }
+            std::thread::sleep(Duration::from_millis(20));
+        };
+        let mut err = String::new();
+        child.stderr.take().unwrap().read_to_string(&mut err).unwrap();
+        assert_eq!(status.and_then(|s| s.code()), Some(2), "{want}: {err}");
+        assert!(
+            err.contains(want) && !err.contains("waiting for a sender"),
+            "{err}"
+        );
+    }
 }
 
 /// A sender that resets the connection (a crash, a network drop) ends the stream as a

@@ -29,6 +29,20 @@ pub fn note(quiet: bool, msg: &str) {
 
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     Sinks::check_paths(&args.run, Some(Path::new(&args.input.input)))?;
+    if args.input.input.starts_with("tcp-listen:") {
+        // What can be checked before a sender connects is checked now: an error after it
+        // connected would throw its audio away. The transfer functions (and K) are loaded
+        // where the rate is known (a raw input's --rate, or a TF file's own), and a raw
+        // input's channels are checked against the array.
+        let spec = args.run.spec(args.input.rate.unwrap_or(16000))?;
+        if let (Some(rate), Some(channels)) = (args.input.rate, args.input.raw_channels) {
+            Localizer::new(&spec)?
+                .input_converter(rate, channels)
+                .map_err(|e| anyhow!("{}: {e}", args.input.input))?;
+        } else if args.run.tf.is_some() {
+            Localizer::new(&spec)?;
+        }
+    }
     let input = args.input.open(args.run.quiet)?;
     let (fmt, rx) = spawn_reader(
         input.source,

@@ -333,7 +333,7 @@ impl Sinks {
                 let fs = c.sample_rate_hz as f64;
                 let info = live::RunInfo {
                     source: source.to_string(),
-                    algorithm: c.algorithm.name().to_string(),
+                    algorithm: c.label(),
                     device: loc.device_name(),
                     sample_rate_hz: c.sample_rate_hz,
                     hop: c.hop,
