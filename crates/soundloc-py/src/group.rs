@@ -3,7 +3,7 @@
 
 use crate::spec::PySpec;
 use crate::{channel_count, directions, err, results, samples, Samples};
-use pyo3::exceptions::{PyRuntimeError, PyValueError};
+use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
 use soundloc::{Block, LocalizerGroup, Output};
@@ -15,10 +15,8 @@ struct State {
     outs: Vec<Output>,
 }
 
-/// Streams of several arrays of one kind, localized together. Methods that compute take
-/// `&mut self`: while one thread computes (GIL released), another thread's call on the
-/// same object raises "already borrowed" instead of waiting on the lock with the GIL
-/// held (which would deadlock).
+/// Streams of several arrays of one kind, localized together. Calls from several
+/// threads take turns ([`crate::lock_released`]).
 #[pyclass(module = "soundloc._native", name = "StreamGroup")]
 pub(crate) struct PyGroup {
     state: Mutex<State>,
@@ -54,22 +52,22 @@ impl PyGroup {
     }
 
     /// Add a stream like the others; returns its index.
-    fn add_stream(&mut self) -> PyResult<usize> {
-        let mut st = self.lock()?;
+    fn add_stream(&self, py: Python<'_>) -> PyResult<usize> {
+        let mut st = self.lock(py)?;
         let i = st.group.add_stream().map_err(err)?;
         st.outs.push(Output::default());
         Ok(i)
     }
 
-    fn __len__(&self) -> PyResult<usize> {
-        Ok(self.lock()?.group.len())
+    fn __len__(&self, py: Python<'_>) -> PyResult<usize> {
+        Ok(self.lock(py)?.group.len())
     }
 
     /// Queue a block into stream `i`; its windows run at the next `run`, `push_all` or
     /// `flush`.
     #[pyo3(signature = (i, x, channels_first=None))]
     fn push(
-        &mut self,
+        &self,
         py: Python<'_>,
         i: usize,
         x: &Bound<'_, PyAny>,
@@ -77,7 +75,7 @@ impl PyGroup {
     ) -> PyResult<()> {
         let cf = channels_first.unwrap_or(self.channels_first);
         let s = samples(x)?;
-        let mut guard = self.lock()?;
+        let mut guard = self.lock(py)?;
         let st = &mut *guard;
         let fs = st.group.config().sample_rate_hz;
         let n = channel_count(s.shape(), cf, |c| st.group.check_input(fs, c))?;
@@ -91,8 +89,8 @@ impl PyGroup {
 
     /// Run every waiting window of every stream (one launch per batch); returns one result
     /// set per stream.
-    fn run<'py>(&mut self, py: Python<'py>) -> PyResult<Bound<'py, PyList>> {
-        let mut guard = self.lock()?;
+    fn run<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyList>> {
+        let mut guard = self.lock(py)?;
         let st = &mut *guard;
         let (g, outs) = (&mut st.group, &mut st.outs);
         py.allow_threads(|| g.run(outs)).map_err(err)?;
@@ -104,13 +102,13 @@ impl PyGroup {
     /// stream.
     #[pyo3(signature = (blocks, channels_first=None))]
     fn push_all<'py>(
-        &mut self,
+        &self,
         py: Python<'py>,
         blocks: Vec<Bound<'py, PyAny>>,
         channels_first: Option<bool>,
     ) -> PyResult<Bound<'py, PyList>> {
         let cf = channels_first.unwrap_or(self.channels_first);
-        let mut guard = self.lock()?;
+        let mut guard = self.lock(py)?;
         let st = &mut *guard;
         if blocks.len() != st.group.len() {
             return Err(PyValueError::new_err(format!(
@@ -136,8 +134,8 @@ impl PyGroup {
 
     /// End stream `i`'s input: returns its last results (other streams' windows that ran
     /// meanwhile are returned by the next `run` / `push_all`).
-    fn flush<'py>(&mut self, py: Python<'py>, i: usize) -> PyResult<Bound<'py, PyDict>> {
-        let mut guard = self.lock()?;
+    fn flush<'py>(&self, py: Python<'py>, i: usize) -> PyResult<Bound<'py, PyDict>> {
+        let mut guard = self.lock(py)?;
         let st = &mut *guard;
         let (g, outs) = (&mut st.group, &mut st.outs);
         py.allow_threads(|| g.flush(i, outs)).map_err(err)?;
@@ -147,8 +145,8 @@ impl PyGroup {
     }
 
     /// Start stream `i` again (same plan and device); its unreturned results are dropped.
-    fn reset(&mut self, i: usize) -> PyResult<()> {
-        let mut st = self.lock()?;
+    fn reset(&self, py: Python<'_>, i: usize) -> PyResult<()> {
+        let mut st = self.lock(py)?;
         st.group.reset(i).map_err(err)?;
         st.outs[i] = Output::default();
         Ok(())
@@ -156,56 +154,54 @@ impl PyGroup {
 
     /// Frames between a result's frame and the last frame of its window.
     #[getter]
-    fn latency_frames(&self) -> PyResult<usize> {
-        Ok(self.lock()?.group.latency_frames())
+    fn latency_frames(&self, py: Python<'_>) -> PyResult<usize> {
+        Ok(self.lock(py)?.group.latency_frames())
     }
 
     /// Samples per channel stream `i` still needs before its next result.
-    fn samples_needed_next(&self, i: usize) -> PyResult<usize> {
-        self.lock()?.group.samples_needed_next(i).map_err(err)
+    fn samples_needed_next(&self, py: Python<'_>, i: usize) -> PyResult<usize> {
+        self.lock(py)?.group.samples_needed_next(i).map_err(err)
     }
 
     /// The device description.
     #[getter]
-    fn device(&self) -> PyResult<String> {
-        Ok(self.lock()?.group.device_name())
+    fn device(&self, py: Python<'_>) -> PyResult<String> {
+        Ok(self.lock(py)?.group.device_name())
     }
 
     /// The algorithm that runs.
     #[getter]
-    fn algorithm(&self) -> PyResult<&'static str> {
-        Ok(self.lock()?.group.config().algorithm.name())
+    fn algorithm(&self, py: Python<'_>) -> PyResult<&'static str> {
+        Ok(self.lock(py)?.group.config().algorithm.name())
     }
 
     /// Analysis sampling rate, Hz.
     #[getter]
-    fn fs(&self) -> PyResult<u32> {
-        Ok(self.lock()?.group.config().sample_rate_hz)
+    fn fs(&self, py: Python<'_>) -> PyResult<u32> {
+        Ok(self.lock(py)?.group.config().sample_rate_hz)
     }
 
     /// Microphones per array.
     #[getter]
-    fn num_mics(&self) -> PyResult<usize> {
-        Ok(self.lock()?.group.num_mics())
+    fn num_mics(&self, py: Python<'_>) -> PyResult<usize> {
+        Ok(self.lock(py)?.group.num_mics())
     }
 
     /// Notes from building.
     #[getter]
-    fn notes(&self) -> PyResult<Vec<String>> {
-        Ok(self.lock()?.group.notes().to_vec())
+    fn notes(&self, py: Python<'_>) -> PyResult<Vec<String>> {
+        Ok(self.lock(py)?.group.notes().to_vec())
     }
 
     /// The grid: (D, 3) unit direction vectors, azimuth and elevation in degrees.
     fn directions<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
-        directions(py, self.lock()?.group.grid())
+        directions(py, self.lock(py)?.group.grid())
     }
 }
 
 impl PyGroup {
-    fn lock(&self) -> PyResult<MutexGuard<'_, State>> {
-        self.state
-            .lock()
-            .map_err(|_| PyRuntimeError::new_err("the stream group failed in another thread"))
+    fn lock(&self, py: Python<'_>) -> PyResult<MutexGuard<'_, State>> {
+        crate::lock_released(py, &self.state, "stream group")
     }
 }
 

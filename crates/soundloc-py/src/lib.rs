@@ -25,6 +25,28 @@ pub(crate) fn err(e: soundloc::Error) -> PyErr {
     }
 }
 
+/// Lock `m` for a Python call. Another thread's call may hold it while it computes with
+/// the GIL released; this one waits for it *without* the GIL (waiting with it would
+/// deadlock: that call needs the GIL to return its results). A lock left poisoned by a
+/// panic is an error naming `what`.
+pub(crate) fn lock_released<'a, T: Send>(
+    py: Python<'_>,
+    m: &'a std::sync::Mutex<T>,
+    what: &str,
+) -> PyResult<std::sync::MutexGuard<'a, T>> {
+    loop {
+        match m.try_lock() {
+            Ok(g) => return Ok(g),
+            Err(std::sync::TryLockError::Poisoned(_)) => {
+                return Err(PyRuntimeError::new_err(format!(
+                    "the {what} failed in another thread"
+                )))
+            }
+            Err(std::sync::TryLockError::WouldBlock) => py.allow_threads(|| drop(m.lock())),
+        }
+    }
+}
+
 pub(crate) fn parse<T: serde::de::DeserializeOwned>(what: &str, v: &str) -> PyResult<T> {
     serde_json::from_value(serde_json::Value::String(v.to_string()))
         .map_err(|_| PyValueError::new_err(format!("{what}: {v:?} is not a valid value")))

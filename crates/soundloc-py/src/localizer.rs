@@ -2,7 +2,7 @@
 
 use crate::spec::PySpec;
 use crate::{channel_count, directions, err, results, samples, Samples};
-use pyo3::exceptions::{PyRuntimeError, PyValueError};
+use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use soundloc::audio::resample::Resampler;
@@ -14,7 +14,7 @@ use std::sync::{Mutex, MutexGuard};
 #[pyclass(module = "soundloc._native", name = "Localizer")]
 pub(crate) struct PyLocalizer {
     /// Behind a mutex: a Python object may be used from several threads (the engine is
-    /// `Send`, not `Sync`).
+    /// `Send`, not `Sync`); calls from them take turns ([`crate::lock_released`]).
     inner: Mutex<Localizer>,
     channels_first: bool,
     /// Files the localizer was built from (the TF file, a noise-CM pair or recording):
@@ -48,7 +48,7 @@ impl PyLocalizer {
     /// channels_first=True) at `fs` Hz. The stream is reset first.
     #[pyo3(signature = (x, fs=None, channels_first=None))]
     fn localize<'py>(
-        &mut self,
+        &self,
         py: Python<'py>,
         x: &Bound<'py, PyAny>,
         fs: Option<&Bound<'py, PyAny>>,
@@ -57,14 +57,18 @@ impl PyLocalizer {
         let fs = fs.map(crate::spec::rate).transpose()?;
         let channels_first = channels_first.unwrap_or(self.channels_first);
         let s = samples(x)?;
-        let mut out = match self.converter(&s, fs, channels_first)? {
+        // One lock throughout: another thread's call cannot come between the reset and
+        // the recording.
+        let mut guard = self.lock(py)?;
+        let loc = &mut *guard;
+        let mut out = match converter(loc, &s, fs, channels_first)? {
             None => {
-                self.lock()?.reset().map_err(err)?;
-                self.run(py, &s, channels_first, true)?
+                loc.reset().map_err(err)?;
+                run(py, loc, &s, channels_first, true)?
             }
-            Some(r) => self.run_converted(py, &s, channels_first, r)?,
+            Some(r) => run_converted(py, loc, &s, channels_first, r)?,
         };
-        results(py, &mut out, self.lock()?.grid().len())
+        results(py, &mut out, loc.grid().len())
     }
 
     /// Localize a WAV/FLAC file and write its results to `output` as the CLI does
@@ -72,7 +76,7 @@ impl PyLocalizer {
     /// number of results. The GIL is released throughout.
     #[pyo3(signature = (input, output, format="jsonl"))]
     fn localize_file(
-        &mut self,
+        &self,
         py: Python<'_>,
         input: PathBuf,
         output: PathBuf,
@@ -88,7 +92,7 @@ impl PyLocalizer {
             }
         };
         let files = self.files.clone();
-        let mut inner = self.lock()?;
+        let mut inner = self.lock(py)?;
         let loc = &mut *inner;
         py.allow_threads(|| -> soundloc::Result<usize> {
             let ins: Vec<(&std::path::Path, &str)> = std::iter::once((input.as_path(), "input"))
@@ -118,155 +122,151 @@ impl PyLocalizer {
     /// Push a block of any length; returns the results its samples completed.
     #[pyo3(signature = (x, channels_first=None))]
     fn push<'py>(
-        &mut self,
+        &self,
         py: Python<'py>,
         x: &Bound<'py, PyAny>,
         channels_first: Option<bool>,
     ) -> PyResult<Bound<'py, PyDict>> {
         let s = samples(x)?;
-        let mut out = self.run(py, &s, channels_first.unwrap_or(self.channels_first), false)?;
-        results(py, &mut out, self.lock()?.grid().len())
+        let mut guard = self.lock(py)?;
+        let loc = &mut *guard;
+        let mut out = run(py, loc, &s, channels_first.unwrap_or(self.channels_first), false)?;
+        results(py, &mut out, loc.grid().len())
     }
 
     /// End of input: results still held (a noise range, the tracker's delay).
-    fn flush<'py>(&mut self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+    fn flush<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         let mut out = Output::default();
-        let mut inner = self.lock()?;
+        let mut inner = self.lock(py)?;
         let loc = &mut *inner;
         py.allow_threads(|| loc.flush(&mut out)).map_err(err)?;
         results(py, &mut out, inner.grid().len())
     }
 
     /// Start a new stream (same plan and device).
-    fn reset(&mut self) -> PyResult<()> {
-        self.lock()?.reset().map_err(err)
+    fn reset(&self, py: Python<'_>) -> PyResult<()> {
+        self.lock(py)?.reset().map_err(err)
     }
 
     /// Frames between a result's frame and the last frame of its window.
     #[getter]
-    fn latency_frames(&self) -> PyResult<usize> {
-        Ok(self.lock()?.latency_frames())
+    fn latency_frames(&self, py: Python<'_>) -> PyResult<usize> {
+        Ok(self.lock(py)?.latency_frames())
     }
 
     /// Samples per channel still needed before the next result.
     #[getter]
-    fn samples_needed_next(&self) -> PyResult<usize> {
-        Ok(self.lock()?.samples_needed_next())
+    fn samples_needed_next(&self, py: Python<'_>) -> PyResult<usize> {
+        Ok(self.lock(py)?.samples_needed_next())
     }
 
     /// The device description.
     #[getter]
-    fn device(&self) -> PyResult<String> {
-        Ok(self.lock()?.device_name())
+    fn device(&self, py: Python<'_>) -> PyResult<String> {
+        Ok(self.lock(py)?.device_name())
     }
 
     /// The algorithm that runs.
     #[getter]
-    fn algorithm(&self) -> PyResult<&'static str> {
-        Ok(self.lock()?.config().algorithm.name())
+    fn algorithm(&self, py: Python<'_>) -> PyResult<&'static str> {
+        Ok(self.lock(py)?.config().algorithm.name())
     }
 
     /// Analysis sampling rate, Hz.
     #[getter]
-    fn fs(&self) -> PyResult<u32> {
-        Ok(self.lock()?.config().sample_rate_hz)
+    fn fs(&self, py: Python<'_>) -> PyResult<u32> {
+        Ok(self.lock(py)?.config().sample_rate_hz)
     }
 
     /// Microphones used.
     #[getter]
-    fn num_mics(&self) -> PyResult<usize> {
-        Ok(self.lock()?.num_mics())
+    fn num_mics(&self, py: Python<'_>) -> PyResult<usize> {
+        Ok(self.lock(py)?.num_mics())
     }
 
     /// Notes from building (the algorithm chosen…).
     #[getter]
-    fn notes(&self) -> PyResult<Vec<String>> {
-        Ok(self.lock()?.notes().to_vec())
+    fn notes(&self, py: Python<'_>) -> PyResult<Vec<String>> {
+        Ok(self.lock(py)?.notes().to_vec())
     }
 
     /// The grid: (D, 3) unit direction vectors, azimuth and elevation in degrees.
     fn directions<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
-        directions(py, self.lock()?.grid())
+        directions(py, self.lock(py)?.grid())
     }
 }
 
 impl PyLocalizer {
-    fn lock(&self) -> PyResult<MutexGuard<'_, Localizer>> {
-        self.inner
-            .lock()
-            .map_err(|_| PyRuntimeError::new_err("the localizer failed in another thread"))
+    fn lock(&self, py: Python<'_>) -> PyResult<MutexGuard<'_, Localizer>> {
+        crate::lock_released(py, &self.inner, "localizer")
     }
+}
 
-    /// How audio at `fs` Hz reaches the localizer: as it is (`None`), through a converter
-    /// (`resample=True` and another rate), or an error naming both rates.
-    fn converter(
-        &self,
-        s: &Samples<'_>,
-        fs: Option<u32>,
-        channels_first: bool,
-    ) -> PyResult<Option<Resampler>> {
-        let guard = self.lock()?;
-        let want = guard.config().sample_rate_hz;
-        match fs {
-            Some(f) if f != want => {
-                let n_ch = channel_count(s.shape(), channels_first, |c| guard.check_input(want, c))?;
-                guard.input_converter(f, n_ch).map_err(err)
-            }
-            _ => Ok(None),
+/// How audio at `fs` Hz reaches `loc`: as it is (`None`), through a converter
+/// (`resample=True` and another rate), or an error naming both rates.
+fn converter(
+    loc: &Localizer,
+    s: &Samples<'_>,
+    fs: Option<u32>,
+    channels_first: bool,
+) -> PyResult<Option<Resampler>> {
+    let want = loc.config().sample_rate_hz;
+    match fs {
+        Some(f) if f != want => {
+            let n_ch = channel_count(s.shape(), channels_first, |c| loc.check_input(want, c))?;
+            loc.input_converter(f, n_ch).map_err(err)
         }
+        _ => Ok(None),
     }
+}
 
-    /// A whole recording through `r`: reset, convert, push, flush.
-    fn run_converted(
-        &mut self,
-        py: Python<'_>,
-        s: &Samples<'_>,
-        channels_first: bool,
-        mut r: Resampler,
-    ) -> PyResult<Output> {
-        let [rows, cols] = s.shape();
-        let n_ch = if channels_first { rows } else { cols };
-        let block = block_of(s.data(), n_ch, channels_first);
-        let mut guard = self.lock()?;
-        let inner = &mut *guard;
-        let mut out = Output::default();
-        py.allow_threads(|| -> soundloc::Result<()> {
-            let mut inter = Vec::new();
-            block.append_interleaved(&mut inter)?;
-            let mut conv = Vec::new();
-            r.process(&inter, &mut conv)?;
-            r.finish(&mut conv)?;
-            inner.reset()?;
-            inner.push(block_of(&conv, n_ch, false), &mut out)?;
-            inner.flush(&mut out)
-        })
-        .map_err(err)?;
-        Ok(out)
-    }
+/// A whole recording through `r`: reset, convert, push, flush.
+fn run_converted(
+    py: Python<'_>,
+    loc: &mut Localizer,
+    s: &Samples<'_>,
+    channels_first: bool,
+    mut r: Resampler,
+) -> PyResult<Output> {
+    let [rows, cols] = s.shape();
+    let n_ch = if channels_first { rows } else { cols };
+    let block = block_of(s.data(), n_ch, channels_first);
+    let mut out = Output::default();
+    py.allow_threads(|| -> soundloc::Result<()> {
+        let mut inter = Vec::new();
+        block.append_interleaved(&mut inter)?;
+        let mut conv = Vec::new();
+        r.process(&inter, &mut conv)?;
+        r.finish(&mut conv)?;
+        loc.reset()?;
+        loc.push(block_of(&conv, n_ch, false), &mut out)?;
+        loc.flush(&mut out)
+    })
+    .map_err(err)?;
+    Ok(out)
+}
 
-    fn run(
-        &mut self,
-        py: Python<'_>,
-        s: &Samples<'_>,
-        channels_first: bool,
-        flush: bool,
-    ) -> PyResult<Output> {
-        let mut guard = self.lock()?;
-        let fs = guard.config().sample_rate_hz;
-        let n_ch = channel_count(s.shape(), channels_first, |c| guard.check_input(fs, c))?;
-        let mut out = Output::default();
-        let data = s.data();
-        let inner = &mut *guard;
-        py.allow_threads(|| -> soundloc::Result<()> {
-            inner.push(block_of(data, n_ch, channels_first), &mut out)?;
-            if flush {
-                inner.flush(&mut out)?;
-            }
-            Ok(())
-        })
-        .map_err(err)?;
-        Ok(out)
-    }
+/// Push `s` (and flush after it when `flush`), with the GIL released.
+fn run(
+    py: Python<'_>,
+    loc: &mut Localizer,
+    s: &Samples<'_>,
+    channels_first: bool,
+    flush: bool,
+) -> PyResult<Output> {
+    let fs = loc.config().sample_rate_hz;
+    let n_ch = channel_count(s.shape(), channels_first, |c| loc.check_input(fs, c))?;
+    let mut out = Output::default();
+    let data = s.data();
+    py.allow_threads(|| -> soundloc::Result<()> {
+        loc.push(block_of(data, n_ch, channels_first), &mut out)?;
+        if flush {
+            loc.flush(&mut out)?;
+        }
+        Ok(())
+    })
+    .map_err(err)?;
+    Ok(out)
 }
 
 /// A view of (samples, channels) or, channels first, (channels, samples) data.

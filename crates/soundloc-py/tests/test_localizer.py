@@ -392,3 +392,33 @@ def test_geometry_files_toml_and_odas_configuration(tmp_path):
     cfg.write_text(cfg.read_text().replace("(10,", "(11,"))
     with pytest.raises(ValueError, match=r"ring8.cfg: mapping.map\[0\] is 11"):
         localizer(geometry=cfg)
+
+
+def test_calls_from_several_threads_take_turns():
+    """One Localizer used from several threads: calls wait for each other (they raised
+    PyO3's "Already borrowed" before), each localize() is whole, getters never fail."""
+    import threading
+    from concurrent.futures import ThreadPoolExecutor
+
+    x = scene()
+    want = localizer().localize(x, FS)
+    loc = localizer()
+    stop = threading.Event()
+    seen = []
+
+    def read_getters():
+        while not stop.is_set():
+            seen.append((loc.latency_frames, loc.samples_needed_next, loc.num_mics))
+
+    reader = threading.Thread(target=read_getters)
+    reader.start()
+    try:
+        with ThreadPoolExecutor(4) as ex:
+            got = list(ex.map(lambda _: loc.localize(x, FS), range(8)))
+    finally:
+        stop.set()
+        reader.join()
+    assert len(seen) > 0 and all(s[2] == 8 for s in seen)
+    for g in got:
+        assert np.array_equal(g.azimuth_deg, want.azimuth_deg)
+        assert np.array_equal(g.spectrum_db, want.spectrum_db)
