@@ -642,6 +642,12 @@ fn live_output_options_are_checked_before_any_work() {
     assert!(run(&["--odas-sst", "127.0.0.1:9000"]).contains("--odas-sst needs --track"));
     assert!(run(&["--odas-ssl", "127.0.0.1:9001", "--odas-pots", "0"]).contains("--odas-pots"));
     assert!(run(&["--odas-ssl", "/no/such/dir/ssl.json"]).contains("/no/such/dir"));
+    // An address with a typo is refused, not written to a file of that name.
+    for bad in ["localhost:9000x", "localhost:9001 ", "127.0.0.1:"] {
+        let e = run(&["--odas-ssl", bad]);
+        assert!(e.contains("neither HOST:PORT nor a file name"), "{bad:?}: {e}");
+        assert!(!Path::new(bad).exists(), "{bad:?} written");
+    }
     let busy = TcpListener::bind("127.0.0.1:0").unwrap();
     let e = run(&["--serve", &busy.local_addr().unwrap().to_string()]);
     assert!(e.contains("--serve") && e.contains("cannot listen"), "{e}");

@@ -143,3 +143,28 @@ fn a_receiver_that_stops_reading_never_blocks_the_sender() {
     let s = net.finish(Duration::from_millis(100));
     assert_eq!(s.sent + s.dropped, 2000, "{s:?}");
 }
+
+/// A receiver that closed: the next message is counted as dropped, not as sent. (TCP
+/// takes one more write after the peer closed; before, that message was lost unseen.)
+#[test]
+fn a_message_after_the_receiver_closed_is_counted_as_dropped() {
+    let l = TcpListener::bind("127.0.0.1:0").unwrap();
+    let net = NetSender::start("test", &l.local_addr().unwrap().to_string()).unwrap();
+    let (conn, _) = l.accept().unwrap();
+    wait_until("connected", || net.is_connected());
+    net.send(b"m0\n".to_vec());
+    let mut r = BufReader::new(conn);
+    let mut line = String::new();
+    r.read_line(&mut line).unwrap();
+    assert_eq!(line, "m0\n");
+    wait_until("m0 counted", || net.stats().sent == 1);
+    // The receiver goes away (and nobody listens any more).
+    drop(r);
+    drop(l);
+    std::thread::sleep(Duration::from_millis(200));
+    for i in 1..4 {
+        net.send(format!("m{i}\n").into_bytes());
+    }
+    let stats = net.finish(Duration::from_secs(2));
+    assert_eq!((stats.sent, stats.dropped), (1, 3), "{stats:?}");
+}

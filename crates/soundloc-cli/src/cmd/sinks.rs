@@ -89,17 +89,26 @@ enum OdasOut {
     File(AtomicFile, PathBuf),
 }
 
-fn odas_target(v: &str) -> Option<&str> {
+/// `Some(address)` for a TCP server, `None` for a file. A name with no `/` that has a `:`
+/// but is not `HOST:PORT` (`localhost:9000x`, a trailing space, `127.0.0.1:`) is refused:
+/// a mistyped address would silently become a file.
+fn odas_target<'a>(v: &'a str, what: &str) -> anyhow::Result<Option<&'a str>> {
     if let Some(a) = v.strip_prefix("tcp:") {
-        return Some(a);
+        return Ok(Some(a));
     }
-    let (_, port) = v.rsplit_once(':')?;
-    (!v.contains('/') && !port.is_empty() && port.bytes().all(|b| b.is_ascii_digit())).then_some(v)
+    match v.rsplit_once(':') {
+        Some(_) if v.contains('/') => Ok(None),
+        Some((_, port)) if !port.is_empty() && port.bytes().all(|b| b.is_ascii_digit()) => Ok(Some(v)),
+        Some(_) => bail!(
+            "{what} {v:?}: neither HOST:PORT nor a file name (write tcp:HOST:PORT for a server, ./{v} for a file)"
+        ),
+        None => Ok(None),
+    }
 }
 
 impl OdasOut {
     fn open(v: &str, what: &str) -> anyhow::Result<Self> {
-        Ok(match odas_target(v) {
+        Ok(match odas_target(v, what)? {
             Some(addr) => OdasOut::Net(NetSender::start(what, addr)?),
             None => OdasOut::File(AtomicFile::create(v)?, PathBuf::from(v)),
         })
@@ -223,10 +232,18 @@ impl Sinks {
             (a.log_xml.as_deref(), "--log-xml"),
         ]
         .into_iter()
-        .chain(odas_files.iter().map(|(v, what)| {
-            let file = v.as_deref().filter(|v| odas_target(v).is_none());
-            (file.map(Path::new), *what)
-        })) {
+        .chain(
+            odas_files
+                .iter()
+                .map(|(v, what)| {
+                    let file = match v.as_deref() {
+                        Some(v) => odas_target(v, what)?.is_none().then_some(v),
+                        None => None,
+                    };
+                    Ok((file.map(Path::new), *what))
+                })
+                .collect::<anyhow::Result<Vec<_>>>()?,
+        ) {
             if let Some(p) = p {
                 soundloc::output::atomic::check_output_path(p, what)?;
                 outputs.push((p, what));

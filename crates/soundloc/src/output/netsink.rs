@@ -5,8 +5,10 @@
 //!
 //! - messages wait in a bounded queue ([`QUEUE_MESSAGES`]); when it is full (the receiver is
 //!   absent or slower than the results) the new message is **dropped and counted**;
-//! - a message being written when the connection breaks is dropped and counted too; the
-//!   next one goes to the new connection (messages are never split across connections);
+//! - a message being written when the connection breaks, or due after the receiver
+//!   closed (checked before each write: TCP would take one more write without a word),
+//!   is dropped and counted too; the next one goes to the new connection (messages are
+//!   never split across connections);
 //! - what happened (connected, lost, how many dropped) is reported as notes
 //!   ([`NetSender::take_notes`]) and in the final [`NetStats`].
 //!
@@ -199,6 +201,26 @@ fn connect(addrs: &[SocketAddr]) -> std::io::Result<TcpStream> {
     Err(last)
 }
 
+/// Whether the receiver has closed or reset the connection, read without waiting: its
+/// end of file or error. (Receivers send nothing; bytes they do send are left unread.)
+fn peer_closed(s: &TcpStream) -> Option<std::io::Error> {
+    if s.set_nonblocking(true).is_err() {
+        return None;
+    }
+    let mut b = [0u8; 1];
+    let closed = match s.peek(&mut b) {
+        Ok(0) => Some(std::io::Error::new(
+            std::io::ErrorKind::ConnectionAborted,
+            "the receiver closed the connection",
+        )),
+        Ok(_) => None,
+        Err(e) if e.kind() == std::io::ErrorKind::WouldBlock => None,
+        Err(e) => Some(e),
+    };
+    let _ = s.set_nonblocking(false);
+    closed
+}
+
 fn run(what: &str, peer: &str, addrs: &[SocketAddr], rx: &Receiver<Vec<u8>>, sh: &Shared) {
     let mut conn: Option<TcpStream> = None;
     let mut next_try = Instant::now();
@@ -243,7 +265,14 @@ fn run(what: &str, peer: &str, addrs: &[SocketAddr], rx: &Receiver<Vec<u8>>, sh:
         match rx.recv_timeout(wait) {
             Ok(msg) => match &mut conn {
                 Some(s) => {
-                    if let Err(e) = s.write_all(&msg).and_then(|_| s.flush()) {
+                    // A receiver that has closed takes one more write without an error
+                    // (the refusal comes back later): ask the socket first, so that the
+                    // message is counted as dropped instead of lost unseen.
+                    let sent = match peer_closed(s) {
+                        Some(why) => Err(why),
+                        None => s.write_all(&msg).and_then(|_| s.flush()),
+                    };
+                    if let Err(e) = sent {
                         drop_one();
                         sh.connected.store(false, Ordering::Relaxed);
                         sh.note(format!("{what}: connection to {peer} lost ({e}); reconnecting"));
