@@ -71,6 +71,23 @@ fn batch_writes_one_file_per_input_shards_and_resumes() {
         o.status.success() && err.contains("0 localized, 4 skipped"),
         "{err}"
     );
+    // A temporary file of a killed run (its process gone) is pointed out, not deleted;
+    // one of a running process (this test's) is not mentioned.
+    let dead = out_dir.join(".b.jsonl.999999999-0.tmp");
+    let alive = out_dir.join(format!(".c.jsonl.{}-0.tmp", std::process::id()));
+    std::fs::write(&dead, "partial").unwrap();
+    std::fs::write(&alive, "partial").unwrap();
+    let err = String::from_utf8_lossy(&run(&[]).stderr).into_owned();
+    if cfg!(target_os = "linux") {
+        assert!(
+            err.contains("1 temporary file(s) of interrupted runs")
+                && err.contains(".b.jsonl.999999999-0.tmp"),
+            "{err}"
+        );
+    }
+    assert!(dead.exists() && alive.exists());
+    std::fs::remove_file(&dead).unwrap();
+    std::fs::remove_file(&alive).unwrap();
     // --overwrite redoes them.
     let o = run(&["--overwrite", "-q"]);
     assert!(o.status.success());

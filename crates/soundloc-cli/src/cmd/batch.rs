@@ -3,7 +3,7 @@
 //! and resumable runs (inputs whose result file exists are skipped).
 
 use super::input::{spawn_reader, InputArgs};
-use super::localize::{drive, FormatArg};
+use super::localize::{drive, note, FormatArg};
 use super::run_args::RunArgs;
 use anyhow::{anyhow, bail, Context};
 use soundloc::formats::noise_cm::NoiseCm;
@@ -141,6 +141,18 @@ pub fn run(mut a: Args) -> anyhow::Result<ExitCode> {
     std::fs::create_dir_all(&a.out_dir)
         .with_context(|| format!("{}: cannot create the folder", a.out_dir.display()))?;
     let quiet = a.run.quiet;
+    let stale = soundloc::output::atomic::stale_temporaries(&a.out_dir);
+    if let Some(first) = stale.first() {
+        note(
+            quiet,
+            &format!(
+                "{}: {} temporary file(s) of interrupted runs whose processes are gone (e.g. {}); delete them",
+                a.out_dir.display(),
+                stale.len(),
+                first.file_name().unwrap_or_default().to_string_lossy()
+            ),
+        );
+    }
     let (mut done, mut skipped, mut failed) = (0usize, 0usize, Vec::new());
     for (p, out) in jobs {
         // Only a result file counts as done: a folder at its name is an error of that

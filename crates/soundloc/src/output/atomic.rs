@@ -42,6 +42,41 @@ pub fn remove_temporary_files() {
     std::mem::forget(l);
 }
 
+/// Temporary files in `dir` that [`AtomicFile`] made for a process that no longer runs
+/// (killed where no handler could remove them, e.g. by SIGKILL): `.<name>.<pid>-<n>.tmp…`
+/// whose process is gone. Found on Linux (through `/proc`); elsewhere none are reported.
+/// They are listed, not deleted: a writer in another PID namespace (a container sharing
+/// the folder) looks dead from here.
+pub fn stale_temporaries(dir: &Path) -> Vec<PathBuf> {
+    if !cfg!(target_os = "linux") {
+        return Vec::new();
+    }
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return Vec::new();
+    };
+    let mut stale: Vec<PathBuf> = entries
+        .flatten()
+        .filter(|e| {
+            let name = e.file_name();
+            let Some(name) = name.to_str() else { return false };
+            let Some((head, _)) = name.strip_prefix('.').and_then(|n| n.rsplit_once(".tmp")) else {
+                return false;
+            };
+            let Some((_, id)) = head.rsplit_once('.') else {
+                return false;
+            };
+            let Some((pid, n)) = id.split_once('-') else {
+                return false;
+            };
+            let digits = |s: &str| !s.is_empty() && s.bytes().all(|b| b.is_ascii_digit());
+            digits(pid) && digits(n) && !Path::new("/proc").join(pid).exists()
+        })
+        .map(|e| e.path())
+        .collect();
+    stale.sort();
+    stale
+}
+
 /// A file being written that appears at its target path only on [`commit`](Self::commit).
 ///
 /// Implements [`Write`] and [`Seek`] (buffered), so it can be handed to any writer,
