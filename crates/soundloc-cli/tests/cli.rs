@@ -341,8 +341,10 @@ fn bench_refuses_sizes_it_cannot_build() {
     for (args, want) in [
         (
             vec!["--mics", "100000"],
-            "--mics 100000: must be between 1 and 1024",
+            "--mics 100000: must be between 2 and 1024",
         ),
+        (vec!["--mics", "1"], "--mics 1: must be between 2 and 1024"),
+        (vec!["--accuracy", "--scenes", "0"], "--scenes 0: give at least 1"),
         (
             vec!["--directions", "1000000"],
             "--directions 1000000: must be between 2",

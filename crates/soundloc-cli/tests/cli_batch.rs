@@ -140,6 +140,20 @@ fn a_broken_input_fails_alone_and_names_itself() {
         .output()
         .unwrap();
     assert!(!o.status.success() && String::from_utf8_lossy(&o.stderr).contains("would both write"));
+    // Standard input and network sources are `localize`'s, not batch's (it wrote "-.jsonl").
+    for not_a_file in ["-", "tcp:127.0.0.1:9"] {
+        let o = bin()
+            .args(["batch", "--grid", "ring:5", "--geometry"])
+            .arg(&geo)
+            .arg(not_a_file)
+            .arg("--out-dir")
+            .arg(&out_dir)
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{err}");
+        assert!(err.contains("batch localizes recordings (files)"), "{err}");
+    }
     // A folder where a result would go is that recording's failure, not a result that
     // exists (a rerun must not count it as done).
     let out_dir2 = tmp(TAG, "out-folder");

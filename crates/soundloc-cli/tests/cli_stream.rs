@@ -297,6 +297,14 @@ fn tcp_listen_and_connect_equal_the_file_and_a_cut_frame_is_reported() {
         .unwrap();
     assert_eq!(o.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&o.stderr).contains("connecting"));
+    // --realtime paces files only; with a network source it is refused, not ignored.
+    let o = bin()
+        .args(["localize", &format!("tcp:{addr}"), "--realtime", "--geometry"])
+        .arg(&geo)
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("--realtime paces a file"));
     // Waiting for a sender, a missing TF file or a channel count the array cannot take is
     // an error at once, not after a sender connected (its audio would be lost).
     for (tf, channels, want) in [

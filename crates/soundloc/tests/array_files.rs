@@ -460,9 +460,13 @@ fn malformed_tf_zips() {
     std::fs::write(&p, b"just some text").unwrap();
     let e = err_text(TransferFunctions::load(&p));
     assert!(
-        e.contains("tf-junk.bin: not a HARK transfer-function zip or HGTF file"),
+        e.contains("tf-junk.bin: not a HARK transfer-function zip or HGTF file (starts with \"just som\")"),
         "{e}"
     );
+    // Bytes that are not text are shown escaped, one notation throughout.
+    std::fs::write(&p, b"RIFF\xc4\x03\x05\x00WAVE").unwrap();
+    let e = err_text(TransferFunctions::load(&p));
+    assert!(e.ends_with("(starts with \"RIFF\\xc4\\x03\\x05\\x00\")"), "{e}");
 }
 
 fn bytes_of(zip: &Path, name: &str) -> Vec<u8> {

@@ -84,6 +84,17 @@ fn noise_cm_text_pair_round_trip_is_exact() {
     assert!(back.try_get(9).is_none());
     let explicit = NoiseCm::read_text_pair(&re, &im, Expected::default()).expect("pair");
     assert_eq!(explicit, cm);
+    // A recording given in its place is named as one.
+    let wav = re.with_file_name("noise.wav");
+    soundloc::audio::Audio::new(16000, vec![vec![0.1; 160]; 4])
+        .unwrap()
+        .write_wav(&wav, soundloc::audio::SampleFormat::Int16)
+        .unwrap();
+    let e = NoiseCm::load(&wav, Expected::default()).unwrap_err().to_string();
+    assert!(
+        e.contains("noise.wav: a recording (WAV/FLAC), not a noise correlation matrix"),
+        "{e}"
+    );
 }
 
 #[test]

@@ -87,6 +87,15 @@ pub fn run(mut a: Args) -> anyhow::Result<ExitCode> {
         bail!("{flag} is not available with batch: each recording's results go to --out-dir");
     }
     let all = inputs(&a)?;
+    if let Some(p) = all.iter().find(|p| {
+        let s = p.to_string_lossy();
+        s == "-" || s.ends_with("/-") || s.starts_with("tcp:") || s.starts_with("tcp-listen:")
+    }) {
+        bail!(
+            "{}: batch localizes recordings (files); for standard input or a network source use `soundloc localize`",
+            p.display()
+        );
+    }
     let (k, n) = match &a.shard {
         Some(s) => parse_shard(s)?,
         None => (0, 1),

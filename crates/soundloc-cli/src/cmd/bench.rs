@@ -322,6 +322,9 @@ fn run_accuracy(a: &Args) -> anyhow::Result<ExitCode> {
     use soundloc::bench::accuracy::{
         run, variants_for, variants_without_noise, SceneKind, StudyArray, StudyNoise, TEST_SEED0,
     };
+    if a.scenes == 0 {
+        anyhow::bail!("--scenes 0: give at least 1 seed per condition");
+    }
     let array = match a.arrays.first() {
         Some(ArrayArg::Seed) => StudyArray::Sphere60,
         _ => StudyArray::Ring8,
@@ -387,8 +390,11 @@ fn run_accuracy(a: &Args) -> anyhow::Result<ExitCode> {
 fn check_sizes(a: &Args) -> anyhow::Result<()> {
     use anyhow::bail;
     use soundloc::array::{MAX_DIRECTIONS, MAX_MICS};
-    if !(1..=MAX_MICS).contains(&a.mics) {
-        bail!("--mics {}: must be between 1 and {MAX_MICS}", a.mics);
+    if !(2..=MAX_MICS).contains(&a.mics) {
+        bail!(
+            "--mics {}: must be between 2 and {MAX_MICS} (MUSIC needs a noise subspace)",
+            a.mics
+        );
     }
     if !(2..=MAX_DIRECTIONS).contains(&a.directions) {
         bail!(

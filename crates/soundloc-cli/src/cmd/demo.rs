@@ -1,7 +1,7 @@
 //! `soundloc demo`: the built-in scenes, localized by every algorithm, no files needed.
 
 use super::{DeviceArg, PrecisionArg};
-use anyhow::Context;
+use anyhow::{bail, Context};
 use soundloc::demo::{localize_scene, ring8_drone, sphere60_drone, DemoScene};
 use soundloc::output::plot::{plot_spectrum, SpectrumPlot};
 use soundloc::{Algorithm, LocalizeConfig};
@@ -47,6 +47,10 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         anyhow::bail!("--snr {}: must be between -60 and 60 dB", a.snr);
     }
     let mut scenes: Vec<DemoScene> = Vec::new();
+    // The folder first: a file in its place is named before any simulation runs.
+    if a.out_dir.exists() && !a.out_dir.is_dir() {
+        bail!("--out-dir {}: is a file, not a folder", a.out_dir.display());
+    }
     if matches!(a.scene, SceneArg::Ring8 | SceneArg::All) {
         scenes.push(ring8_drone(a.snr, a.seed)?);
     }

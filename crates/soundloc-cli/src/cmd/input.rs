@@ -121,6 +121,9 @@ impl InputArgs {
                 name: PathBuf::from("standard input"),
             });
         }
+        if self.realtime && self.input.starts_with("tcp") {
+            bail!("--realtime paces a file; a network source arrives at its sender's pace");
+        }
         if let Some(addr) = self.input.strip_prefix("tcp:") {
             let s =
                 std::net::TcpStream::connect(addr).with_context(|| format!("{}: connecting", self.input))?;

@@ -206,8 +206,8 @@ impl TransferFunctions {
             return Err(Error::format(
                 path,
                 format!(
-                    "not a HARK transfer-function zip or HGTF file (starts with {:?})",
-                    String::from_utf8_lossy(&head[..head.len().min(8)])
+                    "not a HARK transfer-function zip or HGTF file (starts with \"{}\")",
+                    head[..head.len().min(8)].escape_ascii()
                 ),
             ));
         };

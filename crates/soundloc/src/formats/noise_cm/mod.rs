@@ -377,6 +377,12 @@ fn locate(path: &Path) -> Result<Located> {
     if hark_zip::looks_like_zip(&head[..n]) {
         return Ok(Located::Zip);
     }
+    if matches!(&head[..n], b"RIFF" | b"RF64" | b"fLaC") {
+        return Err(Error::format(
+            path,
+            "a recording (WAV/FLAC), not a noise correlation matrix: give it as --noise, or build K from it with `soundloc noisecm make`",
+        ));
+    }
     Ok(Located::Pair(path.to_path_buf(), find_imag_path(path)?))
 }
 
