@@ -376,19 +376,7 @@ mod tests {
                 ws.close(None).unwrap();
                 while ws.read().is_ok() {}
             }
-            let t = Instant::now();
-            loop {
-                let mut c = TcpStream::connect(addr).unwrap();
-                c.set_read_timeout(Some(Duration::from_secs(4))).unwrap();
-                c.write_all(b"GET / HTTP/1.1\r\nHost: x\r\n\r\n").unwrap();
-                let mut page = String::new();
-                let _ = c.read_to_string(&mut page);
-                if page.starts_with("HTTP/1.1 200") {
-                    break;
-                }
-                assert!(t.elapsed() < Duration::from_secs(10), "round {round}: {page:?}");
-                std::thread::sleep(Duration::from_millis(100));
-            }
+            page_loads_within(addr, Duration::from_secs(10), &format!("round {round}"));
         }
     }
 
@@ -425,17 +413,26 @@ mod tests {
         assert!(got.starts_with("HTTP/1.1 503"), "{got:?}");
         // A served client that leaves frees its place.
         drop(idle);
+        page_loads_within(
+            v.local_addr(),
+            Duration::from_secs(20),
+            "after the idle clients left",
+        );
+    }
+
+    /// GET / until it answers 200, failing after `limit`.
+    fn page_loads_within(addr: SocketAddr, limit: Duration, what: &str) {
         let t = Instant::now();
         loop {
-            let mut c = TcpStream::connect(v.local_addr()).unwrap();
+            let mut c = TcpStream::connect(addr).unwrap();
             c.set_read_timeout(Some(Duration::from_secs(4))).unwrap();
             c.write_all(b"GET / HTTP/1.1\r\nHost: x\r\n\r\n").unwrap();
             let mut page = String::new();
             let _ = c.read_to_string(&mut page);
             if page.starts_with("HTTP/1.1 200") {
-                break;
+                return;
             }
-            assert!(t.elapsed() < Duration::from_secs(20), "{page:?}");
+            assert!(t.elapsed() < limit, "{what}: {page:?}");
             std::thread::sleep(Duration::from_millis(100));
         }
     }
