@@ -177,7 +177,7 @@ function onStatus(s) {
 function drawStatus() {
   const h = view.hello, s = view.status;
   let t = view.connected ? "" : "disconnected — retrying…  ";
-  if (h) t += `${h.algorithm} on ${h.device} · latency ${h.latency_ms.toFixed(0)} ms`;
+  if (h) t += `${h.label || h.algorithm} on ${h.device} · latency ${h.latency_ms.toFixed(0)} ms`;
   if (s) {
     t += ` + ${s.compute_ms.toFixed(1)} ms compute · real-time factor ${s.rtf.toFixed(3)}` +
       ` · ${s.audio_s.toFixed(1)} s localized`;

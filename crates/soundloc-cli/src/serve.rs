@@ -207,8 +207,8 @@ impl LiveServer {
 }
 
 /// Read the request head without consuming it (a WebSocket handshake reads it again):
-/// its text (invalid UTF-8 replaced) and its length in bytes.
-fn peek_head(c: &TcpStream) -> Option<(String, usize)> {
+/// its text (invalid UTF-8 replaced), its length in bytes, and whether it was UTF-8.
+fn peek_head(c: &TcpStream) -> Option<(String, usize, bool)> {
     let mut buf = vec![0u8; MAX_HEAD];
     let t = Instant::now();
     loop {
@@ -217,7 +217,12 @@ fn peek_head(c: &TcpStream) -> Option<(String, usize)> {
             return None;
         }
         if let Some(end) = buf[..n].windows(4).position(|w| w == b"\r\n\r\n") {
-            return Some((String::from_utf8_lossy(&buf[..end + 4]).into_owned(), end + 4));
+            let head = &buf[..end + 4];
+            return Some((
+                String::from_utf8_lossy(head).into_owned(),
+                end + 4,
+                std::str::from_utf8(head).is_ok(),
+            ));
         }
         if n == MAX_HEAD || t.elapsed() > Duration::from_secs(5) {
             return None;
@@ -229,7 +234,7 @@ fn peek_head(c: &TcpStream) -> Option<(String, usize)> {
 fn handle(conn: TcpStream, state: &Mutex<State>) {
     let _ = conn.set_read_timeout(Some(Duration::from_secs(5)));
     let _ = conn.set_write_timeout(Some(WRITE_TIMEOUT));
-    let Some((head, head_len)) = peek_head(&conn) else {
+    let Some((head, head_len, utf8)) = peek_head(&conn) else {
         return;
     };
     let mut first = head.lines().next().unwrap_or("").split_whitespace();
@@ -240,7 +245,8 @@ fn handle(conn: TcpStream, state: &Mutex<State>) {
     let key = head
         .lines()
         .any(|l| l.to_ascii_lowercase().starts_with("sec-websocket-key:"));
-    if method == "GET" && path == "/ws" && upgrade && key {
+    let route = path.split('?').next().unwrap_or("");
+    if method == "GET" && route == "/ws" && upgrade && key {
         websocket(conn, state);
         return;
     }
@@ -250,8 +256,8 @@ fn handle(conn: TcpStream, state: &Mutex<State>) {
     if conn.read_exact(&mut sink).is_err() {
         return;
     }
-    let (status, ctype, body) = match (method, path.split('?').next().unwrap_or("")) {
-        _ if head.contains('\u{fffd}') => ("400 Bad Request", "text/plain; charset=utf-8", "not UTF-8\n"),
+    let (status, ctype, body) = match (method, route) {
+        _ if !utf8 => ("400 Bad Request", "text/plain; charset=utf-8", "not UTF-8\n"),
         ("GET", "/ws") => (
             "400 Bad Request",
             "text/plain; charset=utf-8",
@@ -275,7 +281,11 @@ fn handle(conn: TcpStream, state: &Mutex<State>) {
 }
 
 fn websocket(conn: TcpStream, state: &Mutex<State>) {
-    let Ok(mut ws) = tungstenite::accept(conn) else {
+    // Pages send nothing but control frames: a small limit on what is read from them.
+    let config = tungstenite::protocol::WebSocketConfig::default()
+        .max_message_size(Some(64 << 10))
+        .max_frame_size(Some(64 << 10));
+    let Ok(mut ws) = tungstenite::accept_with_config(conn, Some(config)) else {
         return;
     };
     let (tx, rx): (SyncSender<Message>, Receiver<Message>) = sync_channel(CLIENT_QUEUE);
@@ -300,9 +310,10 @@ fn websocket(conn: TcpStream, state: &Mutex<State>) {
         }
     }
     // While nothing is queued (after the input ends, or in a stall) the page's own frames
-    // are read: a page that closed or vanished frees its place within IDLE_CHECK (a ping
-    // every PING_EVERY finds one whose network went away without a word).
-    let mut idle = Duration::ZERO;
+    // are read: a page that closed frees its place within IDLE_CHECK. Every PING_EVERY of
+    // idleness it is pinged; one that has not answered by the next ping (its network went
+    // away without a word) is let go.
+    let (mut idle, mut unanswered) = (Duration::ZERO, false);
     loop {
         match rx.recv_timeout(IDLE_CHECK) {
             Ok(m) => {
@@ -314,11 +325,17 @@ fn websocket(conn: TcpStream, state: &Mutex<State>) {
             Err(RecvTimeoutError::Disconnected) => break,
             Err(RecvTimeoutError::Timeout) => {
                 idle += IDLE_CHECK;
-                if !page_is_there(&mut ws) {
-                    return;
+                match page_is_there(&mut ws) {
+                    None => return,
+                    Some(true) => unanswered = false,
+                    Some(false) => {}
                 }
                 if idle >= PING_EVERY {
+                    if unanswered {
+                        return;
+                    }
                     idle = Duration::ZERO;
+                    unanswered = true;
                     if ws.send(Message::Ping(Vec::new().into())).is_err() {
                         return;
                     }
@@ -334,21 +351,27 @@ const IDLE_CHECK: Duration = Duration::from_millis(500);
 /// How long a WebSocket stays idle before it pings its page.
 const PING_EVERY: Duration = Duration::from_secs(10);
 
-/// Read what the page sent without waiting: false once it closed, hung up or broke the
-/// protocol (its pings are answered with the next write).
-fn page_is_there(ws: &mut tungstenite::WebSocket<TcpStream>) -> bool {
-    if ws.get_mut().set_nonblocking(true).is_err() {
-        return false;
-    }
+/// Read what the page sent without waiting: `None` once it closed (its close answered),
+/// hung up or broke the protocol; else whether any frame came (its pings are answered
+/// with the next write).
+fn page_is_there(ws: &mut tungstenite::WebSocket<TcpStream>) -> Option<bool> {
+    ws.get_mut().set_nonblocking(true).ok()?;
+    let mut heard = false;
     let there = loop {
         match ws.read() {
             Ok(Message::Close(_)) => break false,
-            Ok(_) => {}
+            Ok(_) => heard = true,
             Err(tungstenite::Error::Io(e)) if e.kind() == std::io::ErrorKind::WouldBlock => break true,
             Err(_) => break false,
         }
     };
-    there && ws.get_mut().set_nonblocking(false).is_ok()
+    ws.get_mut().set_nonblocking(false).ok()?;
+    if !there {
+        // The reply to a close the page sent (queued by the read).
+        let _ = ws.flush();
+        return None;
+    }
+    Some(heard)
 }
 
 #[cfg(test)]
@@ -372,8 +395,12 @@ mod tests {
                     ws
                 })
                 .collect();
-            for mut ws in pages {
+            let mut pages = pages;
+            for ws in &mut pages {
                 ws.close(None).unwrap();
+            }
+            // Each is answered (a close frame, then the end of the connection).
+            for ws in &mut pages {
                 while ws.read().is_ok() {}
             }
             page_loads_within(addr, Duration::from_secs(10), &format!("round {round}"));

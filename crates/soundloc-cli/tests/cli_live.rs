@@ -344,8 +344,9 @@ fn several_pages_at_once_and_a_stalled_one_never_stalls_the_engine() {
     let wall = t.elapsed();
     let hello = hello.expect("hello first");
     assert_eq!(hello["grid"]["azimuth_deg"].as_array().unwrap().len(), 360);
-    // What runs, as stderr says it (the room default: not plain "sevd").
-    assert_eq!(hello["algorithm"], "normmusic (subspace 4, coherence, refined)");
+    // What runs, as stderr says it (the room default: not plain "sevd"), beside the name.
+    assert_eq!(hello["algorithm"], "sevd");
+    assert_eq!(hello["label"], "normmusic (subspace 4, coherence, refined)");
     assert_eq!(results, want, "the reading page gets every result");
     // Spectra are thinned to 50 per second of audio: one every other 10 ms result.
     assert!(

@@ -2,12 +2,12 @@
 //! (the library's [`LocalizerGroup`]); see `soundloc.StreamGroup` in Python.
 
 use crate::spec::PySpec;
+use crate::turns::{Turn, Turns};
 use crate::{channel_count, directions, err, results, samples, Samples};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
 use soundloc::{Block, LocalizerGroup, Output};
-use std::sync::{Mutex, MutexGuard};
 
 struct State {
     group: LocalizerGroup,
@@ -16,10 +16,10 @@ struct State {
 }
 
 /// Streams of several arrays of one kind, localized together. Calls from several
-/// threads take turns ([`crate::lock_released`]).
+/// threads take turns in arrival order ([`Turns`]).
 #[pyclass(module = "soundloc._native", name = "StreamGroup")]
 pub(crate) struct PyGroup {
-    state: Mutex<State>,
+    state: Turns<State>,
     channels_first: bool,
 }
 
@@ -43,10 +43,13 @@ impl PyGroup {
     fn new(py: Python<'_>, spec: &PySpec, streams: usize) -> PyResult<Self> {
         let group = spec.group(py, streams)?;
         Ok(PyGroup {
-            state: Mutex::new(State {
-                outs: vec![Output::default(); group.len()],
-                group,
-            }),
+            state: Turns::new(
+                State {
+                    outs: vec![Output::default(); group.len()],
+                    group,
+                },
+                "stream group",
+            ),
             channels_first: spec.channels_first,
         })
     }
@@ -200,8 +203,8 @@ impl PyGroup {
 }
 
 impl PyGroup {
-    fn lock(&self, py: Python<'_>) -> PyResult<MutexGuard<'_, State>> {
-        crate::lock_released(py, &self.state, "stream group")
+    fn lock(&self, py: Python<'_>) -> PyResult<Turn<'_, State>> {
+        self.state.lock(py)
     }
 }
 

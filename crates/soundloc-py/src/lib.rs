@@ -16,34 +16,13 @@ mod frames;
 mod group;
 mod localizer;
 mod spec;
+mod turns;
 
 pub(crate) fn err(e: soundloc::Error) -> PyErr {
     match e {
         soundloc::Error::Io { .. } => PyOSError::new_err(e.to_string()),
         soundloc::Error::Device(_) => PyRuntimeError::new_err(e.to_string()),
         _ => PyValueError::new_err(e.to_string()),
-    }
-}
-
-/// Lock `m` for a Python call. Another thread's call may hold it while it computes with
-/// the GIL released; this one waits for it *without* the GIL (waiting with it would
-/// deadlock: that call needs the GIL to return its results). A lock left poisoned by a
-/// panic is an error naming `what`.
-pub(crate) fn lock_released<'a, T: Send>(
-    py: Python<'_>,
-    m: &'a std::sync::Mutex<T>,
-    what: &str,
-) -> PyResult<std::sync::MutexGuard<'a, T>> {
-    loop {
-        match m.try_lock() {
-            Ok(g) => return Ok(g),
-            Err(std::sync::TryLockError::Poisoned(_)) => {
-                return Err(PyRuntimeError::new_err(format!(
-                    "the {what} failed in another thread"
-                )))
-            }
-            Err(std::sync::TryLockError::WouldBlock) => py.allow_threads(|| drop(m.lock())),
-        }
     }
 }
 

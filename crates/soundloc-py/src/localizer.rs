@@ -1,6 +1,7 @@
 //! `soundloc._native.Localizer`: one stream (see `soundloc.Localizer` in Python).
 
 use crate::spec::PySpec;
+use crate::turns::{Turn, Turns};
 use crate::{channel_count, directions, err, results, samples, Samples};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
@@ -8,14 +9,13 @@ use pyo3::types::PyDict;
 use soundloc::audio::resample::Resampler;
 use soundloc::{Block, Localizer, Output};
 use std::path::PathBuf;
-use std::sync::{Mutex, MutexGuard};
 
 /// A stateful localizer (see `soundloc.Localizer` in Python for the arguments).
 #[pyclass(module = "soundloc._native", name = "Localizer")]
 pub(crate) struct PyLocalizer {
     /// Behind a mutex: a Python object may be used from several threads (the engine is
-    /// `Send`, not `Sync`); calls from them take turns ([`crate::lock_released`]).
-    inner: Mutex<Localizer>,
+    /// `Send`, not `Sync`); calls from them take turns in arrival order ([`Turns`]).
+    inner: Turns<Localizer>,
     channels_first: bool,
     /// Files the localizer was built from (the TF file, a noise-CM pair or recording):
     /// `localize_file` never writes over them.
@@ -38,7 +38,7 @@ impl PyLocalizer {
             _ => {}
         }
         Ok(PyLocalizer {
-            inner: Mutex::new(spec.localizer(py)?),
+            inner: Turns::new(spec.localizer(py)?, "localizer"),
             channels_first: spec.channels_first,
             files,
         })
@@ -197,8 +197,8 @@ impl PyLocalizer {
 }
 
 impl PyLocalizer {
-    fn lock(&self, py: Python<'_>) -> PyResult<MutexGuard<'_, Localizer>> {
-        crate::lock_released(py, &self.inner, "localizer")
+    fn lock(&self, py: Python<'_>) -> PyResult<Turn<'_, Localizer>> {
+        self.inner.lock(py)
     }
 }
 

@@ -422,3 +422,29 @@ def test_calls_from_several_threads_take_turns():
     for g in got:
         assert np.array_equal(g.azimuth_deg, want.azimuth_deg)
         assert np.array_equal(g.spectrum_db, want.spectrum_db)
+
+
+def test_a_thread_in_a_tight_loop_does_not_starve_another():
+    """Turns go in arrival order: while one thread pushes block after block, another's
+    calls still get their turn (it could wait for ever when the lock went to whoever held
+    the GIL as it freed)."""
+    import threading
+    import time
+
+    x = scene(seconds=1.0)
+    loc = localizer(period=1)
+    done = threading.Event()
+    calls = []
+
+    def other():
+        for _ in range(20):
+            calls.append(loc.fs)
+        done.set()
+
+    t = threading.Thread(target=other)
+    end = time.monotonic() + 30
+    t.start()
+    while not done.is_set() and time.monotonic() < end:
+        loc.push(x[:160])
+    t.join(timeout=30)
+    assert done.is_set() and calls == [FS] * 20

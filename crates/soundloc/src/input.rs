@@ -260,7 +260,8 @@ impl ChannelMap {
         let mut idx: Vec<usize> = if self.input_channels.is_empty() {
             match &self.raw {
                 Some(r) if n == r.channels => r.map.clone(),
-                Some(r) if n != r.map.len() => {
+                // The microphones themselves, all of them or the TF selection's.
+                Some(r) if n != r.map.len() && (self.tf_channels.is_empty() || n != self.tf_channels.len()) => {
                     return Err(Error::Mismatch(format!(
                         "has {n} channels; the array file maps {} of a {}-channel device's channels to its microphones \
                          (mapping.map), so give the device's {} channels, or {} holding the microphones in the file's order \
@@ -439,5 +440,9 @@ mod tests {
             ..m
         };
         assert_eq!(sel.resolve(6).unwrap(), vec![1, 4]);
+        // An input of just the selected microphones is taken as it is, as without a map.
+        assert_eq!(sel.resolve(2).unwrap(), vec![0, 1]);
+        assert_eq!(sel.resolve(4).unwrap(), vec![0, 3]);
+        assert!(sel.resolve(3).is_err());
     }
 }

@@ -168,3 +168,26 @@ fn a_message_after_the_receiver_closed_is_counted_as_dropped() {
     let stats = net.finish(Duration::from_secs(2));
     assert_eq!((stats.sent, stats.dropped), (1, 3), "{stats:?}");
 }
+
+/// A receiver that shuts only its sending side (`ncat` at the end of its own input) still
+/// reads: every message reaches it, none is dropped, no reconnection.
+#[test]
+fn a_half_closed_receiver_still_gets_every_message() {
+    let l = TcpListener::bind("127.0.0.1:0").unwrap();
+    let net = NetSender::start("test", &l.local_addr().unwrap().to_string()).unwrap();
+    let (conn, _) = l.accept().unwrap();
+    conn.shutdown(std::net::Shutdown::Write).unwrap();
+    wait_until("connected", || net.is_connected());
+    std::thread::sleep(Duration::from_millis(100));
+    for i in 0..20 {
+        net.send(format!("m{i}\n").into_bytes());
+    }
+    let stats = net.finish(Duration::from_secs(5));
+    let got: Vec<String> = BufReader::new(conn).lines().map(|l| l.unwrap()).collect();
+    assert_eq!(got, (0..20).map(|i| format!("m{i}")).collect::<Vec<_>>());
+    assert_eq!(
+        (stats.sent, stats.dropped, stats.connections),
+        (20, 0, 1),
+        "{stats:?}"
+    );
+}

@@ -165,6 +165,8 @@ fn one_sample_pushes_and_f64_equal_batch() {
         "push after flush: call reset to start a new stream"
     );
     assert_same(&out, &batch, "after a refused push");
+    let e = loc.skip(160, &mut out).unwrap_err();
+    assert!(matches!(e, soundloc::Error::State(_)), "{e:?}");
     loc.reset().unwrap();
     let mut again = Output::default();
     loc.push(Block::Planar(&short), &mut again).unwrap();

@@ -89,7 +89,7 @@ pub fn run(mut a: Args) -> anyhow::Result<ExitCode> {
     let all = inputs(&a)?;
     if let Some(p) = all.iter().find(|p| {
         let s = p.to_string_lossy();
-        s == "-" || s.ends_with("/-") || s.starts_with("tcp:") || s.starts_with("tcp-listen:")
+        s == "-" || s.starts_with("tcp:") || s.starts_with("tcp-listen:")
     }) {
         bail!(
             "{}: batch localizes recordings (files); for standard input or a network source use `soundloc localize`",

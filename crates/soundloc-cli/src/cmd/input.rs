@@ -121,7 +121,7 @@ impl InputArgs {
                 name: PathBuf::from("standard input"),
             });
         }
-        if self.realtime && self.input.starts_with("tcp") {
+        if self.realtime && (self.input.starts_with("tcp:") || self.input.starts_with("tcp-listen:")) {
             bail!("--realtime paces a file; a network source arrives at its sender's pace");
         }
         if let Some(addr) = self.input.strip_prefix("tcp:") {
@@ -196,9 +196,9 @@ pub fn catch_up(rx: &Receiver<Msg>, data: &mut Vec<f32>, max: usize, held: &mut 
 /// Frames per block read from a file.
 const FILE_BLOCK: usize = 1 << 15;
 
-/// Longest `--max-buffer` accepted, seconds. The queue's slots (one per ~20 ms block) are
-/// reserved up front: an hour of them is a few MB; the audio itself takes memory only
-/// while it waits.
+/// Longest `--max-buffer` accepted, seconds. The queue's slots are reserved up front:
+/// for an hour, one per ~20 ms block here is a few MB, one per 320 frames in `listen` some
+/// tens of MB at 48 kHz; the audio itself takes memory only while it waits.
 pub const MAX_BUFFER_S: f64 = 3600.0;
 
 /// `--max-buffer` above 0 and at most [`MAX_BUFFER_S`].

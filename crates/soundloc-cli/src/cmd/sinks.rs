@@ -350,7 +350,8 @@ impl Sinks {
                 let fs = c.sample_rate_hz as f64;
                 let info = live::RunInfo {
                     source: source.to_string(),
-                    algorithm: c.label(),
+                    algorithm: c.algorithm.name().to_string(),
+                    label: c.label(),
                     device: loc.device_name(),
                     sample_rate_hz: c.sample_rate_hz,
                     hop: c.hop,

@@ -192,26 +192,30 @@ impl Geometry {
     }
 
     /// Read a geometry file with the capture device's channel map it may carry: an ODAS
-    /// configuration (named `*.cfg` or `*.conf`, or any file that is not TOML but is
-    /// one; [`super::odas_cfg`]) gives its positions and its `mapping`; a TOML file its
-    /// positions and no map.
+    /// configuration (libconfig with `general.mics`, whatever the file's name;
+    /// [`super::odas_cfg`]) gives its positions and its `mapping`; a TOML file its
+    /// positions and no map. When neither fits, a `*.cfg`/`*.conf` file gets ODAS's error,
+    /// any other TOML's.
     pub fn load_with_mapping(path: &Path) -> Result<(Self, Option<RawMapping>)> {
         let text =
             crate::formats::read_text_bounded(path, crate::formats::MAX_GEOMETRY_BYTES, "geometry file")?;
         let odas = |t: &str| OdasArray::from_str(t, path).map(|a| (a.geometry, a.mapping));
-        if path
+        let cfg_name = path
             .extension()
-            .is_some_and(|e| e.eq_ignore_ascii_case("cfg") || e.eq_ignore_ascii_case("conf"))
-        {
-            return odas(&text);
-        }
-        match Self::from_toml_str(&text, path) {
-            Ok(g) => Ok((g, None)),
-            // ODAS text under another name; otherwise the TOML error is the one to show.
-            Err(e) => match crate::formats::libconfig::parse(&text, path) {
-                Ok(root) if root.get("general").and_then(|g| g.get("mics")).is_some() => odas(&text),
-                _ => Err(e),
-            },
+            .is_some_and(|e| e.eq_ignore_ascii_case("cfg") || e.eq_ignore_ascii_case("conf"));
+        let libconfig = crate::formats::libconfig::parse(&text, path);
+        let has_mics = |root: &crate::formats::libconfig::Value| {
+            root.get("general").and_then(|g| g.get("mics")).is_some()
+        };
+        match (libconfig, Self::from_toml_str(&text, path)) {
+            // ODAS's layout (whatever the name): its positions and map.
+            (Ok(ref root), _) if has_mics(root) => odas(&text),
+            (_, Ok(g)) => Ok((g, None)),
+            // Neither: a *.cfg file's error is ODAS's (the line of a syntax error, or the
+            // missing general.mics), any other file's is TOML's.
+            (Err(e), Err(_)) if cfg_name => Err(e),
+            (Ok(_), Err(_)) if cfg_name => odas(&text),
+            (_, Err(e)) => Err(e),
         }
     }
 
@@ -355,9 +359,13 @@ mod tests {
             .unwrap_err()
             .to_string()
             .contains("invalid TOML"));
-        // A .cfg that is not ODAS's says so.
+        // A TOML geometry named .cfg still loads as TOML.
+        let p = dir.join("toml.cfg");
+        std::fs::write(&p, "mics = [[0, 0, 0], [0.1, 0, 0]]").unwrap();
+        assert_eq!(Geometry::load_with_mapping(&p).unwrap().0.num_mics(), 2);
+        // A .cfg that is neither says what ODAS's layout lacks.
         let p = dir.join("other.cfg");
-        std::fs::write(&p, "mics = [[0, 0, 0]]").unwrap();
+        std::fs::write(&p, "mics = 5;").unwrap();
         assert!(Geometry::load(&p)
             .unwrap_err()
             .to_string()

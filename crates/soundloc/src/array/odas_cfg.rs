@@ -124,8 +124,10 @@ fn device_map(root: &Value, map: &Value, mics: usize, path: &Path) -> Result<Raw
     }
     if let Some((c, first, again)) = crate::input::repeated(&out) {
         return Err(fail(format!(
-            "mapping.map: channel {} feeds microphones {first} and {again} (0-based; each channel one microphone)",
-            c + 1
+            "mapping.map: channel {} feeds microphones {} and {} (each channel one microphone)",
+            c + 1,
+            first + 1,
+            again + 1
         )));
     }
     Ok(RawMapping { channels, map: out })
@@ -134,7 +136,7 @@ fn device_map(root: &Value, map: &Value, mics: usize, path: &Path) -> Result<Raw
 fn describe(v: &Value) -> String {
     match v {
         Value::Int(i) => i.to_string(),
-        Value::Float(f) => f.to_string(),
+        Value::Float(f) => format!("{f:?}"),
         Value::List(l) => format!("a list of {}", l.len()),
         v => v.kind().to_string(),
     }
@@ -318,7 +320,7 @@ sne:
             "r.cfg: mapping.map lists 3 channels but general.mics has 4 microphones"
         );
         assert!(e("map: (2, 3, 4, 5)", "map: (2, 3, 3, 5)")
-            .contains("mapping.map: channel 3 feeds microphones 1 and 2"));
+            .contains("mapping.map: channel 3 feeds microphones 2 and 3"));
         assert!(e("nChannels = 6;", "").contains("needs `raw.nChannels`"));
         assert_eq!(
             e("mu = ( +0.032, +0.000, +0.000 )", "mu = ( +0.032, +0.000 )"),

@@ -227,6 +227,11 @@ impl<T: Real> Engine<T> {
     /// times stay true (`time_s` counts the lost samples), the tracker and the K in use
     /// are kept; a noise estimate still arriving is finished with what it had.
     pub fn skip(&mut self, samples: u64, out: &mut Output) -> Result<()> {
+        if self.finished {
+            return Err(Error::State(
+                "skip after flush: call reset to start a new stream".into(),
+            ));
+        }
         let received = self.stft.samples_received() as u64;
         let fs = self.plan.config.sample_rate_hz as f64;
         let held = self.pending.len();

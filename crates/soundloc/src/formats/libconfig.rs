@@ -80,7 +80,7 @@ impl Value {
 /// Parse libconfig `text` into its root group. Errors name `path` and the line.
 pub fn parse(text: &str, path: &Path) -> Result<Value> {
     let mut p = Parser {
-        s: text.as_bytes(),
+        s: text.strip_prefix('\u{feff}').unwrap_or(text).as_bytes(),
         i: 0,
         path,
     };
@@ -129,15 +129,11 @@ impl Parser<'_> {
                 Some(b'#') => self.skip_line(),
                 Some(b'/') if self.s.get(self.i + 1) == Some(&b'/') => self.skip_line(),
                 Some(b'/') if self.s.get(self.i + 1) == Some(&b'*') => {
-                    let start = self.line();
                     match self.s[self.i + 2..].windows(2).position(|w| w == b"*/") {
                         Some(k) => self.i += 2 + k + 2,
-                        None => {
-                            return Err(Error::format(
-                                self.path,
-                                format!("line {start}: a /* comment is never closed"),
-                            ))
-                        }
+                        // (The line is counted only here: counting it for every comment
+                        // would make a file of many comments quadratic.)
+                        None => return self.fail("a /* comment is never closed"),
                     }
                 }
                 _ => return Ok(()),
@@ -176,6 +172,9 @@ impl Parser<'_> {
                 _ => {}
             }
             let name = self.name()?;
+            if out.iter().any(|(n, _)| *n == name) {
+                return self.fail(format!("`{name}` is set twice in one group"));
+            }
             self.blank()?;
             match self.peek() {
                 Some(b'=' | b':') => self.i += 1,
@@ -279,6 +278,7 @@ impl Parser<'_> {
                             let hex = self
                                 .s
                                 .get(self.i..self.i + 2)
+                                .filter(|h| h.iter().all(|b| b.is_ascii_hexdigit()))
                                 .and_then(|h| std::str::from_utf8(h).ok());
                             match hex.and_then(|h| u8::from_str_radix(h, 16).ok()) {
                                 Some(b) => {
@@ -323,7 +323,9 @@ impl Parser<'_> {
             _ => (1, int),
         };
         let parsed = if let Some(h) = digits.strip_prefix("0x").or_else(|| digits.strip_prefix("0X")) {
-            i64::from_str_radix(h, 16).ok()
+            (!h.is_empty() && h.bytes().all(|b| b.is_ascii_hexdigit()))
+                .then(|| i64::from_str_radix(h, 16).ok())
+                .flatten()
         } else if !digits.is_empty() && digits.bytes().all(|b| b.is_ascii_digit()) {
             digits.parse::<i64>().ok()
         } else {
@@ -410,5 +412,19 @@ mod tests {
         let deep = format!("a = {}{}", "(".repeat(100), ")".repeat(100));
         assert!(e(&deep).contains("nested deeper than 64"));
         assert_eq!(p("").unwrap(), Value::Group(Vec::new()));
+        assert_eq!(
+            e("a = 0x-5;"),
+            "a.cfg: line 1: `0x-5` is not a number, a boolean or a \"string\""
+        );
+        assert!(e("s = \"\\x+1\";").contains("two hex digits"));
+        assert_eq!(
+            e("g = { a = 1;\n a = 2; };"),
+            "a.cfg: line 2: `a` is set twice in one group"
+        );
+        // A byte-order mark is not part of the text.
+        assert_eq!(p("\u{feff}a = 1;").unwrap().get("a"), Some(&Value::Int(1)));
+        // Many comments take linear time (the line was counted for each of them).
+        let many = "/**/".repeat(1 << 20) + "a = 1;";
+        assert_eq!(p(&many).unwrap().get("a"), Some(&Value::Int(1)));
     }
 }

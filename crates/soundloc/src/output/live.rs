@@ -5,7 +5,9 @@
 //!
 //! - `hello` (first, once per client): the grid (`azimuth_deg`, `elevation_deg` per
 //!   direction, `kind` `"ring"` when all directions share one elevation, else `"sphere"`),
-//!   the run (`source`, `algorithm`, `device`, `sample_rate_hz`, `hop`, `latency_ms`: the
+//!   the run (`source`, `algorithm` (its name, e.g. `sevd`), `label` (what runs, for people:
+//!   e.g. `normmusic (subspace 4, coherence, refined)`), `device`, `sample_rate_hz`, `hop`,
+//!   `latency_ms`: the
 //!   algorithmic latency, the window's look-ahead plus one frame) and the look from
 //!   [`super::style`] (`colormap`: 256 RGB triples, `track_colours`, `peak_colour`,
 //!   `azimuth_bin_deg`, `scale_results`).
@@ -42,8 +44,10 @@ pub const SPECTRUM_HEADER_BYTES: usize = 28;
 pub struct RunInfo {
     /// Name of the input (file, `standard input`, device...).
     pub source: String,
-    /// Algorithm name (e.g. `GEVD`).
+    /// Algorithm name (e.g. `gevd`).
     pub algorithm: String,
+    /// What runs, for people ([`crate::LocalizeConfig::label`]).
+    pub label: String,
     /// Compute device (e.g. `cpu`, `cuda:0 (NVIDIA H100)`).
     pub device: String,
     /// Sampling rate, Hz.
@@ -64,6 +68,7 @@ pub fn hello(info: &RunInfo, azimuth_deg: &[f64], elevation_deg: &[f64]) -> Stri
         "version": 1,
         "source": info.source,
         "algorithm": info.algorithm,
+        "label": info.label,
         "device": info.device,
         "sample_rate_hz": info.sample_rate_hz,
         "hop": info.hop,
@@ -158,7 +163,8 @@ mod tests {
     fn hello_says_ring_or_sphere_and_carries_the_style() {
         let info = RunInfo {
             source: "x.wav".into(),
-            algorithm: "GEVD".into(),
+            algorithm: "gevd".into(),
+            label: "gevd (subspace 4, refined)".into(),
             device: "cpu".into(),
             sample_rate_hz: 16000,
             hop: 160,

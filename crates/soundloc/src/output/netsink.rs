@@ -5,10 +5,11 @@
 //!
 //! - messages wait in a bounded queue ([`QUEUE_MESSAGES`]); when it is full (the receiver is
 //!   absent or slower than the results) the new message is **dropped and counted**;
-//! - a message being written when the connection breaks, or due after the receiver
-//!   closed (checked before each write: TCP would take one more write without a word),
-//!   is dropped and counted too; the next one goes to the new connection (messages are
-//!   never split across connections);
+//! - a message being written when the connection breaks is dropped and counted too, and
+//!   so are those written after the receiver shut its side (TCP takes a write or two
+//!   after the peer left without a word; a receiver that only half-closed still gets
+//!   them); the next one goes to the new connection (messages are never split across
+//!   connections);
 //! - what happened (connected, lost, how many dropped) is reported as notes
 //!   ([`NetSender::take_notes`]) and in the final [`NetStats`].
 //!
@@ -201,28 +202,32 @@ fn connect(addrs: &[SocketAddr]) -> std::io::Result<TcpStream> {
     Err(last)
 }
 
-/// Whether the receiver has closed or reset the connection, read without waiting: its
-/// end of file or error. (Receivers send nothing; bytes they do send are left unread.)
-fn peer_closed(s: &TcpStream) -> Option<std::io::Error> {
-    if s.set_nonblocking(true).is_err() {
-        return None;
-    }
-    let mut b = [0u8; 1];
-    let closed = match s.peek(&mut b) {
-        Ok(0) => Some(std::io::Error::new(
-            std::io::ErrorKind::ConnectionAborted,
-            "the receiver closed the connection",
-        )),
-        Ok(_) => None,
-        Err(e) if e.kind() == std::io::ErrorKind::WouldBlock => None,
-        Err(e) => Some(e),
+/// Read what the receiver sent, without waiting, and throw it away (receivers send
+/// nothing that matters; unread, it would hide their end of file): `Ok(true)` once they
+/// have shut their side (end of file), `Err` when the connection is broken.
+fn peer_shut(s: &TcpStream) -> std::io::Result<bool> {
+    use std::io::Read;
+    s.set_nonblocking(true)?;
+    let mut buf = [0u8; 4096];
+    let shut = loop {
+        match (&*s).read(&mut buf) {
+            Ok(0) => break Ok(true),
+            Ok(_) => continue,
+            Err(e) if e.kind() == std::io::ErrorKind::WouldBlock => break Ok(false),
+            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => continue,
+            Err(e) => break Err(e),
+        }
     };
-    let _ = s.set_nonblocking(false);
-    closed
+    s.set_nonblocking(false)?;
+    shut
 }
 
 fn run(what: &str, peer: &str, addrs: &[SocketAddr], rx: &Receiver<Vec<u8>>, sh: &Shared) {
     let mut conn: Option<TcpStream> = None;
+    // Messages written since the receiver shut its side: it may still read (a half-close,
+    // e.g. `ncat` at the end of its input) or be gone, in which case TCP took them without
+    // a word. Counted as sent, and moved to dropped if the connection then breaks.
+    let mut unconfirmed = 0u64;
     let mut next_try = Instant::now();
     let mut said_absent = false;
     let drop_one = || {
@@ -245,6 +250,7 @@ fn run(what: &str, peer: &str, addrs: &[SocketAddr], rx: &Receiver<Vec<u8>>, sh:
                     });
                     said_absent = false;
                     conn = Some(s);
+                    unconfirmed = 0;
                 }
                 Err(e) => {
                     if !said_absent {
@@ -268,18 +274,28 @@ fn run(what: &str, peer: &str, addrs: &[SocketAddr], rx: &Receiver<Vec<u8>>, sh:
                     // A receiver that has closed takes one more write without an error
                     // (the refusal comes back later): ask the socket first, so that the
                     // message is counted as dropped instead of lost unseen.
-                    let sent = match peer_closed(s) {
-                        Some(why) => Err(why),
-                        None => s.write_all(&msg).and_then(|_| s.flush()),
-                    };
-                    if let Err(e) = sent {
-                        drop_one();
-                        sh.connected.store(false, Ordering::Relaxed);
-                        sh.note(format!("{what}: connection to {peer} lost ({e}); reconnecting"));
-                        conn = None;
-                        next_try = Instant::now();
-                    } else {
-                        sh.sent.fetch_add(1, Ordering::Relaxed);
+                    let sent = peer_shut(s).and_then(|shut| {
+                        s.write_all(&msg).and_then(|_| s.flush())?;
+                        Ok(shut)
+                    });
+                    match sent {
+                        Err(e) => {
+                            drop_one();
+                            // What TCP took after the receiver left never arrived.
+                            sh.sent.fetch_sub(unconfirmed, Ordering::Relaxed);
+                            sh.dropped.fetch_add(unconfirmed, Ordering::Relaxed);
+                            unconfirmed = 0;
+                            sh.connected.store(false, Ordering::Relaxed);
+                            sh.note(format!("{what}: connection to {peer} lost ({e}); reconnecting"));
+                            conn = None;
+                            next_try = Instant::now();
+                        }
+                        Ok(shut) => {
+                            sh.sent.fetch_add(1, Ordering::Relaxed);
+                            if shut || unconfirmed > 0 {
+                                unconfirmed += 1;
+                            }
+                        }
                     }
                 }
                 None => drop_one(),
