@@ -261,16 +261,22 @@ impl ChannelMap {
             match &self.raw {
                 Some(r) if n == r.channels => r.map.clone(),
                 // The microphones themselves, all of them or the TF selection's.
-                Some(r) if n != r.map.len() && (self.tf_channels.is_empty() || n != self.tf_channels.len()) => {
+                Some(r)
+                    if n != r.map.len() && (self.tf_channels.is_empty() || n != self.tf_channels.len()) =>
+                {
+                    let selected = match self.tf_channels.len() {
+                        0 => String::new(),
+                        k => format!(", or the {k} that --channels selects"),
+                    };
                     return Err(Error::Mismatch(format!(
                         "has {n} channels; the array file maps {} of a {}-channel device's channels to its microphones \
-                         (mapping.map), so give the device's {} channels, or {} holding the microphones in the file's order \
+                         (mapping.map), so give the device's {} channels, or {} holding the microphones in the file's order{selected} \
                          (or pick them: --input-channels, input_channels=[...] in Python)",
                         r.map.len(),
                         r.channels,
                         r.channels,
                         r.map.len()
-                    )))
+                    )));
                 }
                 _ => (0..n).collect(),
             }
@@ -443,6 +449,7 @@ mod tests {
         // An input of just the selected microphones is taken as it is, as without a map.
         assert_eq!(sel.resolve(2).unwrap(), vec![0, 1]);
         assert_eq!(sel.resolve(4).unwrap(), vec![0, 3]);
-        assert!(sel.resolve(3).is_err());
+        let e = sel.resolve(3).unwrap_err().to_string();
+        assert!(e.contains("or the 2 that --channels selects"), "{e}");
     }
 }
