@@ -190,7 +190,7 @@ pub fn run(mut a: Args) -> anyhow::Result<ExitCode> {
         };
         let res = input.open(true).and_then(|inp| {
             let (fmt, rx) = spawn_reader(inp.source, false, input.max_buffer, false, false);
-            drive(&a.run, &inp.name, false, fmt, rx)
+            drive(&a.run, &inp.name, false, fmt, rx, None)
         });
         match res {
             Ok(code) if code == ExitCode::SUCCESS => {

@@ -232,7 +232,7 @@ mod capture {
             channels,
             total_frames: None,
         };
-        let code = drive(&a.run, std::path::Path::new(&dname), true, fmt, rx);
+        let code = drive(&a.run, std::path::Path::new(&dname), true, fmt, rx, None);
         drop(stream);
         code
     }

@@ -6,7 +6,7 @@ use super::sinks::{Progress, Sinks};
 pub use super::FormatArg;
 use anyhow::{anyhow, bail};
 use soundloc::audio::AudioFormat;
-use soundloc::{Block, Localizer, Output};
+use soundloc::{Block, Localizer, LocalizerSpec, Output};
 use std::path::Path;
 use std::process::ExitCode;
 use std::sync::mpsc::Receiver;
@@ -29,18 +29,21 @@ pub fn note(quiet: bool, msg: &str) {
 
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     Sinks::check_paths(&args.run, Some(Path::new(&args.input.input)))?;
+    let mut ready = None;
     if args.input.input.starts_with("tcp-listen:") {
         // What can be checked before a sender connects is checked now: an error after it
         // connected would throw its audio away. The transfer functions (and K) are loaded
         // where the rate is known (a raw input's --rate, or a TF file's own), and a raw
-        // input's channels are checked against the array.
+        // input's channels are checked against the array. The localizer is kept for the
+        // run when the sender's audio asks for the same one.
         let spec = args.run.spec(args.input.rate.unwrap_or(16000))?;
         if let (Some(rate), Some(channels)) = (args.input.rate, args.input.raw_channels) {
-            Localizer::new(&spec)?
-                .input_converter(rate, channels)
+            let loc = Localizer::new(&spec)?;
+            loc.input_converter(rate, channels)
                 .map_err(|e| anyhow!("{}: {e}", args.input.input))?;
+            ready = Some((spec, loc));
         } else if args.run.tf.is_some() {
-            Localizer::new(&spec)?;
+            ready = Some((spec.clone(), Localizer::new(&spec)?));
         }
     }
     let input = args.input.open(args.run.quiet)?;
@@ -51,20 +54,25 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         args.input.realtime,
         args.run.live.serve.is_some(),
     );
-    drive(&args.run, &input.name, input.live, fmt, rx)
+    drive(&args.run, &input.name, input.live, fmt, rx, ready)
 }
 
-/// Localize what the reader sends, writing results as they complete.
+/// Localize what the reader sends, writing results as they complete. `ready`: a
+/// localizer already built, used if its spec is the one this input needs.
 pub fn drive(
     a: &RunArgs,
     name: &Path,
     live: bool,
     fmt: AudioFormat,
     rx: Receiver<Msg>,
+    ready: Option<(LocalizerSpec, Localizer)>,
 ) -> anyhow::Result<ExitCode> {
     let spec = a.spec(fmt.sample_rate_hz)?;
     tracing::debug!("localizer: setting up");
-    let mut loc = Localizer::new(&spec)?;
+    let mut loc = match ready {
+        Some((s, loc)) if s == spec => loc,
+        _ => Localizer::new(&spec)?,
+    };
     tracing::debug!("localizer ready");
     // Set-up notes (the algorithm run, the TF cache) once per process: `batch` sets up
     // one localizer per recording.

@@ -21,9 +21,7 @@
 //! the frames of a preceding-frames K); a large block is processed in pieces of
 //! [`CHUNK_FRAMES`] frames.
 
-use crate::backend::{
-    cpu::CpuBackend, Backend, BatchOutput, DeviceChoice, Job, StageTimes, StreamId, WindowSpec,
-};
+use crate::backend::{Backend, BatchOutput, DeviceChoice, StageTimes, StreamId, WindowSpec};
 use crate::correlation::WindowScheduler;
 use crate::input::{Block, ChannelMap};
 use crate::noise::policy::{InitialNoise, KSource, NoisePolicy, NoiseUpdate};
@@ -40,6 +38,7 @@ pub(crate) mod device;
 mod group;
 mod results;
 mod types;
+mod windows;
 
 pub use device::make_backend;
 pub use group::StreamGroup;
@@ -479,111 +478,6 @@ impl<T: Real> Engine<T> {
             self.current = None;
         }
         Ok(())
-    }
-
-    /// Transform the complete frames, run the due windows, drop what is no longer needed.
-    fn advance(&mut self, out: &mut Output) -> Result<()> {
-        let before = self.ring.end();
-        self.stft
-            .frames_into(&mut self.ring, self.noise.keep_samples_from());
-        let after = self.ring.end();
-        self.noise.observe_frames(&self.ring, before..after)?;
-        let mut due = Vec::new();
-        self.scheduler.due(after, &mut due);
-        self.pending.extend(due);
-        self.run_pending(out)?;
-        self.release_frames();
-        Ok(())
-    }
-
-    /// Drop the frames no window still needs (those of windows waiting to run stay, and,
-    /// while windows overlap by more than half, those of the last window run).
-    fn release_frames(&mut self) {
-        let mut next = self.pending.front().map_or(self.scheduler.next_start(), |w| {
-            w.start.min(self.scheduler.next_start())
-        });
-        let c = &self.plan.config;
-        if let Some(s) = self.last_start.filter(|_| 2 * c.period < c.window) {
-            next = next.min(s);
-        }
-        self.ring.drop_before(self.noise.keep_frames_from(next));
-    }
-
-    /// Run pending windows in batches that share a K, switching K between them.
-    fn run_pending(&mut self, out: &mut Output) -> Result<()> {
-        let Some(batch) = self.backend.as_ref().map(|b| b.max_windows_per_batch().max(1)) else {
-            return Ok(()); // a group's stream: the group runs them
-        };
-        while let Some(&w) = self.pending.front() {
-            let Some(src) = self.noise.choose(&w) else {
-                return Ok(()); // K not known yet: hold
-            };
-            if self.current.as_ref() != Some(&src) {
-                let (k, what) = self.noise.matrices(&src, &self.ring, w.frame)?;
-                self.install(&k)
-                    .map_err(|e| Error::Mismatch(format!("{what}: {e}")))?;
-                self.current = Some(src.clone());
-            }
-            let mut chunk = vec![w];
-            self.pending.pop_front();
-            while chunk.len() < batch {
-                match self.pending.front() {
-                    Some(&next) if self.noise.choose(&next).as_ref() == Some(&src) => {
-                        chunk.push(next);
-                        self.pending.pop_front();
-                    }
-                    _ => break,
-                }
-            }
-            self.run_windows(&chunk, out)?;
-        }
-        Ok(())
-    }
-
-    fn run_windows(&mut self, windows: &[WindowSpec], out: &mut Output) -> Result<()> {
-        let want = self.wants_spectrum();
-        let mut batch = std::mem::take(&mut self.batch);
-        let job = Job {
-            stream: self.stream,
-            first: self.ring.first(),
-            spectra: self.ring.spectra(),
-            windows,
-        };
-        let mut r = match self.backend.as_mut() {
-            Some(b) => b.process(&[job], want, &mut batch),
-            None => Err(Error::Config(
-                "a group's stream runs its windows through the group".into(),
-            )),
-        };
-        if let (Err(Error::Device(e)), true) = (&r, self.cpu_fallback) {
-            out.notes.push(format!(
-                "warning: {} failed ({e}); going on with the CPU from frame {}",
-                self.device_name(),
-                self.report_frame(windows[0].frame)
-            ));
-            let mut cpu: Box<dyn Backend<T>> = Box::new(CpuBackend::new(self.plan.clone()));
-            r = cpu.process(&[job], want, &mut batch);
-            self.backend = Some(cpu);
-            self.cpu_fallback = false;
-        }
-        let r = r.and_then(|()| self.deliver(windows, &batch, 0, out));
-        self.batch = batch;
-        r
-    }
-
-    /// The job that hands `windows` (of this stream, absolute frames) to a backend.
-    fn job<'a>(&'a self, windows: &'a [WindowSpec]) -> Job<'a, T> {
-        Job {
-            stream: self.stream,
-            first: self.ring.first(),
-            spectra: self.ring.spectra(),
-            windows,
-        }
-    }
-
-    /// Whether windows run for this stream ask for the spectrum.
-    fn wants_spectrum(&self) -> bool {
-        self.options.want_spectrum || self.plan.config.refine
     }
 
     /// Batch: push planar channels whole, then flush.

@@ -48,6 +48,7 @@ impl SpectrumTable {
 /// window, in window order, when the engine was asked for spectra) and notes for the user
 /// (a noise range cut at the end of the input, an unused segment).
 #[derive(Debug, Clone, Default)]
+#[non_exhaustive]
 pub struct Output {
     /// Results, in increasing frame order.
     pub results: Vec<LocalizationResult>,

@@ -59,22 +59,31 @@ pub fn stale_temporaries(dir: &Path) -> Vec<PathBuf> {
         .filter(|e| {
             let name = e.file_name();
             let Some(name) = name.to_str() else { return false };
-            let Some((head, _)) = name.strip_prefix('.').and_then(|n| n.rsplit_once(".tmp")) else {
-                return false;
-            };
-            let Some((_, id)) = head.rsplit_once('.') else {
-                return false;
-            };
-            let Some((pid, n)) = id.split_once('-') else {
-                return false;
-            };
-            let digits = |s: &str| !s.is_empty() && s.bytes().all(|b| b.is_ascii_digit());
-            digits(pid) && digits(n) && !Path::new("/proc").join(pid).exists()
+            temporary_pid(name).is_some_and(|pid| !Path::new("/proc").join(pid).exists())
         })
         .map(|e| e.path())
         .collect();
     stale.sort();
     stale
+}
+
+/// The name of [`AtomicFile`]'s temporary file for the target file name `name`:
+/// `.<name>.<pid>-<n>.tmp<suffix>`. [`temporary_pid`] reads it back.
+fn temporary_name(name: &std::ffi::OsStr, pid: u32, n: u64, suffix: &str) -> std::ffi::OsString {
+    let mut temp_name = std::ffi::OsString::from(".");
+    temp_name.push(name);
+    temp_name.push(format!(".{pid}-{n}.tmp{suffix}"));
+    temp_name
+}
+
+/// The writer's process id (decimal digits) in a name made by [`temporary_name`], or
+/// `None` for any other name.
+fn temporary_pid(file_name: &str) -> Option<&str> {
+    let (head, _) = file_name.strip_prefix('.')?.rsplit_once(".tmp")?;
+    let (_, id) = head.rsplit_once('.')?;
+    let (pid, n) = id.split_once('-')?;
+    let digits = |s: &str| !s.is_empty() && s.bytes().all(|b| b.is_ascii_digit());
+    (digits(pid) && digits(n)).then_some(pid)
 }
 
 /// A file being written that appears at its target path only on [`commit`](Self::commit).
@@ -145,10 +154,7 @@ impl AtomicFile {
         let mut last_err = None;
         for _ in 0..16 {
             let n = COUNTER.fetch_add(1, Ordering::Relaxed);
-            let mut temp_name = std::ffi::OsString::from(".");
-            temp_name.push(name);
-            temp_name.push(format!(".{pid}-{n}.tmp{suffix}"));
-            let temp = dir.join(temp_name);
+            let temp = dir.join(temporary_name(name, pid, n, suffix));
             // Created and registered under the lock: a signal between the two cannot
             // leave it behind.
             let mut registry = live();
@@ -403,6 +409,26 @@ mod tests {
             .collect();
         v.sort();
         v
+    }
+
+    #[test]
+    fn temporary_names_are_read_back_and_others_are_not() {
+        let name = temporary_name(std::ffi::OsStr::new("rec.take1.jsonl"), 4321, 7, ".png");
+        assert_eq!(name, ".rec.take1.jsonl.4321-7.tmp.png");
+        assert_eq!(temporary_pid(name.to_str().unwrap()), Some("4321"));
+        let plain = temporary_name(std::ffi::OsStr::new("a"), 1, 0, "");
+        assert_eq!(temporary_pid(plain.to_str().unwrap()), Some("1"));
+        for other in [
+            "rec.jsonl",
+            "rec.4321-7.tmp",
+            ".rec.4321-.tmp",
+            ".rec.x1-7.tmp",
+            ".rec.4321-7",
+            ".rec.43a1-7.tmp",
+        ] {
+            assert_eq!(temporary_pid(other), None, "{other}");
+        }
+        // `stale_temporaries` on such names: cli_batch.rs (leftovers of killed runs).
     }
 
     #[test]
