@@ -338,6 +338,101 @@ fn coherence_switches_say_what_ran() {
     assert!(s.contains("sevd (coherence)"), "{s}");
     let s = summary(&["localize", w, "--geometry", g, "--algorithm", "sevd"]);
     assert!(!s.contains("coherence"), "{s}");
+    // Refinement and per-bin normalisation switch the same way, also in the room default.
+    let s = summary(&[
+        "localize",
+        "--no-refine",
+        "--no-normalize-bins",
+        w,
+        "--geometry",
+        g,
+    ]);
+    assert!(s.contains("sevd (subspace 4, coherence)"), "{s}");
+    let s = summary(&["localize", "--no-refine", "--refine", w, "--geometry", g]);
+    assert!(s.contains("normmusic (subspace 4, coherence, refined)"), "{s}");
+    let s = summary(&["localize", w, "--geometry", g, "--algorithm", "sevd", "--refine"]);
+    assert!(s.contains("sevd (refined)"), "{s}");
+}
+
+/// `tf make` with positions in a frame whose origin lies outside the array (room
+/// coordinates) says that the directions are seen from the centroid and writes the moved
+/// positions; localizing with that file or with the geometry gives the same directions.
+#[test]
+fn an_array_in_room_coordinates_is_seen_from_its_centroid() {
+    let (wav, geo, tf) = scene("an_array_in_room_coordinates");
+    let text = std::fs::read_to_string(&geo).unwrap();
+    let g: soundloc::array::Geometry = soundloc::array::Geometry::from_toml_str(&text, &geo).unwrap();
+    let room = soundloc::array::Geometry {
+        mics: g
+            .mics
+            .iter()
+            .map(|p| [p[0] + 3.0, p[1] + 2.5, p[2] + 1.2])
+            .collect(),
+    };
+    let room_geo = tmp("room.toml");
+    std::fs::write(&room_geo, room.to_toml_string()).unwrap();
+    let room_tf = tmp("room.zip");
+    let o = bin()
+        .args([
+            "tf",
+            "make",
+            "--grid",
+            "ring:5",
+            "--grid-radius",
+            "2",
+            "--geometry",
+        ])
+        .arg(&room_geo)
+        .arg("-o")
+        .arg(&room_tf)
+        .output()
+        .unwrap();
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        o.status.success() && e.contains("directions are seen from the centroid"),
+        "{e}"
+    );
+    // (frame, rank, azimuth) of every reported source; the moved positions differ from
+    // the centred ones by rounding only.
+    let azimuths = |args: &[&std::ffi::OsStr]| -> Vec<(u64, u64, f64)> {
+        let o = bin()
+            .arg("localize")
+            .arg(&wav)
+            .args(args)
+            .args(["-q", "--format", "csv"])
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        String::from_utf8_lossy(&o.stdout)
+            .lines()
+            .skip(1)
+            .map(|l| {
+                let f: Vec<&str> = l.split(',').collect();
+                (
+                    f[0].parse().unwrap(),
+                    f[2].parse().unwrap(),
+                    f[4].parse().unwrap(),
+                )
+            })
+            .collect()
+    };
+    let same = |a: Vec<(u64, u64, f64)>, b: Vec<(u64, u64, f64)>| {
+        a.len() == b.len()
+            && a.iter()
+                .zip(&b)
+                .all(|(x, y)| x.0 == y.0 && x.1 == y.1 && (x.2 - y.2).abs() < 0.01)
+    };
+    let want = azimuths(&["--tf".as_ref(), tf.as_os_str()]);
+    assert!(want.len() > 3, "{want:?}");
+    let got = azimuths(&["--tf".as_ref(), room_tf.as_os_str()]);
+    assert!(same(got.clone(), want.clone()), "{got:?} vs {want:?}");
+    let flags = ["--grid-radius", "2", "--algorithm", "sevd", "--geometry"];
+    let mut args: Vec<&std::ffi::OsStr> = flags.iter().map(|f| f.as_ref()).collect();
+    args.push(room_geo.as_os_str());
+    let mut centred: Vec<&std::ffi::OsStr> = flags.iter().map(|f| f.as_ref()).collect();
+    centred.push(geo.as_os_str());
+    let (a, b) = (azimuths(&args), azimuths(&centred));
+    assert!(same(a.clone(), b.clone()), "{a:?} vs {b:?}");
 }
 
 /// An empty input name is named as such, not as a file called "".

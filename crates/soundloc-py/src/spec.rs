@@ -28,6 +28,8 @@ pub(crate) struct PySpec {
     pub channels_first: bool,
     grid_radius: f64,
     speed_of_sound: f64,
+    /// `fs=` as given (with `tf=` it must be the file's rate).
+    fs_given: Option<u32>,
 }
 
 #[pymethods]
@@ -45,8 +47,8 @@ impl PySpec {
     noise=None, noise_range=None, noise_cm=None, noise_segments=None, noise_preceding=None,
     track=false, tracker_thresh_db=0.0, tracker_pause_length=None, tracker_min_src_interval_deg=None,
     tracker_min_id=None, preroll=0, device="auto", precision="f32", channels=None,
-    input_channels=None, spectrum=true, grid_radius=1.0, speed_of_sound=343.0, channels_first=false,
-    subspace_dim=None, normalize_bins=false, refine=false, subspace_tracking=false, resample=false,
+    input_channels=None, spectrum=true, grid_radius=None, speed_of_sound=None, channels_first=false,
+    subspace_dim=None, normalize_bins=None, refine=None, subspace_tracking=false, resample=false,
     diagonal_loading=0.0, coherence=None))]
 #[allow(clippy::too_many_arguments)] // mirrors the Python keywords
 pub(crate) fn spec(
@@ -79,12 +81,12 @@ pub(crate) fn spec(
     channels: Option<Vec<usize>>,
     input_channels: Option<Vec<usize>>,
     spectrum: bool,
-    grid_radius: f64,
-    speed_of_sound: f64,
+    grid_radius: Option<f64>,
+    speed_of_sound: Option<f64>,
     channels_first: bool,
     subspace_dim: Option<usize>,
-    normalize_bins: bool,
-    refine: bool,
+    normalize_bins: Option<bool>,
+    refine: Option<bool>,
     subspace_tracking: bool,
     resample: bool,
     diagonal_loading: f64,
@@ -93,7 +95,23 @@ pub(crate) fn spec(
     // Defaults: HARK's band (500–2800 Hz) and 16 kHz.
     let freq_range = freq_range.map_or(Ok((500.0, 2800.0)), |r| pair(r, "freq_range"))?;
     let noise_range = noise_range.map(|r| pair(r, "noise_range")).transpose()?;
-    let fs = fs.map_or(Ok(16000), rate)?;
+    let fs_given = fs.map(rate).transpose()?;
+    let fs = fs_given.unwrap_or(16000);
+    if tf.is_some() {
+        // A TF file brings its directions, distance, speed of sound and rate.
+        let given = [
+            (grid.is_some(), "grid="),
+            (grid_radius.is_some(), "grid_radius="),
+            (speed_of_sound.is_some(), "speed_of_sound="),
+        ];
+        if let Some((_, what)) = given.iter().find(|(g, _)| *g) {
+            return Err(PyValueError::new_err(format!(
+                "{what} applies to geometry=: a transfer-function file's directions are its own"
+            )));
+        }
+    }
+    let grid_radius = grid_radius.unwrap_or(1.0);
+    let speed_of_sound = speed_of_sound.unwrap_or(soundloc::array::freefield::DEFAULT_SPEED_OF_SOUND_M_S);
     let noise_segments = noise_segments
         .map(|v| {
             v.iter()
@@ -149,12 +167,13 @@ pub(crate) fn spec(
         .transpose()?;
     // None: the default's choice (on in the room default).
     spec.coherence = coherence;
+    // None: the default's choice (both on in the room default, refinement in the robust
+    // one); a value wins whatever the algorithm.
+    spec.normalize_bins = normalize_bins;
+    spec.refine = refine;
     let a = &mut spec.analysis;
     a.num_sources = num_sources;
     a.subspace_dim = subspace_dim;
-    a.normalize_bins = normalize_bins;
-    // Unnamed algorithms (the room and robust defaults) turn refinement on themselves.
-    a.refine = refine;
     a.subspace_tracking = subspace_tracking;
     a.max_peaks = max_peaks;
     a.window = window;
@@ -236,6 +255,7 @@ pub(crate) fn spec(
         channels_first,
         grid_radius,
         speed_of_sound,
+        fs_given,
     })
 }
 
@@ -295,7 +315,9 @@ impl PySpec {
             (Some(p), ArraySpec::FreeField { mics, .. }) => {
                 let g = Grid::from_points(p.iter().map(|v| v.map(|c| c * grid_radius)).collect())?;
                 free_field(
-                    &Geometry::new(mics.clone(), Path::new("geometry"))?,
+                    &Geometry::new(mics.clone(), Path::new("geometry"))?
+                        .direction_frame()
+                        .0,
                     &g,
                     config.nfft,
                     config.sample_rate_hz,
@@ -319,20 +341,41 @@ impl PySpec {
 
     /// A localizer (the GIL released while files load and the plan is built).
     pub fn localizer(&self, py: Python<'_>) -> PyResult<Localizer> {
-        py.allow_threads(|| match self.arrays()? {
-            None => Localizer::new(&self.spec),
-            Some((tf, k)) => Localizer::with_transfer_functions(&self.spec, tf, k),
-        })
-        .map_err(err)
+        let loc = py
+            .allow_threads(|| match self.arrays()? {
+                None => Localizer::new(&self.spec),
+                Some((tf, k)) => Localizer::with_transfer_functions(&self.spec, tf, k),
+            })
+            .map_err(err)?;
+        self.check_fs(loc.config().sample_rate_hz)?;
+        Ok(loc)
     }
 
     /// A group of `streams` streams sharing the plan.
     pub fn group(&self, py: Python<'_>, streams: usize) -> PyResult<LocalizerGroup> {
-        py.allow_threads(|| match self.arrays()? {
-            None => LocalizerGroup::new(&self.spec, streams),
-            Some((tf, k)) => LocalizerGroup::with_transfer_functions(&self.spec, tf, k, streams),
-        })
-        .map_err(err)
+        let g = py
+            .allow_threads(|| match self.arrays()? {
+                None => LocalizerGroup::new(&self.spec, streams),
+                Some((tf, k)) => LocalizerGroup::with_transfer_functions(&self.spec, tf, k, streams),
+            })
+            .map_err(err)?;
+        self.check_fs(g.config().sample_rate_hz)?;
+        Ok(g)
+    }
+
+    /// `fs=` with `tf=`: the analysis runs at the file's rate, so another rate is refused
+    /// here rather than audio at it being taken for the file's.
+    fn check_fs(&self, analysis_hz: u32) -> PyResult<()> {
+        match (&self.spec.array, self.fs_given) {
+            (ArraySpec::TransferFunctions { path }, Some(f)) if f != analysis_hz => {
+                Err(PyValueError::new_err(format!(
+                    "fs={f}: the transfer functions in {} are for {analysis_hz} Hz; leave fs out (audio \
+                     at {analysis_hz} Hz), or pass resample=True and the audio's rate to localize(x, fs)",
+                    path.display()
+                )))
+            }
+            _ => Ok(()),
+        }
     }
 }
 

@@ -448,3 +448,43 @@ def test_a_thread_in_a_tight_loop_does_not_starve_another():
         loc.push(x[:160])
     t.join(timeout=30)
     assert done.is_set() and calls == [FS] * 20
+
+
+def test_switches_off_in_the_default_and_options_a_tf_file_does_not_take(tmp_path):
+    """refine=False and normalize_bins=False are honoured in the room default (they were
+    overridden by it); grid=, grid_radius=, speed_of_sound= and another fs= with tf= are
+    errors, not ignored; positions in room coordinates are seen from the array."""
+    x = scene()
+    on = localizer().localize(x, FS)
+    off_loc = localizer(refine=False, normalize_bins=False)
+    assert json.loads(off_loc.spec_json())["refine"] is False
+    off = off_loc.localize(x, FS)
+    assert np.all(np.abs(off.azimuth_deg / 5.0 - np.round(off.azimuth_deg / 5.0)) < 1e-9)
+    assert np.any(np.abs(on.azimuth_deg / 5.0 - np.round(on.azimuth_deg / 5.0)) > 1e-3)
+    # Without per-bin normalisation the powers leave NormMUSIC's scale (≤ 10·log10(bins + 1)).
+    assert off.power_db.max() > on.power_db.max() + 3
+    assert "without per-bin normalisation" in " ".join(off_loc.notes)
+    for row in off.azimuth_deg:
+        for t in TALKERS:
+            assert min(angle(a, t) for a in row) <= 5.0, (row, t)
+    # A TF file made from the same array.
+    tf = tmp_path / "ring.zip"
+    geo = write_geometry(tmp_path / "array.toml")
+    subprocess.run([str(cli()), "tf", "make", "--geometry", str(geo), "--grid", "ring:5", "-o", str(tf)],
+                   check=True, capture_output=True)
+    ok = soundloc.Localizer(tf=tf, fs=FS, device="cpu").localize(x)
+    np.testing.assert_array_equal(ok.azimuth_deg, soundloc.Localizer(tf=tf, device="cpu").localize(x).azimuth_deg)
+    with pytest.raises(ValueError, match="fs=48000: the transfer functions in .*ring.zip are for 16000 Hz"):
+        soundloc.Localizer(tf=tf, fs=48000, device="cpu")
+    for kw in (dict(grid="ring:10"), dict(grid_radius=2.0), dict(speed_of_sound=340.0)):
+        with pytest.raises(ValueError, match="applies to geometry="):
+            soundloc.Localizer(tf=tf, device="cpu", **kw)
+    # pyroomacoustics' L in room coordinates: the array's own directions, with a grid
+    # given by name or as unit vectors.
+    room = MICS + np.array([3.0, 2.5, 1.2])
+    units = soundloc.Localizer(geometry=MICS, grid="ring:5", device="cpu").directions()["unit"]
+    for grid in ("ring:5", units):
+        loc = localizer(geometry=room, grid=grid)
+        r = loc.localize(x, FS)
+        np.testing.assert_allclose(r.azimuth_deg, on.azimuth_deg, atol=0.01)
+    assert any("seen from the centroid" in n for n in localizer(geometry=room).notes)

@@ -88,12 +88,20 @@ pub struct AnalysisArgs {
     pub subspace_dim: Option<usize>,
     /// Per-bin normalisation (NormMUSIC): every bin's spectrum is scaled to a maximum of
     /// 1 before the bins are summed, so loud bins do not outvote the rest.
-    #[arg(long)]
+    /// Default: on in the room default (NormMUSIC), off otherwise.
+    #[arg(long, overrides_with = "no_normalize_bins")]
     pub normalize_bins: bool,
+    /// No per-bin normalisation, also in the room default (its SEVD's powers on MUSIC's
+    /// scale, as HARK's thresholds expect).
+    #[arg(long, overrides_with = "normalize_bins")]
+    pub no_normalize_bins: bool,
     /// Sub-grid refinement: report each peak at the maximum of a quadratic fitted to the
-    /// spectrum around it, not at the grid point.
-    #[arg(long)]
+    /// spectrum around it, not at the grid point. Default: on when no algorithm is named.
+    #[arg(long, overrides_with = "no_refine")]
     pub refine: bool,
+    /// No sub-grid refinement, also in the defaults (peaks at grid points).
+    #[arg(long, overrides_with = "refine")]
+    pub no_refine: bool,
     /// Coherence normalisation: the channels' gains come from the recording, not the TFs,
     /// so the microphones' gain mismatch cancels. SEVD: each window's R scaled to a unit
     /// diagonal, R_ij/√(R_ii R_jj), steering vectors reduced to their phases; textbook GEVD:
@@ -128,7 +136,8 @@ pub struct RunArgs {
     /// directions are the TF file's: an error).
     #[arg(long, default_value = "ring:5", conflicts_with = "tf")]
     pub grid: String,
-    /// Distance of the grid points for --geometry (m).
+    /// Distance of the grid points for --geometry (m), from the origin of the positions'
+    /// frame (from the microphones' centroid when that origin lies outside the array).
     #[arg(long, default_value_t = 1.0, conflicts_with = "tf")]
     pub grid_radius: f64,
     /// Speed of sound for --geometry (m/s).
@@ -403,11 +412,18 @@ impl RunArgs {
             },
             resample: self.resample,
             // None: the default's choice.
-            coherence: match (self.analysis.coherence, self.analysis.no_coherence) {
-                (true, _) => Some(true),
-                (_, true) => Some(false),
-                _ => None,
-            },
+            coherence: choice(self.analysis.coherence, self.analysis.no_coherence),
+            refine: choice(self.analysis.refine, self.analysis.no_refine),
+            normalize_bins: choice(self.analysis.normalize_bins, self.analysis.no_normalize_bins),
         })
+    }
+}
+
+/// A `--X` / `--no-X` pair: Some(true), Some(false), or None (the default's choice).
+fn choice(on: bool, off: bool) -> Option<bool> {
+    match (on, off) {
+        (true, _) => Some(true),
+        (_, true) => Some(false),
+        _ => None,
     }
 }

@@ -68,7 +68,9 @@ pub struct MakeArgs {
     /// Directions: ring:STEP_DEG[:ELEV_DEG] or sphere:N (e.g. ring:5, ring:5:16.7, sphere:2522).
     #[arg(long)]
     pub grid: GridSpec,
-    /// Distance of the grid points (the modelled sources) from the array centre, metres.
+    /// Distance of the grid points (the modelled sources) from the origin of the
+    /// positions' frame (from the microphones' centroid when that origin lies outside the
+    /// array), metres.
     #[arg(long = "grid-radius", default_value_t = 1.0, alias = "radius")]
     pub radius: f64,
     /// FFT length N (the zip holds N/2+1 bins).
@@ -123,11 +125,15 @@ fn make(a: MakeArgs) -> anyhow::Result<ExitCode> {
     if let Some(g) = &a.geometry {
         soundloc::output::atomic::check_outputs(&[(&a.output, "-o")], &[(g, "--geometry")])?;
     }
-    let geometry = match (&a.geometry, a.builtin) {
+    let (geometry, moved) = match (&a.geometry, a.builtin) {
         (Some(p), _) => Geometry::load(p)?,
         (None, Some(b)) => b.geometry(),
         (None, None) => bail!("give --geometry FILE or --builtin"),
-    };
+    }
+    .direction_frame();
+    if let Some(n) = moved {
+        eprintln!("soundloc: {n} (the file holds the moved positions)");
+    }
     if !(a.radius.is_finite() && a.radius > 0.0) {
         bail!("--grid-radius {}: must be a positive number of metres", a.radius);
     }

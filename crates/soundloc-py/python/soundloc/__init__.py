@@ -20,13 +20,19 @@ Arguments (HARK LocalizeMUSIC name / pyroomacoustics name):
         (pyroomacoustics' ``L`` transposed), or a geometry file (TOML, or an ODAS
         configuration ``*.cfg``, whose mapping.map picks the microphones among the device's
         raw.nChannels channels) with grid: "ring:STEP_DEG[:ELEV]", "sphere:N" or
-        a (D, 3) array of unit directions; fs (SAMPLING_RATE, for geometry=).
+        a (D, 3) array of unit directions, grid_radius (metres, default 1) and
+        speed_of_sound (m/s, default 343); fs (SAMPLING_RATE, for geometry=; with tf= the
+        file's rate, and another one is an error). Directions are seen from the origin of
+        the positions' frame, or from the microphones' centroid when that origin lies
+        outside the array (room coordinates, as pyroomacoustics' ``L``).
     algorithm: "sevd" | "gevd" | "gevd-hark" | "gsvd" | "srp-phat" (MUSIC_ALGORITHM); default
         (None): without a noise source the room default (NormMUSIC: sevd with every bin
         normalised, subspace min(M/2, round(2√M)), coherence, refinement), with one the robust gevd
         (subspace max(num_sources+2, M/2), refinement); a named algorithm runs as HARK's.
     subspace_dim (signal subspace when it should differ from num_sources), normalize_bins
-        (NormMUSIC), refine (sub-grid peak directions), subspace_tracking (approximate
+        (NormMUSIC) and refine (sub-grid peak directions): None = the default's choice (both
+        on in the room default, refine in the robust one, off for a named algorithm), True or
+        False whatever the algorithm; subspace_tracking (approximate
         streaming mode on the CPU: leading vectors tracked between windows; no source count),
         coherence (True/False: the channels' gains taken from the recording, so the
         microphones' gain mismatch cancels: sevd scales every window's R to a unit diagonal,

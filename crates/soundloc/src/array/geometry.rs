@@ -18,6 +18,12 @@
 //! An ODAS configuration (`*.cfg`, libconfig: `general.mics[i].mu`) is read as well, with
 //! its device channel map ([`super::odas_cfg`], [`Geometry::load_with_mapping`]).
 //!
+//! Directions are seen from the origin of the positions' frame, HARK's convention (a
+//! robot's head centre; TAMAGO's microphones sit on a circle above the egg's centre),
+//! as long as the origin lies within the array. Positions in a frame whose origin lies
+//! outside it (room coordinates, as pyroomacoustics' `L` holds them) are seen from the
+//! microphones' centroid instead ([`Geometry::direction_frame`]).
+//!
 //! Built-in shapes: [`Geometry::circle`] puts mic i at
 //! (r cos 2πi/n, r sin 2πi/n, z) — the TAMAGO-03 array is `circle(8, 0.0365, 0.0)`;
 //! [`Geometry::sphere`] spreads n mics near-uniformly over a sphere (Fibonacci lattice).
@@ -253,6 +259,49 @@ impl Geometry {
         }
     }
 
+    /// The microphones' centroid (mean position), metres.
+    pub fn centroid(&self) -> [f64; 3] {
+        let n = self.mics.len().max(1) as f64;
+        let mut c = [0.0; 3];
+        for p in &self.mics {
+            for (c, v) in c.iter_mut().zip(p) {
+                *c += v / n;
+            }
+        }
+        c
+    }
+
+    /// The geometry in the frame its directions are seen from, and a note when it moved.
+    ///
+    /// The origin of the positions' frame stays the point directions are seen from when it
+    /// lies within the array: no farther from the microphones' centroid than the farthest
+    /// microphone (HARK's frames: a robot's or TAMAGO's centre). When it lies outside (a
+    /// room's corner, as in pyroomacoustics' `L`), the positions are moved so that the
+    /// centroid is the origin: seen from a point outside the array, a far source's
+    /// direction would not be the array's, and a grid centred there would not surround
+    /// the array.
+    pub fn direction_frame(&self) -> (Geometry, Option<String>) {
+        let c = self.centroid();
+        let reach = self.mics.iter().map(|&p| dist(p, c)).fold(0.0, f64::max);
+        let off = dist(c, [0.0; 3]);
+        if off <= reach * (1.0 + 1e-9) {
+            return (self.clone(), None);
+        }
+        let moved = Geometry {
+            mics: self
+                .mics
+                .iter()
+                .map(|p| [p[0] - c[0], p[1] - c[1], p[2] - c[2]])
+                .collect(),
+        };
+        let note = format!(
+            "the origin of the microphone positions lies outside the array ({off:.3} m from the microphones' centroid \
+             [{:.3}, {:.3}, {:.3}] m, the farthest microphone {reach:.3} m): directions are seen from the centroid",
+            c[0], c[1], c[2]
+        );
+        (moved, Some(note))
+    }
+
     /// Largest distance between two microphones (the aperture), metres.
     pub fn aperture_m(&self) -> f64 {
         let mut d: f64 = 0.0;
@@ -297,6 +346,33 @@ mod tests {
 
     fn p() -> &'static Path {
         Path::new("ring8.toml")
+    }
+
+    #[test]
+    fn directions_are_seen_from_the_origin_within_the_array_else_from_the_centroid() {
+        // TAMAGO-like: a ring above the origin (within the array): kept as it is.
+        let raised = Geometry::circle(8, 0.0365, 0.011);
+        assert_eq!(raised.direction_frame(), (raised.clone(), None));
+        // A room's coordinates: moved to the centroid, with a note.
+        let room = Geometry {
+            mics: raised
+                .mics
+                .iter()
+                .map(|p| [p[0] + 3.0, p[1] + 2.5, p[2] + 1.2])
+                .collect(),
+        };
+        let (moved, note) = room.direction_frame();
+        assert!(note.unwrap().contains("[3.000, 2.500, 1.211] m"));
+        let c = moved.centroid();
+        assert!(c.iter().all(|v| v.abs() < 1e-12), "{c:?}");
+        for (a, b) in moved.mics.iter().zip(&room.mics) {
+            assert!((0..3).all(|k| (a[k] - (b[k] - room.centroid()[k])).abs() < 1e-12));
+        }
+        // One microphone away from the origin: moved onto it.
+        let one = Geometry {
+            mics: vec![[0.0, 0.0, 0.1]],
+        };
+        assert_eq!(one.direction_frame().0.mics, vec![[0.0, 0.0, 0.0]]);
     }
 
     #[test]

@@ -48,10 +48,9 @@ impl LocalizerSpec {
             algorithm,
             ..self.analysis.clone()
         };
-        let room = self.algorithm.is_none() && !self.noise_given();
-        c.coherence = self.coherence.unwrap_or(c.coherence || room);
-        if self.algorithm.is_none() {
-            let noise = self.noise_given();
+        let (named, noise) = (self.algorithm.is_some(), self.noise_given());
+        c.coherence = self.coherence.unwrap_or(c.coherence || (!named && !noise));
+        if !named {
             if c.subspace_dim.is_none() {
                 let ns = if noise {
                     robust_subspace_dim(c.num_sources, num_mics)
@@ -64,6 +63,15 @@ impl LocalizerSpec {
             }
             c.normalize_bins |= !noise;
             c.refine = true;
+        }
+        c.normalize_bins = self.normalize_bins.unwrap_or(c.normalize_bins);
+        c.refine = self.refine.unwrap_or(c.refine);
+        if !named {
+            let refined = if c.refine {
+                "sub-grid refinement"
+            } else {
+                "no sub-grid refinement"
+            };
             // The note says what runs: the subspace actually used, and for NormMUSIC the
             // power scale (tracker thresholds tuned on SEVD's do not carry over).
             let dim = c.signal_dim();
@@ -85,14 +93,19 @@ impl LocalizerSpec {
                 format!(
                     "a noise source was given: using the robust default, the textbook GEVD with a \
                      signal subspace of {dim} of {num_mics} (max(--num-sources + 2, M/2) unless \
-                     --subspace-dim), {gains} and sub-grid refinement (HARK's: name --algorithm)"
+                     --subspace-dim), {gains} and {refined} (HARK's: name --algorithm)"
                 )
             } else {
+                let music = if c.normalize_bins {
+                    "NormMUSIC (SEVD with every bin's spectrum normalised; powers on its scale, \
+                     at most 10·log10(bins + 1) dB)"
+                } else {
+                    "the SEVD without per-bin normalisation (powers on MUSIC's scale)"
+                };
                 format!(
-                    "no noise source: using the room default, NormMUSIC (SEVD with every bin's \
-                     spectrum normalised; powers on its scale, at most 10·log10(bins + 1) dB) with a \
+                    "no noise source: using the room default, {music} with a \
                      signal subspace of {dim} of {num_mics} (min(M/2, round(2√M)) unless \
-                     --subspace-dim), {coherence} and sub-grid refinement (HARK's plain SEVD: \
+                     --subspace-dim), {coherence} and {refined} (HARK's plain SEVD: \
                      --algorithm sevd; with a noise source, the GEVD)"
                 )
             };
@@ -208,6 +221,23 @@ mod tests {
         assert!(!c.coherence && note.unwrap().contains("no coherence normalisation"));
         assert_eq!(c.label(), "normmusic (subspace 4, refined)");
         spec.coherence = None;
+        // Refinement and per-bin normalisation turned off by name, also in the default
+        // (its SEVD's powers on MUSIC's scale); the note says so.
+        spec.refine = Some(false);
+        spec.normalize_bins = Some(false);
+        let (c, note) = spec.resolved_analysis(8);
+        assert_eq!(
+            (c.refine, c.normalize_bins, c.subspace_dim),
+            (false, false, Some(4))
+        );
+        assert_eq!(c.label(), "sevd (subspace 4, coherence)");
+        let note = note.unwrap();
+        assert!(
+            note.contains("without per-bin normalisation") && note.contains("no sub-grid refinement"),
+            "{note}"
+        );
+        spec.refine = None;
+        spec.normalize_bins = None;
         assert_eq!(spec.resolved_analysis(60).0.subspace_dim, Some(15));
         spec.analysis.subspace_dim = Some(3);
         let (c, note) = spec.resolved_analysis(8);
@@ -225,6 +255,12 @@ mod tests {
             "a named algorithm runs as asked"
         );
         assert_eq!(c.label(), "sevd");
+        spec.refine = Some(true);
+        assert!(
+            spec.resolved_analysis(8).0.refine,
+            "asked for, refinement goes with any algorithm"
+        );
+        spec.refine = None;
         spec.coherence = Some(true);
         assert_eq!(
             spec.resolved_analysis(8).0.label(),

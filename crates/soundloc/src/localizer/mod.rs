@@ -162,6 +162,17 @@ pub struct LocalizerSpec {
     /// `analysis.coherence`); Some(v) = v whatever the algorithm.
     #[serde(default)]
     pub coherence: Option<bool>,
+    /// Sub-grid refinement ([`LocalizeConfig::refine`]): None = the default's choice (on
+    /// when no algorithm is named; else `analysis.refine`); Some(v) = v whatever the
+    /// algorithm.
+    #[serde(default)]
+    pub refine: Option<bool>,
+    /// Per-bin normalisation ([`LocalizeConfig::normalize_bins`]): None = the default's
+    /// choice (on in the room default, NormMUSIC; else `analysis.normalize_bins`);
+    /// Some(v) = v whatever the algorithm (off in the room default: its SEVD's powers on
+    /// HARK's scale).
+    #[serde(default)]
+    pub normalize_bins: Option<bool>,
 }
 
 impl LocalizerSpec {
@@ -218,6 +229,8 @@ impl LocalizerSpec {
             tf_cache: TfCache::Default,
             resample: false,
             coherence: None,
+            refine: None,
+            normalize_bins: None,
         }
     }
 
@@ -227,11 +240,13 @@ impl LocalizerSpec {
         Ok(self.load_array_noted(config)?.0)
     }
 
-    /// [`LocalizerSpec::load_array`], with a note for the user: what the TF cache did, or
-    /// that a free-field grid's radius puts its points inside the array.
+    /// [`LocalizerSpec::load_array`], with a note for the user: what the TF cache did,
+    /// that the directions are seen from the microphones' centroid
+    /// ([`Geometry::direction_frame`]), or that a free-field grid's radius puts its points
+    /// inside the array.
     pub fn load_array_noted(&self, config: &LocalizeConfig) -> Result<(TransferFunctions, Option<String>)> {
         let used = config.bin_range();
-        let mut note = None;
+        let mut note;
         let tf = match &self.array {
             ArraySpec::TransferFunctions { path } => {
                 // Resampling runs the analysis at the file's rate, whatever the input's:
@@ -264,17 +279,24 @@ impl LocalizerSpec {
                         "grid radius must be positive, got {radius_m} m"
                     )));
                 }
-                let geometry = Geometry::new(mics.clone(), Path::new("microphone positions"))?;
-                let reach = mics
+                let (geometry, moved) =
+                    Geometry::new(mics.clone(), Path::new("microphone positions"))?.direction_frame();
+                note = moved;
+                let reach = geometry
+                    .mics
                     .iter()
                     .map(|p| (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt())
                     .fold(0.0, f64::max);
                 if *radius_m < reach {
-                    note = Some(format!(
+                    let inside = format!(
                         "the grid radius {radius_m} m is inside the array (its farthest microphone is {reach} m \
-                         from the origin, the grid's centre): the directions are points among the microphones, not far-field \
+                         from the grid's centre): the directions are points among the microphones, not far-field \
                          directions; HARK's free-field TFs use 1 m or more"
-                    ));
+                    );
+                    note = Some(match note {
+                        Some(n) => format!("{n}; {inside}"),
+                        None => inside,
+                    });
                 }
                 free_field(
                     &geometry,
