@@ -48,6 +48,8 @@ def test_tf_noise_cm_and_source_log(tmp_path):
     cli_results = [json.loads(line) for line in out.splitlines()]
     got = soundloc.read_source_log(log)
     assert len(got) == len(cli_results)
+    # A log holds no grid index: None, not a made-up 0.
+    assert all(s["grid_index"] is None for r in got for s in r["sources"])
     for a, b in zip(got, cli_results):
         assert a["frame"] == b["frame"]
         assert [round(s["azimuth_deg"]) for s in a["sources"]] == [round(s["azimuth_deg"]) for s in b["sources"]]

@@ -80,6 +80,9 @@ pub struct Plan<T: Real> {
     /// clone whose steering, whitening or algorithm is changed by hand keeps the old sums
     /// (as it keeps `planar`): build a new plan instead.
     pub(crate) steering_sums: Arc<std::sync::OnceLock<Vec<f32>>>,
+    /// The source count's floor relative to each bin's largest value
+    /// ([`crate::subspace::count::model_floor`], from the TFs' microphone positions).
+    pub count_floor: f64,
 }
 
 impl<T: Real> Plan<T> {
@@ -222,6 +225,11 @@ impl<T: Real> Plan<T> {
             peak_table,
             planar: None,
             steering_sums: Default::default(),
+            count_floor: crate::subspace::count::model_floor(
+                (tf.mic_positions.len() == m).then(|| crate::array::geometry::aperture_m(&tf.mic_positions)),
+                config.sample_rate_hz,
+                config.nfft,
+            ),
         };
         plan.planar = plan.planar_steering();
         Ok(plan)

@@ -230,8 +230,10 @@ const ROBUST_SEED: u64 = 13;
 #[test]
 fn source_count_is_right_on_clear_scenes() {
     let talkers: [&[f64]; 3] = [&[30.0], &[30.0, -120.0], &[30.0, -120.0, 150.0]];
-    for (n, az) in talkers.iter().enumerate() {
-        let sc = ring8_incoherent(az, 15.0, 21 + n as u64).unwrap();
+    // At 50 dB each talker's frame-shift residue stands out of the noise: counted as a
+    // second source of its own without the count's model floor.
+    for (n, az, snr) in (0..6).map(|i| (i % 3, talkers[i % 3], if i < 3 { 15.0 } else { 50.0 })) {
+        let sc = ring8_incoherent(az, snr, 21 + n as u64).unwrap();
         let audio = sc.render();
         for algorithm in [Algorithm::Sevd, Algorithm::Gevd] {
             let cfg = LocalizeConfig {
@@ -249,7 +251,7 @@ fn source_count_is_right_on_clear_scenes() {
             let right = counts.iter().filter(|&&c| c == n + 1).count();
             assert!(
                 right * 10 >= counts.len() * 8,
-                "{algorithm:?}, {} talker(s): counts {counts:?}",
+                "{algorithm:?}, {} talker(s) at {snr} dB: counts {counts:?}",
                 n + 1
             );
             // Before the talkers start only sensor noise is present.

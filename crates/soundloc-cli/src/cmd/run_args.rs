@@ -43,7 +43,9 @@ pub struct AnalysisArgs {
     /// PERIOD: one result every PERIOD frames.
     #[arg(long, default_value_t = 50)]
     pub period: usize,
-    /// MIN_DEG: azimuth range kept, degrees.
+    /// MIN_DEG: azimuth range kept, degrees. As HARK: an azimuth is wrapped into
+    /// (MIN_DEG, MIN_DEG + 360] first, so MIN_DEG itself is left out (with -180 to -170,
+    /// a peak at 180° = -180° is not kept; give -180.01).
     #[arg(long, default_value_t = -180.0, allow_hyphen_values = true)]
     pub min_deg: f64,
     /// MAX_DEG: azimuth range kept, degrees.

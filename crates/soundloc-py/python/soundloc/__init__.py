@@ -79,10 +79,17 @@ __all__ = ["Localizer", "Results", "StreamGroup", "archive", "doa", "read_audio"
 
 def read_source_log(path, frame_period_s=0.01):
     """A HARK source-location log (text or XML) as a list of results: dicts with frame,
-    time_s and sources (azimuth_deg, elevation_deg, x, y, z, power_db, id)."""
+    time_s (frame × frame_period_s: HARK's 160 samples at 16 kHz unless given) and sources
+    (azimuth_deg, elevation_deg, x, y, z, power_db, id: None where the log has none or -1;
+    grid_index None: logs do not hold it)."""
     import json
 
-    return [json.loads(line) for line in _read_source_log_json(str(path), frame_period_s)]
+    records = [json.loads(line) for line in _read_source_log_json(str(path), frame_period_s)]
+    for r in records:
+        for s in r["sources"]:
+            s["grid_index"] = None
+            s.setdefault("id", None)
+    return records
 
 
 def write_noise_cm(path, k, format=None):
@@ -105,7 +112,15 @@ def write_source_log(path, results, format=None):
     if format is None:
         format = "xml" if str(path).lower().endswith(".xml") else "text"
     records = results.to_records() if isinstance(results, Results) else results
-    _write_source_log_json(str(path), [json.dumps(r) for r in records], format)
+    # The logs hold neither grid indices nor missing ids: absent values are left out.
+    def plain(r):
+        sources = [{k: v for k, v in s.items() if not (k in ("grid_index", "id") and v is None)}
+                   for s in r["sources"]]
+        for s in sources:
+            s.setdefault("grid_index", 0)
+        return dict(r, sources=sources)
+
+    _write_source_log_json(str(path), [json.dumps(plain(r)) for r in records], format)
 
 
 @dataclass

@@ -304,14 +304,19 @@ impl Geometry {
 
     /// Largest distance between two microphones (the aperture), metres.
     pub fn aperture_m(&self) -> f64 {
-        let mut d: f64 = 0.0;
-        for i in 0..self.mics.len() {
-            for j in 0..i {
-                d = d.max(dist(self.mics[i], self.mics[j]));
-            }
-        }
-        d
+        aperture_m(&self.mics)
     }
+}
+
+/// Largest distance between two of `positions` (an array's aperture), metres.
+pub fn aperture_m(positions: &[[f64; 3]]) -> f64 {
+    let mut d: f64 = 0.0;
+    for (i, &a) in positions.iter().enumerate() {
+        for &b in &positions[..i] {
+            d = d.max(dist(a, b));
+        }
+    }
+    d
 }
 
 fn number(v: &toml::Value) -> Option<f64> {
@@ -324,6 +329,73 @@ fn number(v: &toml::Value) -> Option<f64> {
 
 pub(crate) fn dist(a: [f64; 3], b: [f64; 3]) -> f64 {
     ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
+}
+
+fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+
+fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
+}
+
+/// The unit normal of the plane all `positions` lie in (within 10⁻⁴ of the aperture), or
+/// None: fewer than three, on one line, or not in one plane.
+pub fn plane_normal(positions: &[[f64; 3]]) -> Option<[f64; 3]> {
+    let (&p0, rest) = positions.split_first()?;
+    let far = rest
+        .iter()
+        .copied()
+        .max_by(|a, b| dist(*a, p0).total_cmp(&dist(*b, p0)))?;
+    let span = dist(far, p0);
+    let e = sub(far, p0);
+    let n = rest
+        .iter()
+        .map(|&p| cross(e, sub(p, p0)))
+        .max_by(|a, b| dot(*a, *a).total_cmp(&dot(*b, *b)))?;
+    let len = dot(n, n).sqrt();
+    // Not on one line: some microphone lies off it by more than 10⁻³ of the span.
+    if !(span > 0.0 && len > 1e-3 * span * span) {
+        return None;
+    }
+    let n = n.map(|v| v / len);
+    positions
+        .iter()
+        .all(|&p| dot(sub(p, p0), n).abs() <= 1e-4 * span)
+        .then_some(n)
+}
+
+/// A note when the microphones at `positions` lie in one plane and `grid` holds
+/// directions on both sides of it: a point and its mirror image through that plane are
+/// the same distance from every microphone, so their spectra are equal and a source may be
+/// reported at its mirror image.
+pub fn mirror_note(positions: &[[f64; 3]], grid: &super::Grid) -> Option<String> {
+    let n = plane_normal(positions)?;
+    let c = Geometry {
+        mics: positions.to_vec(),
+    }
+    .centroid();
+    let side = |p: [f64; 3]| {
+        let v = sub(p, c);
+        let h = dot(v, n);
+        (h.abs() > 0.05 * dot(v, v).sqrt()).then_some(h > 0.0)
+    };
+    let sides: Vec<bool> = grid.points.iter().filter_map(|&p| side(p)).collect();
+    (sides.contains(&true) && sides.contains(&false)).then(|| {
+        "the microphones lie in one plane and the grid has directions on both sides of it: a direction \
+         and its mirror image through the plane give the same spectrum, so a source may be reported on \
+         the wrong side (e.g. below a horizontal array instead of above); use a grid on one side \
+         (ring:STEP:ELEV) or a non-planar array"
+            .to_string()
+    })
 }
 
 /// Unit vectors of an `n`-point Fibonacci lattice on the sphere:
@@ -346,6 +418,31 @@ mod tests {
 
     fn p() -> &'static Path {
         Path::new("ring8.toml")
+    }
+
+    #[test]
+    fn a_planar_array_with_a_grid_on_both_sides_gets_a_note() {
+        use crate::array::Grid;
+        let ring = Geometry::circle(8, 0.0365, 0.0);
+        let n = plane_normal(&ring.mics).unwrap();
+        assert!((n[2].abs() - 1.0).abs() < 1e-12, "{n:?}");
+        // Both hemispheres: the note; the ring's own plane or one side only: none.
+        assert!(mirror_note(&ring.mics, &Grid::sphere(200, 1.0))
+            .unwrap()
+            .contains("mirror image"));
+        assert_eq!(mirror_note(&ring.mics, &Grid::ring(5.0, 0.0, 1.0)), None);
+        assert_eq!(mirror_note(&ring.mics, &Grid::ring(5.0, 30.0, 1.0)), None);
+        // A tilted plane, a 3-D array, a line.
+        let tilted: Vec<[f64; 3]> = ring.mics.iter().map(|p| [p[0], p[1], 0.5 * p[0] + 1.0]).collect();
+        assert!(plane_normal(&tilted).is_some());
+        assert_eq!(plane_normal(&Geometry::sphere(60, 0.1).mics), None);
+        assert_eq!(
+            mirror_note(&Geometry::sphere(60, 0.1).mics, &Grid::sphere(200, 1.0)),
+            None
+        );
+        let line: Vec<[f64; 3]> = (0..4).map(|i| [0.05 * i as f64, 0.0, 0.0]).collect();
+        assert_eq!(plane_normal(&line), None);
+        assert_eq!(plane_normal(&line[..2]), None);
     }
 
     #[test]

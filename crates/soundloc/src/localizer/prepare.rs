@@ -106,6 +106,9 @@ pub(crate) fn prepare(
             config.upper_freq_hz, config.sample_rate_hz
         ));
     }
+    if tf.mic_positions.len() == tf.num_mics {
+        notes.extend(crate::array::geometry::mirror_note(&tf.mic_positions, &tf.grid));
+    }
     // A tracker threshold that no peak of a normalised spectrum can reach would drop
     // every result without a word (HARK thresholds are tuned on SEVD's scale).
     if let (Some(t), Some(ceiling)) = (&spec.tracking, crate::plan::normalized_power_ceiling_db(&config)?) {

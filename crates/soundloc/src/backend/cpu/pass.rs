@@ -306,7 +306,7 @@ impl<T: Real> Ctx<'_, '_, T> {
                 }
                 for w in 0..nw {
                     let snapshots = ((self.lens[w] as f64 * overlap).round() as usize).max(1);
-                    counts[i * nw + w] = count::mdl(&decs[i * nw + w].values, snapshots);
+                    counts[i * nw + w] = count::mdl(&decs[i * nw + w].values, snapshots, plan.count_floor);
                 }
             }
         }
