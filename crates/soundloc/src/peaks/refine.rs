@@ -20,6 +20,7 @@
 //! neighbours, a flat or saddle-shaped fit) the grid direction is kept.
 
 use super::PeakTable;
+use crate::array::geometry::{cross, dot};
 use crate::array::grid::RING_ELEVATION_TOLERANCE_DEG;
 use crate::array::Grid;
 
@@ -238,18 +239,6 @@ fn solve5(mut a: [[f64; 5]; 5], mut b: [f64; 5]) -> Option<[f64; 5]> {
         x[c] = (b[c] - s) / a[c][c];
     }
     Some(x)
-}
-
-fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-
-fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
 }
 
 fn normalize(a: [f64; 3]) -> [f64; 3] {
