@@ -97,7 +97,7 @@ pub(crate) fn spec(
     let noise_range = noise_range.map(|r| pair(r, "noise_range")).transpose()?;
     let fs_given = fs.map(rate).transpose()?;
     let fs = fs_given.unwrap_or(16000);
-    if tf.is_some() {
+    if tf.is_some() && geometry.is_none() {
         // A TF file brings its directions, distance, speed of sound and rate.
         let given = [
             (grid.is_some(), "grid="),
@@ -296,10 +296,13 @@ pub(crate) fn rate(v: &Bound<'_, PyAny>) -> PyResult<u32> {
     }
 }
 
+/// What [`PySpec::arrays`] builds: the TFs, K, and a note on how the positions were read.
+type Arrays = (TransferFunctions, Option<NoiseMatrices>, Option<String>);
+
 impl PySpec {
     /// Transfer functions and K built here when Python gave a grid or noise as arrays
     /// (the spec cannot name them); None when the spec alone says everything.
-    fn arrays(&self) -> soundloc::Result<Option<(TransferFunctions, Option<NoiseMatrices>)>> {
+    fn arrays(&self) -> soundloc::Result<Option<Arrays>> {
         let (spec, grid_points, noise_audio) = (&self.spec, &self.grid_points, &self.noise_audio);
         let (grid_radius, speed_of_sound, channels_first) =
             (self.grid_radius, self.speed_of_sound, self.channels_first);
@@ -311,32 +314,33 @@ impl PySpec {
             algorithm: alg,
             ..spec.analysis.clone()
         };
-        let tf = match (grid_points, &spec.array) {
+        let (tf, note) = match (grid_points, &spec.array) {
             (Some(p), ArraySpec::FreeField { mics, .. }) => {
                 let g = Grid::from_points(p.iter().map(|v| v.map(|c| c * grid_radius)).collect())?;
-                free_field(
-                    &Geometry::new(mics.clone(), Path::new("geometry"))?
-                        .direction_frame()
-                        .0,
+                let (geometry, note) =
+                    Geometry::new(mics.clone(), Path::new("geometry"))?.direction_frame(grid_radius);
+                let tf = free_field(
+                    &geometry,
                     &g,
                     config.nfft,
                     config.sample_rate_hz,
                     0..config.nfft / 2 + 1,
                     speed_of_sound,
-                )?
+                )?;
+                (tf, note)
             }
             (Some(_), _) => {
                 return Err(soundloc::Error::Config(
                     "grid= as an array needs geometry=".into(),
                 ))
             }
-            _ => spec.load_array(&config)?,
+            _ => spec.load_array_noted(&config)?,
         };
         let k = match noise_audio {
             Some((data, shape)) => Some(noise_matrices(spec, &config, &tf, data, *shape, channels_first)?),
             None => None,
         };
-        Ok(Some((tf, k)))
+        Ok(Some((tf, k, note)))
     }
 
     /// A localizer (the GIL released while files load and the plan is built).
@@ -344,7 +348,13 @@ impl PySpec {
         let loc = py
             .allow_threads(|| match self.arrays()? {
                 None => Localizer::new(&self.spec),
-                Some((tf, k)) => Localizer::with_transfer_functions(&self.spec, tf, k),
+                Some((tf, k, note)) => {
+                    let mut loc = Localizer::with_transfer_functions(&self.spec, tf, k)?;
+                    if let Some(n) = note {
+                        loc.prepend_note(n);
+                    }
+                    Ok(loc)
+                }
             })
             .map_err(err)?;
         self.check_fs(loc.config().sample_rate_hz)?;
@@ -356,7 +366,13 @@ impl PySpec {
         let g = py
             .allow_threads(|| match self.arrays()? {
                 None => LocalizerGroup::new(&self.spec, streams),
-                Some((tf, k)) => LocalizerGroup::with_transfer_functions(&self.spec, tf, k, streams),
+                Some((tf, k, note)) => {
+                    let mut g = LocalizerGroup::with_transfer_functions(&self.spec, tf, k, streams)?;
+                    if let Some(n) = note {
+                        g.prepend_note(n);
+                    }
+                    Ok(g)
+                }
             })
             .map_err(err)?;
         self.check_fs(g.config().sample_rate_hz)?;
@@ -369,8 +385,9 @@ impl PySpec {
         match (&self.spec.array, self.fs_given) {
             (ArraySpec::TransferFunctions { path }, Some(f)) if f != analysis_hz => {
                 Err(PyValueError::new_err(format!(
-                    "fs={f}: the transfer functions in {} are for {analysis_hz} Hz; leave fs out (audio \
-                     at {analysis_hz} Hz), or pass resample=True and the audio's rate to localize(x, fs)",
+                    "fs={f}: the transfer functions in {} are for {analysis_hz} Hz, the rate the analysis \
+                     runs at; leave fs out, and for audio at another rate pass its rate to localize(x, fs) \
+                     with resample=True",
                     path.display()
                 )))
             }

@@ -487,4 +487,8 @@ def test_switches_off_in_the_default_and_options_a_tf_file_does_not_take(tmp_pat
         loc = localizer(geometry=room, grid=grid)
         r = loc.localize(x, FS)
         np.testing.assert_allclose(r.azimuth_deg, on.azimuth_deg, atol=0.01)
-    assert any("seen from the centroid" in n for n in localizer(geometry=room).notes)
+    for grid in ("ring:5", units):
+        assert any("seen from the centroid" in n for n in localizer(geometry=room, grid=grid).notes)
+    # A robot's frame (the origin 0.36 m from the array, within half the 1 m grid) is kept.
+    near = localizer(geometry=MICS + np.array([0.3, -0.2, 0.0]))
+    assert any("directions are seen from the origin" in n for n in near.notes)

@@ -225,8 +225,13 @@ impl<T: Real> Plan<T> {
             peak_table,
             planar: None,
             steering_sums: Default::default(),
+            // Positions that are not an array (HARK's sample zips hold placeholders, several
+            // microphones at one point) are not used.
             count_floor: crate::subspace::count::model_floor(
-                (tf.mic_positions.len() == m).then(|| crate::array::geometry::aperture_m(&tf.mic_positions)),
+                crate::array::Geometry::new(tf.mic_positions.clone(), std::path::Path::new("TF"))
+                    .ok()
+                    .filter(|g| g.num_mics() == m)
+                    .map(|g| g.aperture_m()),
                 config.sample_rate_hz,
                 config.nfft,
             ),

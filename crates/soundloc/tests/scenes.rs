@@ -272,14 +272,15 @@ fn reported_directions_follow_the_angle_conventions() {
 /// as pyroomacoustics' `L` holds them): directions are the array's, seen from the
 /// microphones' centroid, with a note; the same array given around the origin finds the
 /// same directions without one. (Seen from the origin, a 1 m grid put the 120° talker at
-/// about 110°, and at 8° with the array 2 m away.)
+/// 8° with the array 2 m away.) An origin outside the array but within half the grid
+/// radius (a robot's frame) stays where it is, with a note.
 #[test]
 fn an_array_away_from_the_origin_reports_its_own_directions() {
     use soundloc::array::{grid::GridSpec, Geometry};
     use soundloc::sim::{position_from_az_el, render, Scene, SceneSource, Signal};
     use soundloc::{Localizer, LocalizerSpec};
     let centred = Geometry::circle(8, 0.05, 0.0);
-    for shift in [[0.0, 0.0, 0.0], [0.3, -0.2, 0.0], [1.0, 2.0, 0.5]] {
+    for shift in [[0.0, 0.0, 0.0], [1.0, 2.0, 0.5], [3.0, 2.5, 1.2]] {
         let moved = |p: [f64; 3]| [p[0] + shift[0], p[1] + shift[1], p[2] + shift[2]];
         let geometry = Geometry {
             mics: centred.mics.iter().map(|&p| moved(p)).collect(),
@@ -310,6 +311,22 @@ fn an_array_away_from_the_origin_reports_its_own_directions() {
             .iter()
             .any(|n| n.contains("directions are seen from the centroid"));
         assert_eq!(moved_note, shift != [0.0; 3], "{shift:?}: {:?}", loc.notes());
+        let mut near = spec.clone();
+        if let soundloc::ArraySpec::FreeField { mics, .. } = &mut near.array {
+            *mics = centred
+                .mics
+                .iter()
+                .map(|p| [p[0] + 0.3, p[1] - 0.2, p[2]])
+                .collect();
+        }
+        let kept = Localizer::new(&near).unwrap();
+        assert!(
+            kept.notes()
+                .iter()
+                .any(|n| n.contains("directions are seen from the origin")),
+            "{:?}",
+            kept.notes()
+        );
         let r = loc.localize(&audio.channels).unwrap();
         assert!(!r.results.is_empty());
         for res in &r.results {

@@ -69,9 +69,10 @@ pub fn drive(
 ) -> anyhow::Result<ExitCode> {
     let spec = a.spec(fmt.sample_rate_hz)?;
     tracing::debug!("localizer: setting up");
-    let mut loc = match ready {
-        Some((s, loc)) if s == spec => loc,
-        _ => Localizer::new(&spec)?,
+    // (A pre-built localizer for another spec is dropped here, before the new one is built.)
+    let mut loc = match ready.filter(|(s, _)| *s == spec) {
+        Some((_, loc)) => loc,
+        None => Localizer::new(&spec)?,
     };
     tracing::debug!("localizer ready");
     // Set-up notes (the algorithm run, the TF cache) once per process: `batch` sets up

@@ -93,8 +93,8 @@ pub struct AnalysisArgs {
     /// Default: on in the room default (NormMUSIC), off otherwise.
     #[arg(long, overrides_with = "no_normalize_bins")]
     pub normalize_bins: bool,
-    /// No per-bin normalisation, also in the room default (its SEVD's powers on MUSIC's
-    /// scale, as HARK's thresholds expect).
+    /// No per-bin normalisation, also in the room default (the powers of its SEVD, not
+    /// NormMUSIC's bounded scale; for HARK's scale name --algorithm sevd).
     #[arg(long, overrides_with = "normalize_bins")]
     pub no_normalize_bins: bool,
     /// Sub-grid refinement: report each peak at the maximum of a quadratic fitted to the

@@ -125,17 +125,17 @@ fn make(a: MakeArgs) -> anyhow::Result<ExitCode> {
     if let Some(g) = &a.geometry {
         soundloc::output::atomic::check_outputs(&[(&a.output, "-o")], &[(g, "--geometry")])?;
     }
+    if !(a.radius.is_finite() && a.radius > 0.0) {
+        bail!("--grid-radius {}: must be a positive number of metres", a.radius);
+    }
     let (geometry, moved) = match (&a.geometry, a.builtin) {
         (Some(p), _) => Geometry::load(p)?,
         (None, Some(b)) => b.geometry(),
         (None, None) => bail!("give --geometry FILE or --builtin"),
     }
-    .direction_frame();
+    .direction_frame(a.radius);
     if let Some(n) = moved {
-        eprintln!("soundloc: {n} (the file holds the moved positions)");
-    }
-    if !(a.radius.is_finite() && a.radius > 0.0) {
-        bail!("--grid-radius {}: must be a positive number of metres", a.radius);
+        eprintln!("soundloc: {n}");
     }
     let grid = a.grid.build(a.radius);
     let bins = 0..a.fft_length / 2 + 1;

@@ -271,33 +271,41 @@ impl Geometry {
         c
     }
 
-    /// The geometry in the frame its directions are seen from, and a note when it moved.
+    /// The geometry in the frame its directions are seen from, for a grid of points
+    /// `grid_radius_m` from its origin, and a note when the origin lies outside the array.
     ///
-    /// The origin of the positions' frame stays the point directions are seen from when it
-    /// lies within the array: no farther from the microphones' centroid than the farthest
-    /// microphone (HARK's frames: a robot's or TAMAGO's centre). When it lies outside (a
-    /// room's corner, as in pyroomacoustics' `L`), the positions are moved so that the
-    /// centroid is the origin: seen from a point outside the array, a far source's
-    /// direction would not be the array's, and a grid centred there would not surround
-    /// the array.
-    pub fn direction_frame(&self) -> (Geometry, Option<String>) {
+    /// The origin of the positions' frame stays the point directions are seen from unless
+    /// it lies both outside the array (farther from the microphones' centroid than the
+    /// farthest microphone) and farther from the centroid than half the grid radius. So
+    /// HARK's frames keep their origin — a robot's head centre with the array on its front
+    /// or a ring above it (a note says the origin lies outside the array) — while a room's
+    /// corner, as in pyroomacoustics' `L`, does not: there the positions are moved so that
+    /// the centroid is the origin (a note says so), since a grid centred metres away
+    /// would not surround the array and a far source's direction would not be the array's.
+    pub fn direction_frame(&self, grid_radius_m: f64) -> (Geometry, Option<String>) {
         let c = self.centroid();
         let reach = self.mics.iter().map(|&p| dist(p, c)).fold(0.0, f64::max);
         let off = dist(c, [0.0; 3]);
         if off <= reach * (1.0 + 1e-9) {
             return (self.clone(), None);
         }
+        let from = format!(
+            "the origin of the microphone positions lies outside the array ({off:.3} m from the microphones' centroid \
+             [{:.3}, {:.3}, {:.3}] m, the farthest microphone {reach:.3} m)",
+            c[0], c[1], c[2]
+        );
+        if off <= 0.5 * grid_radius_m {
+            let note = format!(
+                "{from}: directions are seen from the origin, as in HARK's robot frames (positions centred on the \
+                 array give directions seen from it)"
+            );
+            return (self.clone(), Some(note));
+        }
         let moved = Geometry {
-            mics: self
-                .mics
-                .iter()
-                .map(|p| [p[0] - c[0], p[1] - c[1], p[2] - c[2]])
-                .collect(),
+            mics: self.mics.iter().map(|&p| sub(p, c)).collect(),
         };
         let note = format!(
-            "the origin of the microphone positions lies outside the array ({off:.3} m from the microphones' centroid \
-             [{:.3}, {:.3}, {:.3}] m, the farthest microphone {reach:.3} m): directions are seen from the centroid",
-            c[0], c[1], c[2]
+            "{from}, farther than half the grid radius ({grid_radius_m} m): directions are seen from the centroid"
         );
         (moved, Some(note))
     }
@@ -331,15 +339,18 @@ pub(crate) fn dist(a: [f64; 3], b: [f64; 3]) -> f64 {
     ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
 }
 
-fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+/// a − b.
+pub(crate) fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
     [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
 }
 
-fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
+/// a · b.
+pub(crate) fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
     a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 }
 
-fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+/// a × b.
+pub(crate) fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
     [
         a[1] * b[2] - a[2] * b[1],
         a[2] * b[0] - a[0] * b[2],
@@ -347,8 +358,9 @@ fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
     ]
 }
 
-/// The unit normal of the plane all `positions` lie in (within 10⁻⁴ of the aperture), or
-/// None: fewer than three, on one line, or not in one plane.
+/// The unit normal of the plane all `positions` lie in (within 10⁻⁴ of the largest
+/// distance from the first position), or None: fewer than three, on one line, or not in
+/// one plane.
 pub fn plane_normal(positions: &[[f64; 3]]) -> Option<[f64; 3]> {
     let (&p0, rest) = positions.split_first()?;
     let far = rest
@@ -390,10 +402,10 @@ pub fn mirror_note(positions: &[[f64; 3]], grid: &super::Grid) -> Option<String>
     };
     let sides: Vec<bool> = grid.points.iter().filter_map(|&p| side(p)).collect();
     (sides.contains(&true) && sides.contains(&false)).then(|| {
-        "the microphones lie in one plane and the grid has directions on both sides of it: a direction \
-         and its mirror image through the plane give the same spectrum, so a source may be reported on \
-         the wrong side (e.g. below a horizontal array instead of above); use a grid on one side \
-         (ring:STEP:ELEV) or a non-planar array"
+        "the microphones lie in one plane and the grid has directions on both sides of it: in free \
+         field a direction and its mirror image through the plane give the same spectrum, so a source \
+         may be reported on the wrong side (e.g. below a horizontal array instead of above); use a grid \
+         on one side of the plane, or a non-planar array"
             .to_string()
     })
 }
@@ -449,7 +461,7 @@ mod tests {
     fn directions_are_seen_from_the_origin_within_the_array_else_from_the_centroid() {
         // TAMAGO-like: a ring above the origin (within the array): kept as it is.
         let raised = Geometry::circle(8, 0.0365, 0.011);
-        assert_eq!(raised.direction_frame(), (raised.clone(), None));
+        assert_eq!(raised.direction_frame(1.0), (raised.clone(), None));
         // A room's coordinates: moved to the centroid, with a note.
         let room = Geometry {
             mics: raised
@@ -458,7 +470,7 @@ mod tests {
                 .map(|p| [p[0] + 3.0, p[1] + 2.5, p[2] + 1.2])
                 .collect(),
         };
-        let (moved, note) = room.direction_frame();
+        let (moved, note) = room.direction_frame(1.0);
         assert!(note.unwrap().contains("[3.000, 2.500, 1.211] m"));
         let c = moved.centroid();
         assert!(c.iter().all(|v| v.abs() < 1e-12), "{c:?}");
@@ -469,7 +481,20 @@ mod tests {
         let one = Geometry {
             mics: vec![[0.0, 0.0, 0.1]],
         };
-        assert_eq!(one.direction_frame().0.mics, vec![[0.0, 0.0, 0.0]]);
+        assert_eq!(one.direction_frame(0.1).0.mics, vec![[0.0, 0.0, 0.0]]);
+        // A robot's frame: an arc on the front of a head 0.1 m in radius, the origin at the
+        // head's centre, outside the arc but within half the 1 m grid: kept, with a note.
+        let arc = Geometry {
+            mics: (0..4)
+                .map(|i| {
+                    let a = (-45.0 + 30.0 * i as f64).to_radians();
+                    [0.1 * a.cos(), 0.1 * a.sin(), 0.0]
+                })
+                .collect(),
+        };
+        let (kept, note) = arc.direction_frame(1.0);
+        assert_eq!(kept, arc);
+        assert!(note.unwrap().contains("directions are seen from the origin"));
     }
 
     #[test]

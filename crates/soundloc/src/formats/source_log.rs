@@ -26,7 +26,7 @@
 //! - `azimuth_deg` = atan2(y, x) and `elevation_deg` = atan2(z, √(x²+y²)), in degrees;
 //! - `power_db` is **NaN** (unknown; a [`crate::tracking::SourceTracker`] ignores NaN
 //!   peaks, so do not re-track a loaded log — it already has ids);
-//! - `grid_index` is 0;
+//! - `grid_index` is 0 (the logs do not hold it; Python's `read_source_log` gives None);
 //! - `time_s` = frame × `frame_period_s` (the caller's hop / sample rate, HARK's
 //!   ADVANCE / SAMPLING_RATE, 160 / 16000 = 0.01 s by default).
 //!

@@ -90,10 +90,15 @@ impl LocalizerSpec {
                      transfer functions', e.g. an uncalibrated array with free-field ones \
                      from its geometry: --coherence)"
                 };
+                let normalised = if c.normalize_bins {
+                    ", every bin's spectrum normalised (NormMUSIC's scale)"
+                } else {
+                    ""
+                };
                 format!(
                     "a noise source was given: using the robust default, the textbook GEVD with a \
                      signal subspace of {dim} of {num_mics} (max(--num-sources + 2, M/2) unless \
-                     --subspace-dim), {gains} and {refined} (HARK's: name --algorithm)"
+                     --subspace-dim){normalised}, {gains} and {refined} (HARK's: name --algorithm)"
                 )
             } else {
                 let music = if c.normalize_bins {

@@ -136,6 +136,12 @@ impl LocalizerGroup {
         &self.notes
     }
 
+    /// Put `note` ahead of the notes from building: what a caller that read the array
+    /// itself (a binding's arrays) has to say about it.
+    pub fn prepend_note(&mut self, note: String) {
+        self.notes.insert(0, note);
+    }
+
     /// The resolved analysis parameters (algorithm, sample rate).
     pub fn config(&self) -> &LocalizeConfig {
         &self.config

@@ -160,18 +160,18 @@ pub struct LocalizerSpec {
     /// Coherence normalisation ([`LocalizeConfig::coherence`]): None = the default's choice
     /// (on in the room default, i.e. no algorithm named and no noise source; else
     /// `analysis.coherence`); Some(v) = v whatever the algorithm.
-    #[serde(default)]
+    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub coherence: Option<bool>,
     /// Sub-grid refinement ([`LocalizeConfig::refine`]): None = the default's choice (on
     /// when no algorithm is named; else `analysis.refine`); Some(v) = v whatever the
     /// algorithm.
-    #[serde(default)]
+    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub refine: Option<bool>,
     /// Per-bin normalisation ([`LocalizeConfig::normalize_bins`]): None = the default's
     /// choice (on in the room default, NormMUSIC; else `analysis.normalize_bins`);
-    /// Some(v) = v whatever the algorithm (off in the room default: its SEVD's powers on
-    /// HARK's scale).
-    #[serde(default)]
+    /// Some(v) = v whatever the algorithm (off in the room default: the powers of its
+    /// SEVD, not NormMUSIC's bounded scale; HARK's scale needs the algorithm named).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub normalize_bins: Option<bool>,
 }
 
@@ -279,13 +279,13 @@ impl LocalizerSpec {
                         "grid radius must be positive, got {radius_m} m"
                     )));
                 }
-                let (geometry, moved) =
-                    Geometry::new(mics.clone(), Path::new("microphone positions"))?.direction_frame();
+                let (geometry, moved) = Geometry::new(mics.clone(), Path::new("microphone positions"))?
+                    .direction_frame(*radius_m);
                 note = moved;
                 let reach = geometry
                     .mics
                     .iter()
-                    .map(|p| (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt())
+                    .map(|&p| crate::array::geometry::dist(p, [0.0; 3]))
                     .fold(0.0, f64::max);
                 if *radius_m < reach {
                     let inside = format!(
@@ -394,6 +394,12 @@ impl Localizer {
     /// Notes from building (the algorithm chosen, K ignored…).
     pub fn notes(&self) -> &[String] {
         &self.notes
+    }
+
+    /// Put `note` ahead of the notes from building: what a caller that read the array
+    /// itself (a binding's arrays) has to say about it.
+    pub fn prepend_note(&mut self, note: String) {
+        self.notes.insert(0, note);
     }
 
     /// The resolved analysis parameters (algorithm, sample rate).

@@ -106,7 +106,9 @@ pub(crate) fn prepare(
             config.upper_freq_hz, config.sample_rate_hz
         ));
     }
-    if tf.mic_positions.len() == tf.num_mics {
+    // Free-field TFs only: measured ones carry the body's scattering, which breaks the
+    // mirror symmetry.
+    if matches!(spec.array, ArraySpec::FreeField { .. }) && tf.mic_positions.len() == tf.num_mics {
         notes.extend(crate::array::geometry::mirror_note(&tf.mic_positions, &tf.grid));
     }
     // A tracker threshold that no peak of a normalised spectrum can reach would drop
@@ -118,7 +120,7 @@ pub(crate) fn prepare(
                  exceeds {ceiling:.1} dB here, so no source would pass; lower the threshold, or name \
                  the algorithm (e.g. --algorithm sevd) for HARK's scale",
                 t.tracker.thresh_db,
-                if spec.algorithm.is_none() {
+                if spec.algorithm.is_none() && !spec.noise_given() {
                     ", the room default"
                 } else {
                     ""

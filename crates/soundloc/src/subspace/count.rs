@@ -21,21 +21,23 @@
 //! Values below `floor` × λ₁ count as noise ([`model_floor`]): a source heard from a
 //! direction is not exactly one dimension of a bin's correlation, because its delays
 //! between the microphones shift it within the analysis frame; the rest appears as a
-//! second value about (τ·fs/N)² below the first (τ the largest delay across the array,
-//! N the frame length: −37 dB on a 10 cm ring at 16 kHz and N = 512). Above ~35 dB SNR
-//! that second value stands out of the noise and MDL counted every source twice.
+//! second value of the order of (τ·fs/N)² × λ₁ (τ the largest delay across the array, N
+//! the frame length; on a 10 cm ring at 16 kHz and N = 512, (τ·fs/N)² is −41 dB and the
+//! value was measured at −37 dB). Above ~35 dB SNR it stands out of the noise and MDL
+//! counted every source twice.
 
 use crate::real::Real;
 
-/// The relative level below the largest value under which [`mdl`] counts values as noise:
+/// The ratio to the largest value under which [`mdl`] counts values as noise:
 /// 10·(τ·fs/N)² for an array whose farthest microphones are `aperture_m` apart (τ =
-/// aperture / c, c = 343 m/s), 10 dB above the frame-shift residue the module docs
-/// describe, within 10⁻⁶ … 10⁻¹; 10⁻³ when the positions are not known (`aperture_m`
-/// None or 0).
+/// aperture / c, c = 343 m/s), 10 dB above the order of the frame-shift residue the
+/// module docs describe (6 dB above the value measured there), within 10⁻⁶ … 10⁻¹; 10⁻³
+/// when the positions are not known (`aperture_m` None or 0).
 pub fn model_floor(aperture_m: Option<f64>, sample_rate_hz: u32, nfft: usize) -> f64 {
     match aperture_m {
         Some(a) if a > 0.0 && a.is_finite() => {
-            let rho = a / 343.0 * sample_rate_hz as f64 / nfft.max(1) as f64;
+            let c = crate::array::freefield::DEFAULT_SPEED_OF_SOUND_M_S;
+            let rho = a / c * sample_rate_hz as f64 / nfft.max(1) as f64;
             (10.0 * rho * rho).clamp(1e-6, 1e-1)
         }
         _ => 1e-3,
@@ -105,8 +107,8 @@ mod tests {
         // f32 values give the same count.
         let v32: Vec<f32> = [40.0, 12.0, 1.35, 1.25, 1.15, 1.05, 0.95, 0.85].to_vec();
         assert_eq!(mdl(&v32, 50, 0.0), 2);
-        // One source at 50 dB SNR with its frame-shift residue 37 dB below it: two without
-        // a floor, one with the 10 cm ring's.
+        // One source at 50 dB SNR with its frame-shift residue 37 dB below it (as measured
+        // on a 10 cm ring): two without a floor, one with the ring's.
         let mut v = vec![1e5, 1e5 * 10f64.powf(-3.7)];
         v.extend_from_slice(&noise[..6]);
         assert_eq!(mdl(&v, 16, 0.0), 2);
