@@ -345,6 +345,7 @@ impl PySpec {
 
     /// A localizer (the GIL released while files load and the plan is built).
     pub fn localizer(&self, py: Python<'_>) -> PyResult<Localizer> {
+        self.check_fs_early()?;
         let loc = py
             .allow_threads(|| match self.arrays()? {
                 None => Localizer::new(&self.spec),
@@ -363,6 +364,7 @@ impl PySpec {
 
     /// A group of `streams` streams sharing the plan.
     pub fn group(&self, py: Python<'_>, streams: usize) -> PyResult<LocalizerGroup> {
+        self.check_fs_early()?;
         let g = py
             .allow_threads(|| match self.arrays()? {
                 None => LocalizerGroup::new(&self.spec, streams),
@@ -377,6 +379,24 @@ impl PySpec {
             .map_err(err)?;
         self.check_fs(g.config().sample_rate_hz)?;
         Ok(g)
+    }
+
+    /// [`PySpec::check_fs`] before anything is loaded, for a TF zip: its rate is in its
+    /// small entries, so a wrong `fs=` is refused without inflating the matrices. (Other
+    /// files, and a zip whose entries cannot be read, are checked after the load, whose
+    /// own errors then name the problem.)
+    fn check_fs_early(&self) -> PyResult<()> {
+        match (&self.spec.array, self.fs_given) {
+            (ArraySpec::TransferFunctions { path }, Some(_))
+                if soundloc::formats::hark_zip::file_looks_like_zip(path) =>
+            {
+                match soundloc::formats::tf_zip_read::read_tf_zip_config(path) {
+                    Ok(c) => self.check_fs(c.sampling_rate_hz),
+                    Err(_) => Ok(()),
+                }
+            }
+            _ => Ok(()),
+        }
     }
 
     /// `fs=` with `tf=`: the analysis runs at the file's rate, so another rate is refused

@@ -5,6 +5,7 @@ import json
 import os
 import subprocess
 import wave
+import zipfile
 from pathlib import Path
 
 import numpy as np
@@ -476,6 +477,17 @@ def test_switches_off_in_the_default_and_options_a_tf_file_does_not_take(tmp_pat
     np.testing.assert_array_equal(ok.azimuth_deg, soundloc.Localizer(tf=tf, device="cpu").localize(x).azimuth_deg)
     with pytest.raises(ValueError, match="fs=48000: the transfer functions in .*ring.zip are for 16000 Hz"):
         soundloc.Localizer(tf=tf, fs=48000, device="cpu")
+    # The zip's rate is read from its small entries before any matrix is inflated: with
+    # every matrix broken, a wrong fs= is still named as such (and the right one reaches
+    # the load, which names the broken entry).
+    broken = tmp_path / "broken.zip"
+    with zipfile.ZipFile(tf) as src, zipfile.ZipFile(broken, "w") as dst:
+        for e in src.infolist():
+            dst.writestr(e, b"not a matrix" if e.filename.endswith(".mat") else src.read(e))
+    with pytest.raises(ValueError, match="fs=48000: the transfer functions in .*broken.zip are for 16000 Hz"):
+        soundloc.Localizer(tf=broken, fs=48000, device="cpu")
+    with pytest.raises((OSError, ValueError), match=r"broken\.zip.*\.mat|\.mat.*broken\.zip"):
+        soundloc.Localizer(tf=broken, fs=FS, device="cpu")
     for kw in (dict(grid="ring:10"), dict(grid_radius=2.0), dict(speed_of_sound=340.0)):
         with pytest.raises(ValueError, match="applies to geometry="):
             soundloc.Localizer(tf=tf, device="cpu", **kw)
