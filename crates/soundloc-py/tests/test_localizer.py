@@ -59,6 +59,16 @@ def test_tracker_options_equal_the_cli(tmp_path):
     for i, l in enumerate(lines):
         assert l["frame"] == r.frames[i]
         assert [s["id"] for s in l["sources"]] == [int(v) for v in r.ids[i][: len(l["sources"])]]
+    # Pushed in 20 ms blocks: each push's spectrum rows are those of the results it
+    # returns (the preroll holds results back; their rows wait with them).
+    loc = localizer(period=10, track=True, tracker_thresh_db=3.0, tracker_pause_length=300.0,
+                    tracker_min_src_interval_deg=15.0, tracker_min_id=7, preroll=20)
+    row = {f: i for i, f in enumerate(r.frames)}
+    parts = [loc.push(x[i : i + 320]) for i in range(0, len(x), 320)] + [loc.flush()]
+    assert sum(len(p) for p in parts) == len(r)
+    for p in parts:
+        if len(p):
+            np.testing.assert_array_equal(p.spectrum_db, r.spectrum_db[[row[f] for f in p.frames]])
     with pytest.raises(ValueError, match="track=True"):
         localizer(preroll=10)
     with pytest.raises(ValueError, match="MIN_ID"):

@@ -64,6 +64,9 @@ pub struct Engine<T: Real> {
     options: StreamOptions,
     tracker: Option<SourceTracker>,
     extender: Option<IntervalExtender>,
+    /// Spectrum rows of windows whose results the extender still holds: a row goes out
+    /// with its result, so that an [`Output`]'s rows and results stay one to one.
+    held_rows: Option<SpectrumTable>,
     /// Input channel of each microphone, once the first block told the channel count.
     map: Option<(usize, Arc<[usize]>)>,
     windows_run: usize,
@@ -119,6 +122,7 @@ impl<T: Real> Engine<T> {
                     preroll_length: t.preroll,
                 })
             }),
+            held_rows: None,
             options,
             map: None,
             windows_run: 0,
@@ -419,6 +423,11 @@ impl<T: Real> Engine<T> {
         if let Some(e) = &mut self.extender {
             out.results.extend(e.finish());
         }
+        if let Some(held) = self.held_rows.take() {
+            out.spectrum
+                .get_or_insert_with(|| SpectrumTable::empty(held.num_dirs, held.num_bins))
+                .append(held);
+        }
         if !self.constant.is_empty() && self.constant.iter().all(|k| !k.1) {
             let v = self
                 .constant
@@ -461,6 +470,7 @@ impl<T: Real> Engine<T> {
         if let Some(e) = &mut self.extender {
             e.reset();
         }
+        self.held_rows = None;
         self.map = None;
         self.windows_run = 0;
         self.finished = false;

@@ -22,6 +22,7 @@ impl<T: Real> Engine<T> {
         let want = self.options.want_spectrum;
         let refine = self.plan.config.refine;
         let (nd, nb) = (self.plan.num_dirs, self.plan.num_bins());
+        let mut released = 0;
         for (i, w) in windows.iter().enumerate() {
             let wi = at + i;
             let peaks = &batch.peaks[wi];
@@ -49,19 +50,36 @@ impl<T: Real> Engine<T> {
                 }
             }
             match &mut self.extender {
-                Some(e) => out.results.extend(e.push(r)),
+                Some(e) => {
+                    let done = e.push(r);
+                    released += done.len();
+                    out.results.extend(done);
+                }
                 None => out.results.push(r),
             }
         }
         if want {
             let n = windows.len();
-            let t = out.spectrum.get_or_insert_with(|| SpectrumTable::empty(nd, nb));
+            let stamps: Vec<(usize, f64)> = windows
+                .iter()
+                .map(|w| (self.report_frame(w.frame), self.frame_time(w.frame)))
+                .collect();
+            // With the interval extender, rows wait with their results (held rows first).
+            let t = match self.extender {
+                Some(_) => self.held_rows.get_or_insert_with(|| SpectrumTable::empty(nd, nb)),
+                None => out.spectrum.get_or_insert_with(|| SpectrumTable::empty(nd, nb)),
+            };
             t.db.extend_from_slice(&batch.spectrum_db[at * nd..(at + n) * nd]);
             t.bin_weight
                 .extend_from_slice(&batch.bin_weight[at * nb..(at + n) * nb]);
-            for w in windows {
-                t.frames.push(self.report_frame(w.frame));
-                t.times_s.push(self.frame_time(w.frame));
+            for (frame, time_s) in stamps {
+                t.frames.push(frame);
+                t.times_s.push(time_s);
+            }
+            if let Some(held) = self.held_rows.as_mut().filter(|_| released > 0) {
+                out.spectrum
+                    .get_or_insert_with(|| SpectrumTable::empty(nd, nb))
+                    .append(held.take_front(released));
             }
         }
         Ok(())

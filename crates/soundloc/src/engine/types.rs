@@ -35,6 +35,29 @@ impl SpectrumTable {
         }
     }
 
+    /// Number of rows.
+    pub fn len(&self) -> usize {
+        self.frames.len()
+    }
+
+    /// Whether the table has no rows.
+    pub fn is_empty(&self) -> bool {
+        self.frames.is_empty()
+    }
+
+    /// Remove the first `n` rows (at most all) and return them as a table.
+    pub(super) fn take_front(&mut self, n: usize) -> SpectrumTable {
+        let n = n.min(self.len());
+        SpectrumTable {
+            frames: self.frames.drain(..n).collect(),
+            times_s: self.times_s.drain(..n).collect(),
+            num_dirs: self.num_dirs,
+            db: self.db.drain(..n * self.num_dirs).collect(),
+            num_bins: self.num_bins,
+            bin_weight: self.bin_weight.drain(..n * self.num_bins).collect(),
+        }
+    }
+
     /// Append another table's rows.
     pub fn append(&mut self, other: SpectrumTable) {
         self.frames.extend(other.frames);

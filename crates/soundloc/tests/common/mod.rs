@@ -30,6 +30,7 @@ pub fn stream(loc: &mut Localizer, channels: &[Vec<f32>], max_block: usize, seed
     let len = channels[0].len();
     let mut out = Output::default();
     let mut pos = 0;
+    let mut seen = (0, 0);
     while pos < len {
         let n = if rng.gen_bool(0.3) {
             rng.gen_range(1..20)
@@ -55,7 +56,25 @@ pub fn stream(loc: &mut Localizer, channels: &[Vec<f32>], max_block: usize, seed
             loc.push(Block::Planar(&part), &mut out).unwrap();
         }
         pos += n;
+        seen = rows_follow_results(&out, seen);
     }
     loc.flush(&mut out).unwrap();
+    rows_follow_results(&out, seen);
     out
+}
+
+/// The spectrum rows a push or flush added are those of the results it added (same
+/// frames, in order), also while the interval extender holds results back; returns the
+/// new (results, rows) counts.
+fn rows_follow_results(out: &Output, (r0, s0): (usize, usize)) -> (usize, usize) {
+    let Some(t) = &out.spectrum else {
+        return (out.results.len(), 0);
+    };
+    let results: Vec<usize> = out.results[r0..].iter().map(|r| r.frame).collect();
+    assert_eq!(
+        results,
+        t.frames[s0..],
+        "a push's spectrum rows are not its results'"
+    );
+    (out.results.len(), t.frames.len())
 }
