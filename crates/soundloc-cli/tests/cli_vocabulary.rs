@@ -352,6 +352,56 @@ fn coherence_switches_say_what_ran() {
     assert!(s.contains("normmusic (subspace 4, coherence, refined)"), "{s}");
     let s = summary(&["localize", w, "--geometry", g, "--algorithm", "sevd", "--refine"]);
     assert!(s.contains("sevd (refined)"), "{s}");
+    // The spectrum's numerator: geometric in the robust default, spec §5's raw for a named
+    // gevd, either on request; refused by the algorithms it does not apply to.
+    let noise = ["--noise-range", "0:0.5"];
+    let s = summary(&[&["localize", w, "--geometry", g][..], &noise].concat());
+    assert!(
+        s.contains("gevd (subspace 4, geometric numerator, refined)"),
+        "{s}"
+    );
+    let s = summary(
+        &[
+            &["localize", w, "--geometry", g, "--numerator", "raw"][..],
+            &noise,
+        ]
+        .concat(),
+    );
+    assert!(s.contains("gevd (subspace 4, refined)"), "{s}");
+    let s = summary(
+        &[
+            &["localize", w, "--geometry", g, "--algorithm", "gevd"][..],
+            &noise,
+        ]
+        .concat(),
+    );
+    assert!(s.contains("gevd on cpu"), "{s}");
+    let args = ["--algorithm", "gevd", "--numerator", "whitened"];
+    let s = summary(&[&["localize", w, "--geometry", g][..], &args, &noise].concat());
+    assert!(s.contains("gevd (whitened numerator)"), "{s}");
+    for alg in ["gsvd", "sevd", "srp-phat"] {
+        let o = bin()
+            .args([
+                "localize",
+                w,
+                "--geometry",
+                g,
+                "--numerator",
+                "geometric",
+                "--algorithm",
+                alg,
+            ])
+            .args(noise)
+            .output()
+            .unwrap();
+        let e = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{alg}: {e}");
+        assert!(
+            e.contains("numerator is defined for the textbook gevd"),
+            "{alg}: {e}"
+        );
+        assert!(o.stdout.is_empty(), "{alg}: no work before the error");
+    }
 }
 
 /// `tf make` with positions in a frame whose origin lies outside the array (room

@@ -49,7 +49,7 @@ impl PySpec {
     tracker_min_id=None, preroll=0, device="auto", precision="f32", channels=None,
     input_channels=None, spectrum=true, grid_radius=None, speed_of_sound=None, channels_first=false,
     subspace_dim=None, normalize_bins=None, refine=None, subspace_tracking=false, resample=false,
-    diagonal_loading=0.0, coherence=None))]
+    diagonal_loading=0.0, coherence=None, numerator=None))]
 #[allow(clippy::too_many_arguments)] // mirrors the Python keywords
 pub(crate) fn spec(
     tf: Option<PathBuf>,
@@ -69,7 +69,7 @@ pub(crate) fn spec(
     noise_range: Option<&Bound<'_, PyAny>>,
     noise_cm: Option<PathBuf>,
     noise_segments: Option<Vec<Bound<'_, PyAny>>>,
-    noise_preceding: Option<(usize, usize)>,
+    noise_preceding: Option<&Bound<'_, PyAny>>,
     track: bool,
     tracker_thresh_db: f64,
     tracker_pause_length: Option<f64>,
@@ -91,6 +91,7 @@ pub(crate) fn spec(
     resample: bool,
     diagonal_loading: f64,
     coherence: Option<bool>,
+    numerator: Option<&str>,
 ) -> PyResult<PySpec> {
     // Defaults: HARK's band (500–2800 Hz) and 16 kHz.
     let freq_range = freq_range.map_or(Ok((500.0, 2800.0)), |r| pair(r, "freq_range"))?;
@@ -171,6 +172,10 @@ pub(crate) fn spec(
     // one); a value wins whatever the algorithm.
     spec.normalize_bins = normalize_bins;
     spec.refine = refine;
+    // None: the default's choice (geometric in the robust default).
+    spec.numerator = numerator
+        .map(|n| parse::<soundloc::config::Numerator>("numerator", n))
+        .transpose()?;
     let a = &mut spec.analysis;
     a.num_sources = num_sources;
     a.subspace_dim = subspace_dim;
@@ -205,7 +210,10 @@ pub(crate) fn spec(
             ))
         }
         (Some(s), None) => NoiseUpdate::Segments(s),
-        (None, Some((frames, gap))) => NoiseUpdate::Preceding { frames, gap },
+        (None, Some(p)) => {
+            let (frames, gap) = preceding(p)?;
+            NoiseUpdate::Preceding { frames, gap }
+        }
         (None, None) => NoiseUpdate::Fixed,
     };
     let given = tracker_pause_length.is_some()
@@ -268,6 +276,30 @@ fn pair(v: &Bound<'_, PyAny>, what: &str) -> PyResult<(f64, f64)> {
             v.repr().map(|r| r.to_string()).unwrap_or_default()
         ))),
     }
+}
+
+/// `noise_preceding`: FRAMES, or (FRAMES, GAP) as a tuple or list (the CLI's
+/// FRAMES[:GAP]; GAP 0 when left out).
+fn preceding(v: &Bound<'_, PyAny>) -> PyResult<(usize, usize)> {
+    let bad = || {
+        PyValueError::new_err(format!(
+            "noise_preceding must be FRAMES or (FRAMES, GAP), whole numbers with FRAMES ≥ 1, got {}",
+            v.repr().map(|r| r.to_string()).unwrap_or_default()
+        ))
+    };
+    if v.is_instance_of::<pyo3::types::PyBool>() {
+        return Err(bad());
+    }
+    let (frames, gap) = match (v.extract::<usize>(), v.extract::<Vec<usize>>()) {
+        (Ok(f), _) => (f, 0),
+        (_, Ok(p)) if p.len() == 2 => (p[0], p[1]),
+        (_, Ok(p)) if p.len() == 1 => (p[0], 0),
+        _ => return Err(bad()),
+    };
+    if frames == 0 {
+        return Err(bad());
+    }
+    Ok((frames, gap))
 }
 
 /// A sample rate in Hz: a positive whole number (16000 or 16000.0).

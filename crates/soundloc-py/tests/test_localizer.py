@@ -192,6 +192,27 @@ def test_noise_array_selects_gevd_and_tracking_gives_ids():
     loc = localizer(noise_range=(0.0, 0.5), algorithm="gsvd")
     assert loc.algorithm == "gsvd"
     assert len(loc.localize(x, FS)) > 0
+    # The robust default's numerator is geometric; numerator= chooses another for the
+    # textbook gevd (the CLI's --numerator: the same spectra) and is refused by the others.
+    default = localizer(noise=noise)
+    assert json.loads(default.spec_json()).get("numerator") is None
+    assert any("‖a‖·‖a_w‖" in n for n in default.notes)
+    spectra = {n: localizer(noise=noise, numerator=n).localize(x, FS).spectrum_db
+               for n in ("raw", "whitened", "geometric")}
+    np.testing.assert_array_equal(spectra["geometric"], default.localize(x, FS).spectrum_db)
+    assert not np.allclose(spectra["raw"], spectra["geometric"])
+    with pytest.raises(ValueError, match="numerator is defined for the textbook gevd"):
+        localizer(noise=noise, numerator="whitened", algorithm="gsvd")
+    with pytest.raises(ValueError, match="numerator"):
+        localizer(noise=noise, numerator="sqrt")
+    # noise_preceding as the CLI's FRAMES[:GAP]: a count, or a pair as a tuple or list.
+    runs = [localizer(noise_preceding=p, window_type="past").localize(x, FS).azimuth_deg
+            for p in (30, (30, 0), [30, 0])]
+    for r in runs[1:]:
+        np.testing.assert_array_equal(r, runs[0])
+    for bad in (0, (30, 1, 2), "30", True):
+        with pytest.raises((ValueError, TypeError), match="noise_preceding"):
+            localizer(noise_preceding=bad)
 
 
 def write_wav(path, x):

@@ -114,6 +114,49 @@ pub enum Denominator {
     Unsquared,
 }
 
+/// Numerator of the textbook GEVD's MUSIC spectrum P_k(d) = num / ‖P_n a_w‖² (the other
+/// algorithms use ‖a‖², spec §5). Where no talker is, ‖P_n a_w‖² ≈ ‖a_w‖², so the raw
+/// ‖a‖² leaves the noise's own directional power ‖a‖²/aᴴK⁻¹a (its MVDR spectrum) in the
+/// spectrum: a loud noise source that K describes stands out as a peak. ‖a_w‖² flattens
+/// it (the whitened domain's plain MUSIC); ‖a‖·‖a_w‖ keeps half of it (in dB). Measured
+/// in docs/accuracy.md ("The spectrum's numerator").
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "kebab-case")]
+pub enum Numerator {
+    /// ‖a‖², the raw steering vector's squared norm (spec §5; the default of `gevd`).
+    #[default]
+    Raw,
+    /// ‖a_w‖² = aᴴK⁻¹a.
+    Whitened,
+    /// ‖a‖·‖a_w‖, the geometric mean of the two (the robust default's).
+    Geometric,
+}
+
+impl Numerator {
+    /// Whether this is spec §5's ‖a‖².
+    pub fn is_raw(&self) -> bool {
+        *self == Numerator::Raw
+    }
+
+    /// Its name on the command line and in Python.
+    pub fn name(&self) -> &'static str {
+        match self {
+            Numerator::Raw => "raw",
+            Numerator::Whitened => "whitened",
+            Numerator::Geometric => "geometric",
+        }
+    }
+
+    /// The numerator from ‖a‖² (`raw`) and ‖a_w‖² (`whitened`).
+    pub fn of(&self, raw: f64, whitened: f64) -> f64 {
+        match self {
+            Numerator::Raw => raw,
+            Numerator::Whitened => whitened,
+            Numerator::Geometric => (raw * whitened).sqrt(),
+        }
+    }
+}
+
 /// Compute precision: single (as HARK; default) or double (the reference).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
 #[serde(rename_all = "kebab-case")]
@@ -195,6 +238,10 @@ pub struct LocalizeConfig {
     /// Refused for HARK's GSVD and GEVD; ignored by SRP-PHAT, whose phase transform already
     /// discards gains.
     pub coherence: bool,
+    /// The textbook GEVD's spectrum numerator ([`Numerator`]; spec §5's ‖a‖² unless set).
+    /// The other algorithms refuse any other. Left out of JSON when raw.
+    #[serde(skip_serializing_if = "Numerator::is_raw")]
+    pub numerator: Numerator,
     /// Approximate mode for streams (see [`crate::subspace::tracking`]): each window's
     /// leading vectors by warm-started subspace iteration from the previous window's,
     /// checked by their residual, with an exact decomposition at the start, on every
@@ -228,6 +275,7 @@ impl Default for LocalizeConfig {
             normalize_bins: false,
             refine: false,
             coherence: false,
+            numerator: Numerator::Raw,
             subspace_tracking: false,
         }
     }
@@ -262,6 +310,9 @@ impl LocalizeConfig {
         }
         if self.coherence && self.algorithm.is_music() {
             with.push("coherence".to_string());
+        }
+        if !self.numerator.is_raw() {
+            with.push(format!("{} numerator", self.numerator.name()));
         }
         if self.refine {
             with.push("refined".to_string());

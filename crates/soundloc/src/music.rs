@@ -22,7 +22,8 @@
 //! noise-subspace sum to rounding, which `tests` check against the naive f64 form; the
 //! decomposition computes only the Ns signal vectors ([`vectors_needed`]).
 //! For the textbook GEVD, a is the whitened a_w = L⁻¹a in the denominator (and its norm in
-//! the complement) while the numerator keeps the raw ‖a‖².
+//! the complement) while the numerator keeps the raw ‖a‖², or another
+//! [`crate::config::Numerator`] ([`Plan::numerator_norm2`]).
 
 use crate::config::Denominator;
 use crate::lanes;
@@ -139,7 +140,7 @@ pub fn accumulate_bin<T: Real>(
     let (d0, d1) = (b * nd + dirs.start, b * nd + dirs.end);
     let st = &st_all[d0 * m..d1 * m];
     let n2_den = &n2_all[d0..d1];
-    let n2_num = &plan.steering_norm2[d0..d1];
+    let n2_num = &plan.numerator_norm2()[d0..d1];
     // The projections aᴴe_c of every column the spectrum uses: the Ns signal vectors
     // (squared denominator) or the M − Ns noise vectors (unsquared), per window.
     let (c0, nc) = match plan.config.denominator {
@@ -436,7 +437,7 @@ mod tests {
                         let dot: C<f64> = a.iter().zip(v).map(|(x, y)| x.conj() * y).sum();
                         den += dot.norm_sqr();
                     }
-                    pbar[dir] += plan.weights[b] * g * plan.steering_norm2[b * d + dir] / den;
+                    pbar[dir] += plan.weights[b] * g * plan.numerator_norm2()[b * d + dir] / den;
                 }
             }
             for (dir, p) in pbar.iter().enumerate() {

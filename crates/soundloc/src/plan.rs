@@ -9,7 +9,8 @@
 //! - the spectrum weights w_k;
 //! - per bin, from K (in f64, once per K): K ← K / max|Re K_ij| (HARK's scaling), then the
 //!   whitening matrix W_k of the algorithm (K⁻¹ for GSVD, L⁻¹ with K = L Lᴴ for GEVD,
-//!   K^{-1/2} for GEVD-HARK), and for GEVD the whitened steering a_w = L⁻¹ a with ‖a_w‖²;
+//!   K^{-1/2} for GEVD-HARK), and for GEVD the whitened steering a_w = L⁻¹ a with ‖a_w‖²
+//!   (and the spectrum's numerator from both when it is not the raw ‖a‖², [`crate::config::Numerator`]);
 //! - the peak table (neighbours, azimuth mask, number of peaks out).
 //!
 //! After `Plan::new` a backend's per-batch calls fail only on shape or device errors.
@@ -41,6 +42,21 @@ pub struct Whitening<T: Real> {
     pub steering: Vec<C<T>>,
     /// GEVD only: ‖a_w‖², `[bin][dir]` (else empty).
     pub steering_norm2: Vec<T>,
+    /// GEVD with a [`crate::config::Numerator`] other than the raw ‖a‖²: the spectrum's numerator from
+    /// ‖a‖² and ‖a_w‖², `[bin][dir]` (else empty). See [`Plan::numerator_norm2`].
+    pub numerator_norm2: Vec<T>,
+}
+
+/// [`Whitening::numerator_norm2`] for `config` from the raw and whitened norms.
+fn numerator_norm2<T: Real>(config: &LocalizeConfig, raw: &[T], w: &mut Whitening<T>) {
+    w.numerator_norm2 = match (config.algorithm, config.numerator) {
+        (Algorithm::Gevd, n) if !n.is_raw() => raw
+            .iter()
+            .zip(&w.steering_norm2)
+            .map(|(&r, &aw)| T::of_f64(n.of(r.to_f64(), aw.to_f64())))
+            .collect(),
+        _ => Vec::new(),
+    };
 }
 
 /// A validated, precomputed localization plan. Shared (`Arc`) by the engine and a backend.
@@ -206,7 +222,9 @@ impl<T: Real> Plan<T> {
                     &identity
                 }
             };
-            Some(whitening(config, k, &bins, m, d, &steering)?)
+            let mut w = whitening(config, k, &bins, m, d, &steering)?;
+            numerator_norm2(config, &norm2, &mut w);
+            Some(w)
         } else {
             None
         };
@@ -246,14 +264,16 @@ impl<T: Real> Plan<T> {
     pub fn with_noise(&self, noise: &NoiseMatrices) -> Result<Self> {
         let mut p = self.clone();
         if self.config.algorithm.uses_noise() {
-            p.whitening = Some(whitening(
+            let mut w = whitening(
                 &self.config,
                 noise,
                 &self.bins,
                 self.num_mics,
                 self.num_dirs,
                 &self.steering,
-            )?);
+            )?;
+            numerator_norm2(&self.config, &self.steering_norm2, &mut w);
+            p.whitening = Some(w);
             if self.config.algorithm == Algorithm::Gevd {
                 // Its denominator reads the whitened steering.
                 p.planar = p.planar_steering();
@@ -274,6 +294,15 @@ impl<T: Real> Plan<T> {
         match (&self.whitening, self.config.algorithm) {
             (Some(w), Algorithm::Gevd) => (&w.steering, &w.steering_norm2),
             _ => (&self.steering, &self.steering_norm2),
+        }
+    }
+
+    /// The spectrum's numerator `[bin][dir]`: ‖a‖² (spec §5), or for the textbook GEVD with
+    /// another [`crate::config::Numerator`] its value from ‖a‖² and ‖a_w‖².
+    pub fn numerator_norm2(&self) -> &[T] {
+        match &self.whitening {
+            Some(w) if !w.numerator_norm2.is_empty() => &w.numerator_norm2,
+            _ => &self.steering_norm2,
         }
     }
 
@@ -321,6 +350,13 @@ fn validate_config(c: &LocalizeConfig) -> Result<()> {
             "coherence normalisation is defined for sevd and the textbook gevd, not for HARK's {} \
              (its spectrum uses the raw steering vectors against K⁻¹-weighted ones); drop --coherence \
              or use --algorithm gevd",
+            c.algorithm.name()
+        ));
+    }
+    if !c.numerator.is_raw() && c.algorithm != Algorithm::Gevd {
+        return bad(format!(
+            "the {} numerator is defined for the textbook gevd (K whitens its steering              vectors), not for {}, whose spectrum uses ‖a‖²; drop --numerator or use              --algorithm gevd",
+            c.numerator.name(),
             c.algorithm.name()
         ));
     }

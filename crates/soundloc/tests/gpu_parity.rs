@@ -433,6 +433,11 @@ fn srp_phat_and_normmusic_on_the_gpu() {
         4,
     );
     sd.check(&mode, "ring8 gevd coherence", &coh(Algorithm::Gevd, 4), 3);
+    let whitened = LocalizeConfig {
+        numerator: soundloc::config::Numerator::Whitened,
+        ..scene_config(Algorithm::Gevd, 50, 10)
+    };
+    sd.check(&mode, "ring8 gevd whitened numerator", &whitened, 3);
     let (mics, dirs) = if mode.is_emulator() { (12, 150) } else { (60, 2522) };
     let sd = scene(Geometry::sphere(mics, 0.1), Grid::sphere(dirs, 1.0), 11);
     sd.check(
@@ -490,6 +495,20 @@ fn scene_sphere_array_60_mics() {
             8,
         );
     }
+    // The robust default as it runs: refined, the geometric numerator ‖a‖·‖a_w‖ (read by
+    // the GPU's spectrum from the plan like the raw ‖a‖²).
+    let cfg = LocalizeConfig {
+        subspace_dim: Some(dim),
+        refine: true,
+        numerator: soundloc::config::Numerator::Geometric,
+        ..scene_config(Algorithm::Gevd, 50, 25)
+    };
+    sd.check(
+        &mode,
+        &format!("sphere{mics} robust default (subspace {dim}, geometric numerator)"),
+        &cfg,
+        8,
+    );
 }
 
 #[test]

@@ -130,6 +130,8 @@ pub enum SceneArg {
     Drone,
     /// Six broadband sources spread over the room, no drone.
     Room,
+    /// One point source in the room sounding throughout (K from the first second).
+    Interferer,
 }
 
 #[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
@@ -340,6 +342,7 @@ fn run_accuracy(a: &Args) -> anyhow::Result<ExitCode> {
     let (noise, all) = match a.scene {
         SceneArg::Drone => (StudyNoise::Rotors, variants_for(array, period)),
         SceneArg::Room => (StudyNoise::Room, variants_without_noise(array, period)),
+        SceneArg::Interferer => (StudyNoise::Interferer, variants_for(array, period)),
     };
     let vs: Vec<_> = all
         .into_iter()

@@ -116,6 +116,12 @@ pub struct AnalysisArgs {
     /// No coherence normalisation, also in the room default.
     #[arg(long, overrides_with = "coherence")]
     pub no_coherence: bool,
+    /// The textbook GEVD's spectrum numerator: raw ‖a‖² (HARK-style spec §5; a loud noise
+    /// source that K holds then shows as a peak at its own strength), whitened ‖a_w‖² =
+    /// aᴴK⁻¹a (flattens it), or geometric ‖a‖·‖a_w‖. Default: geometric in the robust
+    /// default (a noise source, no algorithm named), raw with --algorithm gevd.
+    #[arg(long, value_enum)]
+    pub numerator: Option<NumeratorArg>,
     /// Approximate streaming mode (CPU): leading vectors tracked between windows, residual-
     /// checked; for large arrays at small --period and --num-sources; no source count.
     #[arg(long)]
@@ -197,7 +203,9 @@ pub struct RunArgs {
     /// SourceTracker THRESH (dB): peaks below are ignored.
     #[arg(long, requires = "track", default_value_t = 0.0, allow_hyphen_values = true)]
     pub thresh: f64,
-    /// SourceTracker PAUSE_LENGTH.
+    /// SourceTracker PAUSE_LENGTH, in tenths of an STFT frame as HARK's: a source without
+    /// peaks is kept for PAUSE_LENGTH/10 frames (800: 80 frames, 0.8 s at hop 160 and
+    /// 16 kHz), whatever --period.
     #[arg(long, requires = "track", default_value_t = 800.0)]
     pub pause_length: f64,
     /// SourceTracker MIN_SRC_INTERVAL (degrees).
@@ -289,8 +297,9 @@ impl AnalysisArgs {
             diagonal_loading: self.diagonal_loading,
             normalize_bins: self.normalize_bins,
             refine: self.refine,
-            // The spec's `coherence` carries the choice (None: the default's).
+            // The spec's `coherence` and `numerator` carry the choices (None: the default's).
             coherence: false,
+            numerator: Default::default(),
             subspace_tracking: self.subspace_tracking,
         }
     }
@@ -417,8 +426,24 @@ impl RunArgs {
             coherence: choice(self.analysis.coherence, self.analysis.no_coherence),
             refine: choice(self.analysis.refine, self.analysis.no_refine),
             normalize_bins: choice(self.analysis.normalize_bins, self.analysis.no_normalize_bins),
+            numerator: self.analysis.numerator.map(|n| match n {
+                NumeratorArg::Raw => soundloc::config::Numerator::Raw,
+                NumeratorArg::Whitened => soundloc::config::Numerator::Whitened,
+                NumeratorArg::Geometric => soundloc::config::Numerator::Geometric,
+            }),
         })
     }
+}
+
+/// `--numerator`.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum NumeratorArg {
+    /// ‖a‖² (spec §5).
+    Raw,
+    /// ‖a_w‖² = aᴴK⁻¹a.
+    Whitened,
+    /// ‖a‖·‖a_w‖.
+    Geometric,
 }
 
 /// A `--X` / `--no-X` pair: Some(true), Some(false), or None (the default's choice).

@@ -28,7 +28,8 @@ Arguments (HARK LocalizeMUSIC name / pyroomacoustics name):
     algorithm: "sevd" | "gevd" | "gevd-hark" | "gsvd" | "srp-phat" (MUSIC_ALGORITHM); default
         (None): without a noise source the room default (NormMUSIC: sevd with every bin
         normalised, subspace min(M/2, round(2√M)), coherence, refinement), with one the robust gevd
-        (subspace max(num_sources+2, M/2), refinement); a named algorithm runs as HARK's.
+        (subspace max(num_sources+2, M/2), numerator ‖a‖·‖a_w‖, refinement); a named algorithm
+        runs as HARK's.
     subspace_dim (signal subspace when it should differ from num_sources), normalize_bins
         (NormMUSIC) and refine (sub-grid peak directions): None = the default's choice (both
         on in the room default, refine in the robust one, off for a named algorithm), True or
@@ -38,15 +39,21 @@ Arguments (HARK LocalizeMUSIC name / pyroomacoustics name):
         microphones' gain mismatch cancels: sevd scales every window's R to a unit diagonal,
         the textbook gevd gives the steering vectors K's channel levels; None: on in the
         room default, off otherwise; with a noise source, True suits an uncalibrated array
-        with geometric transfer functions).
+        with geometric transfer functions), numerator (the textbook gevd's spectrum numerator:
+        "raw" ‖a‖² as spec §5, where a loud noise source that K holds shows as a peak at
+        its own strength; "whitened" ‖a_w‖² = aᴴK⁻¹a, which flattens it; "geometric"
+        ‖a‖·‖a_w‖; None: geometric in the robust default, raw with algorithm="gevd").
     num_sources (NUM_SOURCE / num_src), max_peaks (MAXNUM_OUT_PEAKS), window (WINDOW, frames),
     period (PERIOD), window_type "past"|"middle"|"future" (WINDOW_TYPE), freq_range
         (LOWER/UPPER_BOUND_FREQUENCY, Hz; pyroomacoustics' freq_range), nfft (LENGTH),
         hop (ADVANCE).
     noise: (samples, channels) noise-only array; noise_range: (t0, t1) seconds of the input;
-        noise_cm: HARK noise-CM file; noise_segments / noise_preceding: online K updates.
+        noise_cm: HARK noise-CM file; noise_segments ([(t0, t1), ...] seconds) /
+        noise_preceding (FRAMES or (FRAMES, GAP): K from the FRAMES frames ending GAP frames
+        before each window): online K updates.
     track: SourceTracker ids, with tracker_thresh_db (THRESH), tracker_pause_length
-        (PAUSE_LENGTH, frames), tracker_min_src_interval_deg (MIN_SRC_INTERVAL), tracker_min_id
+        (PAUSE_LENGTH, in tenths of a frame as HARK's: 800 keeps a silent source 80 frames),
+        tracker_min_src_interval_deg (MIN_SRC_INTERVAL), tracker_min_id
         (MIN_ID) and preroll (SourceIntervalExtender's PREROLL_LENGTH, frames; delays results);
         as the CLI's --thresh, --pause-length, --min-src-interval, --min-id, --preroll.
     device: "auto"|"cpu"|"cuda"; precision: "f32"|"f64".

@@ -3,7 +3,7 @@
 //! the room default (NormMUSIC) without one. A named algorithm runs exactly as HARK's.
 
 use super::{LocalizerSpec, NoiseSource};
-use crate::config::{Algorithm, LocalizeConfig};
+use crate::config::{Algorithm, LocalizeConfig, Numerator};
 use crate::noise::policy::NoiseUpdate;
 
 impl LocalizerSpec {
@@ -33,7 +33,9 @@ impl LocalizerSpec {
     /// - with a noise source (the robust default): the textbook GEVD with a signal subspace
     ///   of max(`num_sources` + 2, M/2) dimensions ([`robust_subspace_dim`]) — reverberation
     ///   and the rotors' residue take dimensions of their own, the more the larger the
-    ///   array — and sub-grid refinement;
+    ///   array — the numerator ‖a‖·‖a_w‖ ([`Numerator::Geometric`]: a loud noise source
+    ///   that K describes is not left in the spectrum at full strength) and sub-grid
+    ///   refinement;
     /// - without one (the room default): NormMUSIC, the SEVD with every bin's spectrum
     ///   normalised to a maximum of 1, with a signal subspace of min(M/2, round(2√M))
     ///   dimensions ([`room_subspace_dim`]), coherence normalisation
@@ -63,9 +65,13 @@ impl LocalizerSpec {
             }
             c.normalize_bins |= !noise;
             c.refine = true;
+            if noise {
+                c.numerator = Numerator::Geometric;
+            }
         }
         c.normalize_bins = self.normalize_bins.unwrap_or(c.normalize_bins);
         c.refine = self.refine.unwrap_or(c.refine);
+        c.numerator = self.numerator.unwrap_or(c.numerator);
         if !named {
             let refined = if c.refine {
                 "sub-grid refinement"
@@ -95,10 +101,20 @@ impl LocalizerSpec {
                 } else {
                     ""
                 };
+                let numerator = match c.numerator {
+                    Numerator::Geometric => {
+                        "the numerator ‖a‖·‖a_w‖ (a loud noise source that K holds stays below the \
+                         talkers instead of standing out at its own strength; spec §5's ‖a‖²: \
+                         --numerator raw)"
+                    }
+                    Numerator::Whitened => "the whitened numerator ‖a_w‖²",
+                    Numerator::Raw => "spec §5's numerator ‖a‖²",
+                };
                 format!(
                     "a noise source was given: using the robust default, the textbook GEVD with a \
                      signal subspace of {dim} of {num_mics} (max(--num-sources + 2, M/2) unless \
-                     --subspace-dim){normalised}, {gains} and {refined} (HARK's: name --algorithm)"
+                     --subspace-dim){normalised}, {numerator}, {gains} and {refined} (HARK's: name \
+                     --algorithm)"
                 )
             } else {
                 let music = if c.normalize_bins {
@@ -179,16 +195,24 @@ mod tests {
         spec.coherence = Some(true);
         let (c, note) = spec.resolved_analysis(60);
         assert!(c.coherence && note.unwrap().contains("K's channel levels"));
-        assert_eq!(c.label(), "gevd (subspace 30, coherence, refined)");
+        assert_eq!(
+            c.label(),
+            "gevd (subspace 30, coherence, geometric numerator, refined)"
+        );
         spec.coherence = None;
+        assert_eq!(c.numerator, Numerator::Geometric);
+        spec.numerator = Some(Numerator::Raw);
+        let (c, note) = spec.resolved_analysis(60);
+        assert!(c.numerator.is_raw() && note.unwrap().contains("spec §5's numerator ‖a‖²"));
+        spec.numerator = None;
         spec.analysis.subspace_dim = Some(6);
         assert_eq!(spec.resolved_analysis(60).0.subspace_dim, Some(6));
         spec.analysis.subspace_dim = None;
         spec.algorithm = Some(Algorithm::Gevd);
         let (c, _) = spec.resolved_analysis(60);
         assert_eq!(
-            (c.subspace_dim, c.refine),
-            (None, false),
+            (c.subspace_dim, c.refine, c.numerator),
+            (None, false, Numerator::Raw),
             "named algorithms run as asked"
         );
     }

@@ -173,6 +173,11 @@ pub struct LocalizerSpec {
     /// SEVD, not NormMUSIC's bounded scale; HARK's scale needs the algorithm named).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub normalize_bins: Option<bool>,
+    /// The textbook GEVD's spectrum numerator ([`crate::config::Numerator`]): None = the
+    /// default's choice (geometric in the robust default; else `analysis.numerator`);
+    /// Some(n) = n (refused by the algorithms other than the textbook GEVD).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub numerator: Option<crate::config::Numerator>,
 }
 
 impl LocalizerSpec {
@@ -231,6 +236,7 @@ impl LocalizerSpec {
             coherence: None,
             refine: None,
             normalize_bins: None,
+            numerator: None,
         }
     }
 

@@ -68,6 +68,7 @@ pub(super) fn whitening<T: Real>(
         matrix64: Vec::with_capacity(nb * m * m),
         steering: Vec::new(),
         steering_norm2: Vec::new(),
+        numerator_norm2: Vec::new(),
     };
     for r in per_bin {
         let (mat, st, n2) = r?;

@@ -418,12 +418,12 @@ impl<T: Real> CudaBackend<T> {
             let (ost, on2) = o.denominator_steering();
             std::ptr::eq(ost, st)
                 && std::ptr::eq(on2, n2den)
-                && Arc::ptr_eq(&o.steering_norm2, &plan.steering_norm2)
+                && std::ptr::eq(o.numerator_norm2(), plan.numerator_norm2())
         });
         if !same_steering {
             self.upload(BufId::St, as_bytes(st))?;
             self.upload(BufId::N2Den, as_bytes(n2den))?;
-            self.upload(BufId::N2Num, as_bytes(&plan.steering_norm2))?;
+            self.upload(BufId::N2Num, as_bytes(plan.numerator_norm2()))?;
         }
         // W in double whatever T is: the decompositions whiten in double (as the CPU).
         if let Some(w) = &plan.whitening {

@@ -25,6 +25,9 @@ pub enum StudyNoise {
     Rotors,
     /// Six broadband sources spread over the room (no drone).
     Room,
+    /// One point source in the room 1–3 m away, sounding throughout (a machine, a fan, a
+    /// television): white noise, a rotor-like hum or speech, chosen per seed.
+    Interferer,
 }
 
 /// The scenes of a study: what else sounds besides the talkers, and how the array as
@@ -166,6 +169,33 @@ pub fn scene_with(array: StudyArray, kind: SceneKind, c: Condition, seed: u64) -
                     let gain = 100.0 * 10f64.powf(rng.gen_range(-0.25..0.25));
                     scene = scene.with_source(SceneSource::new(p, Signal::WhiteNoise).with_gain(gain));
                     placed += 1;
+                }
+            }
+        }
+        StudyNoise::Interferer => {
+            let mut tries = 0;
+            loop {
+                tries += 1;
+                let az: f64 = rng.gen_range(-180.0..180.0);
+                let el: f64 = match array {
+                    StudyArray::Ring8 => 0.0,
+                    StudyArray::Sphere60 => rng.gen_range(-30.0..45.0),
+                };
+                let p = position_from_az_el(az, el, rng.gen_range(1.0..3.0));
+                let apart = talkers.iter().all(|&(a, e)| {
+                    crate::demo::angle_deg(
+                        crate::demo::unit_from_az_el(a, e),
+                        crate::demo::unit_from_az_el(az, el),
+                    ) >= 30.0
+                });
+                if (apart && inside(p)) || tries > 1000 {
+                    let signal = match rng.gen_range(0..3) {
+                        0 => Signal::WhiteNoise,
+                        1 => Signal::Rotor,
+                        _ => Signal::Speech,
+                    };
+                    scene = scene.with_source(SceneSource::new(p, signal).with_gain(100.0));
+                    break;
                 }
             }
         }

@@ -1,7 +1,7 @@
 //! The study's variants: the configurations compared, one change at a time.
 
 use super::scenes::StudyArray;
-use crate::config::{Algorithm, LocalizeConfig};
+use crate::config::{Algorithm, LocalizeConfig, Numerator};
 
 /// A named configuration to compare.
 #[derive(Debug, Clone, serde::Serialize)]
@@ -113,7 +113,23 @@ pub fn variants_for(array: StudyArray, period: usize) -> Vec<Variant> {
     };
     let robust = crate::localizer::robust_subspace_dim(base.num_sources, mics);
     push(format!("robust default (subspace {robust} refined)"), &|c| {
-        c.subspace_dim = Some(robust)
+        c.subspace_dim = Some(robust);
+        c.numerator = Numerator::Geometric
+    });
+    // The spectrum's numerator (docs/accuracy.md, "The spectrum's numerator"): the robust
+    // default before 2026-11-29 (raw ‖a‖²), the whitened ‖a_w‖², and the textbook GEVD
+    // with the geometric one.
+    push(
+        format!("robust raw numerator (subspace {robust} refined)"),
+        &|c| c.subspace_dim = Some(robust),
+    );
+    push("robust whitened numerator".into(), &|c| {
+        c.subspace_dim = Some(robust);
+        c.numerator = Numerator::Whitened
+    });
+    push("gevd geometric numerator".into(), &|c| {
+        c.refine = false;
+        c.numerator = Numerator::Geometric
     });
     for &dim in dims {
         push(format!("gevd subspace {dim} refined"), &|c| {
@@ -261,7 +277,8 @@ pub fn variants_without_noise(array: StudyArray, period: usize) -> Vec<Variant> 
         &|c| {
             c.algorithm = Algorithm::Gevd;
             c.subspace_dim = Some(robust);
-            c.refine = true
+            c.refine = true;
+            c.numerator = Numerator::Geometric
         },
     );
     vs
