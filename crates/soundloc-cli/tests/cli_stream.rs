@@ -202,6 +202,36 @@ fn raw_pcm_on_stdin_equals_the_file() {
         .output()
         .unwrap();
     assert_eq!(o.status.code(), Some(2));
+    // A WAV (or FLAC) stream given as raw PCM: its header would shift every sample (the
+    // channels rotate by 6 here and the directions come out wrong), so it is refused;
+    // --realtime on a pipe is refused as on a socket (a pipe arrives at its writer's pace).
+    let file = std::fs::read(&wav).unwrap();
+    for (extra, input, want) in [
+        (&RAW_S16_RING[..], &file[..], "starts with a WAV header"),
+        (
+            &RAW_S16_RING[..],
+            &b"fLaC\0\0\0\x22 and more"[..],
+            "starts with a FLAC header",
+        ),
+        (&["--realtime"][..], &file[..], "--realtime paces a file; a pipe"),
+    ] {
+        let mut child = spawn_piped(
+            bin()
+                .args(["localize", "-"])
+                .args(extra)
+                .arg("--geometry")
+                .arg(&geo)
+                .args(OPTS),
+        );
+        let mut stdin = child.stdin.take().unwrap();
+        let _ = stdin.write_all(input);
+        drop(stdin);
+        let o = child.wait_with_output().unwrap();
+        let e = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{want}: {e}");
+        assert!(e.contains(want), "{want}: {e}");
+        assert!(o.stdout.is_empty(), "{want}: no results");
+    }
 }
 
 /// `cat rec.raw | soundloc localize -`: a pipe that delivers audio far ahead of real

@@ -144,7 +144,7 @@ impl PyGroup {
         py.allow_threads(|| g.flush(i, outs)).map_err(err)?;
         let n = st.group.grid().len();
         let mut out = std::mem::take(&mut st.outs[i]);
-        results(py, &mut out, n)
+        results(py, &mut out, n, st.group.config())
     }
 
     /// Start stream `i` again (same plan and device); its unreturned results are dropped.
@@ -214,7 +214,7 @@ fn take_all<'py>(py: Python<'py>, st: &mut State) -> PyResult<Bound<'py, PyList>
     let list = PyList::empty(py);
     for o in st.outs.iter_mut() {
         let mut out = std::mem::take(o);
-        list.append(results(py, &mut out, n)?)?;
+        list.append(results(py, &mut out, n, st.group.config())?)?;
     }
     Ok(list)
 }

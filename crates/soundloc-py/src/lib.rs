@@ -126,14 +126,22 @@ pub(crate) fn points(x: &Bound<'_, PyAny>, what: &str) -> PyResult<Vec<[f64; 3]>
         .collect()
 }
 
-/// Results as numpy arrays (NaN / -1 where a window has fewer sources).
+/// Results as numpy arrays (NaN / -1 where a window has fewer sources), at least as
+/// wide as the peaks `config` reports (every push of a default localizer gives arrays of
+/// one width, also an empty one; the tracker's carried sources and `max_peaks=0` can
+/// widen them: `Results.concatenate` pads).
 pub(crate) fn results<'py>(
     py: Python<'py>,
     out: &mut Output,
     num_dirs: usize,
+    config: &soundloc::LocalizeConfig,
 ) -> PyResult<Bound<'py, PyDict>> {
     let r: &[LocalizationResult] = &out.results;
-    let s = r.iter().map(|x| x.sources.len()).max().unwrap_or(0);
+    let width = match config.peaks_out() {
+        usize::MAX => 0,
+        n => n,
+    };
+    let s = r.iter().map(|x| x.sources.len()).max().unwrap_or(0).max(width);
     let n = r.len();
     let mut az = vec![f64::NAN; n * s];
     let mut el = vec![f64::NAN; n * s];

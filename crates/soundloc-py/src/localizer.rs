@@ -68,7 +68,7 @@ impl PyLocalizer {
             }
             Some(r) => run_converted(py, loc, &s, channels_first, r)?,
         };
-        results(py, &mut out, loc.grid().len())
+        results(py, &mut out, loc.grid().len(), loc.config())
     }
 
     /// Localize a WAV/FLAC file and write its results to `output` as the CLI does
@@ -131,7 +131,7 @@ impl PyLocalizer {
         let mut guard = self.lock(py)?;
         let loc = &mut *guard;
         let mut out = run(py, loc, &s, channels_first.unwrap_or(self.channels_first), false)?;
-        results(py, &mut out, loc.grid().len())
+        results(py, &mut out, loc.grid().len(), loc.config())
     }
 
     /// End of input: results still held (a noise range, the tracker's delay).
@@ -140,7 +140,7 @@ impl PyLocalizer {
         let mut inner = self.lock(py)?;
         let loc = &mut *inner;
         py.allow_threads(|| loc.flush(&mut out)).map_err(err)?;
-        results(py, &mut out, inner.grid().len())
+        results(py, &mut out, inner.grid().len(), inner.config())
     }
 
     /// Start a new stream (same plan and device).

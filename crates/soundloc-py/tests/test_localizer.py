@@ -179,6 +179,20 @@ def test_dtypes_layouts_and_random_blocks_give_the_same_results():
     np.testing.assert_array_equal(az, whole.azimuth_deg)
     np.testing.assert_array_equal(spec, whole.spectrum_db)
     assert loc.latency_frames == 0
+    # Every push's arrays are as wide as the peaks reported, also an empty push's, and
+    # Results.concatenate joins them (padding where tracking or max_peaks=0 widen some).
+    assert {p.azimuth_deg.shape[1] for p in parts} == {2}
+    assert any(len(p) == 0 for p in parts)
+    joined = soundloc.Results.concatenate(parts)
+    np.testing.assert_array_equal(joined.frames, whole.frames)
+    np.testing.assert_array_equal(joined.azimuth_deg, whole.azimuth_deg)
+    np.testing.assert_array_equal(joined.spectrum_db, whole.spectrum_db)
+    wide = localizer(window_type="past", period=7, max_peaks=0, track=True)
+    whole = wide.localize(x, FS)
+    wide.reset()
+    parts = [wide.push(x[i : i + 1000]) for i in range(0, len(x), 1000)] + [wide.flush()]
+    assert len({p.azimuth_deg.shape[1] for p in parts}) > 1
+    assert soundloc.Results.concatenate(parts).to_records() == whole.to_records()
 
 
 def test_noise_array_selects_gevd_and_tracking_gives_ids():

@@ -136,15 +136,24 @@ impl TrackerConfig {
             )));
         }
         // Ids go out as 32-bit integers (HARK's streams and logs, ODAS): room for 10⁹ more.
-        if self.min_id.unsigned_abs() > MAX_MIN_ID as u64 {
+        // HARK's logs and stream, and Python's arrays, write −1 for "no id", so ids start at
+        // 0 or above.
+        if !(0..=MAX_MIN_ID).contains(&self.min_id) {
             return Err(Error::Config(format!(
-                "tracker MIN_ID must be within ±{MAX_MIN_ID} (ids are 32-bit integers in HARK's and ODAS's outputs), got {}",
+                "tracker MIN_ID must be within 0..={MAX_MIN_ID} (ids are 32-bit integers in HARK's and ODAS's outputs, \
+                 and HARK's logs and stream mark a source without an id by −1), got {}",
                 self.min_id
             )));
         }
         Ok(())
     }
 }
+
+/// Angles within this many degrees of `MIN_SRC_INTERVAL` count as equal to it: grid
+/// directions a whole number of steps apart (20° = four steps of a 5° ring) come out of
+/// the unit vectors' arithmetic as 19.99999999999995° at some azimuths and
+/// 20.00000000000003° at others, and an id must not depend on which.
+pub const ANGLE_TOL_DEG: f64 = 1e-9;
 
 /// Largest |`min_id`| a tracker takes.
 pub const MAX_MIN_ID: i64 = 1_000_000_000;
@@ -294,7 +303,7 @@ impl SourceTracker {
             let d = t.match_direction(frame, self.predict_motion);
             for (pi, (_, v)) in peaks.iter().enumerate() {
                 let a = angle_deg(d, *v);
-                if a < self.cfg.min_src_interval_deg {
+                if a < self.cfg.min_src_interval_deg - ANGLE_TOL_DEG {
                     pairs.push((a, ti, pi));
                 }
             }
@@ -349,10 +358,9 @@ impl SourceTracker {
         });
         for pi in unclaimed {
             let v = peaks[pi].1;
-            let far = self
-                .tracks
-                .iter()
-                .all(|t| angle_deg(unit_vector(&t.source), v) >= self.cfg.min_src_interval_deg);
+            let far = self.tracks.iter().all(|t| {
+                angle_deg(unit_vector(&t.source), v) >= self.cfg.min_src_interval_deg - ANGLE_TOL_DEG
+            });
             if far {
                 let id = self.next_id;
                 self.next_id = self.next_id.saturating_add(1);

@@ -441,5 +441,44 @@ fn tracker_config_defaults_and_validation() {
             "{min_id}"
         );
     }
-    assert!(TrackerConfig { min_id: -5, ..c }.validate().is_ok());
+    // −1 marks "no id" in HARK's logs and stream and in Python's arrays: ids start at 0.
+    for min_id in [-1, -5] {
+        let e = TrackerConfig { min_id, ..c }.validate().unwrap_err().to_string();
+        assert!(e.contains("MIN_ID") && e.contains("−1"), "{min_id}: {e}");
+    }
+    assert!(TrackerConfig { min_id: 0, ..c }.validate().is_ok());
+}
+
+/// MIN_SRC_INTERVAL (20°) against peaks exactly four 5° grid steps apart: the angle
+/// between the unit vectors comes out a hair below or above 20° depending on the azimuth,
+/// and the id must not. A talker stepping 20° every result gets a new id at every step,
+/// wherever on the ring.
+#[test]
+fn a_step_of_exactly_min_src_interval_is_the_same_everywhere_on_the_ring() {
+    let grid = soundloc::array::Grid::ring(5.0, 0.0, 1.0);
+    let at = |g: usize| {
+        let p = grid.points[g];
+        Source {
+            grid_index: g,
+            x: p[0],
+            y: p[1],
+            z: p[2],
+            ..peak(p[1].atan2(p[0]).to_degrees(), 0.0, 30.0)
+        }
+    };
+    let mut wobbly = 0;
+    for start in 0..72 {
+        let mut t = SourceTracker::new(TrackerConfig::default());
+        let mut ids = Vec::new();
+        for k in 0..4 {
+            let (g, next) = ((start + 4 * k) % 72, (start + 4 * k + 4) % 72);
+            let (p, q) = (grid.points[g], grid.points[next]);
+            let cos = (p[0] * q[0] + p[1] * q[1] + p[2] * q[2]).clamp(-1.0, 1.0);
+            wobbly += (cos.acos().to_degrees() != 20.0) as usize;
+            let out = t.update(&result(50 * k, vec![at(g)]));
+            ids.push(out.sources.iter().find(|s| s.grid_index == g).and_then(|s| s.id));
+        }
+        assert_eq!(ids, vec![Some(0), Some(1), Some(2), Some(3)], "start {start}");
+    }
+    assert!(wobbly > 0, "the rounding this test is about did not occur");
 }

@@ -115,6 +115,12 @@ impl InputArgs {
         }
         if self.input == "-" {
             let live = !stdin_is_file();
+            if self.realtime && live {
+                bail!(
+                    "--realtime paces a file; a pipe arrives at its writer's pace (give the file's name, \
+                     or redirect it: < rec.wav)"
+                );
+            }
             return Ok(Input {
                 source: stream(Box::new(std::io::stdin()), Path::new("-"))?,
                 live,

@@ -300,9 +300,6 @@ impl Sinks {
         if l.odas_sst.is_some() && !a.track {
             bail!("--odas-sst needs --track (SST messages carry tracked sources)");
         }
-        if l.odas_sst.is_some() && a.min_id < 0 {
-            bail!("--odas-sst needs --min-id >= 0 (ODAS ids are unsigned; soundloc sends id + 1, 0 marks an empty slot)");
-        }
         for (n, what) in [(l.odas_pots, "--odas-pots"), (l.odas_tracks, "--odas-tracks")] {
             if !(1..=64).contains(&n) {
                 bail!("{what} must be 1..=64, got {n}");
@@ -334,6 +331,17 @@ impl Sinks {
             Some(v) => Some((OdasOut::open(v, "ODAS SST")?, SstSlots::new(l.odas_tracks))),
             None => None,
         };
+        let period = loc.config().period;
+        if (ssl.is_some() || sst.is_some()) && period != 1 {
+            super::localize::note(
+                a.quiet,
+                &format!(
+                    "ODAS messages go out once per result, every {period} hops here; ODAS sends one \
+                     per hop and odas_web expects consecutive time stamps (it logs \"Frame skipped\" \
+                     and plots every 20th message): --period 1 for ODAS's rate"
+                ),
+            );
+        }
         let view = match &l.serve {
             Some(addr) => {
                 // A bare port means loopback.

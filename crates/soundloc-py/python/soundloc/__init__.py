@@ -147,6 +147,34 @@ class Results:
     def __len__(self) -> int:
         return len(self.times)
 
+    @staticmethod
+    def concatenate(parts) -> "Results":
+        """The results of several pushes (or flushes) as one, in order: arrays padded to
+        the widest part (NaN / -1), spectrum rows joined (None when no part has any)."""
+        parts = list(parts)
+        width = max((p.azimuth_deg.shape[1] for p in parts if p.azimuth_deg.ndim == 2), default=0)
+
+        def cat(name, fill, dtype):
+            rows = []
+            for p in parts:
+                a = getattr(p, name)
+                pad = np.full((len(p), width - a.shape[1]), fill, dtype=dtype)
+                rows.append(np.hstack([a.astype(dtype), pad]))
+            return np.concatenate(rows) if rows else np.zeros((0, width), dtype=dtype)
+
+        spectra = [p.spectrum_db for p in parts if p.spectrum_db is not None and len(p.spectrum_db)]
+        return Results(
+            frames=np.concatenate([p.frames for p in parts] or [np.zeros(0, dtype=np.int64)]),
+            times=np.concatenate([p.times for p in parts] or [np.zeros(0)]),
+            azimuth_deg=cat("azimuth_deg", np.nan, float),
+            elevation_deg=cat("elevation_deg", np.nan, float),
+            power_db=cat("power_db", np.nan, float),
+            grid_index=cat("grid_index", -1, np.int64),
+            ids=cat("ids", -1, np.int64),
+            spectrum_db=np.concatenate(spectra) if spectra else None,
+            notes=[n for p in parts for n in p.notes],
+        )
+
     def to_records(self) -> list:
         """One dict per result, as ``soundloc localize`` writes JSON lines: frame, time_s,
         sources (id, grid_index, azimuth_deg, elevation_deg, x, y, z as a unit vector,

@@ -285,9 +285,62 @@ impl<R: Read> PcmReader<R> {
 
 /// Headerless interleaved PCM (see the [module docs](self)).
 pub struct RawSource<R> {
-    pcm: PcmReader<R>,
+    pcm: PcmReader<NoHeader<R>>,
     rate: u32,
     name: PathBuf,
+}
+
+/// A reader that refuses a stream starting with a WAV or FLAC header: read as raw PCM,
+/// its 44 header bytes would shift every sample (a WAV's 22 samples of s16le rotate the
+/// channels of an 8-channel stream by 6) and give wrong directions without a word. The
+/// first 12 bytes are held until they are all here (or the input ends), then passed on.
+struct NoHeader<R> {
+    r: R,
+    head: [u8; 12],
+    /// Bytes of `head` read so far / handed on.
+    got: usize,
+    given: usize,
+    checked: bool,
+}
+
+impl<R: Read> Read for NoHeader<R> {
+    fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+        if !self.checked {
+            while self.got < self.head.len() {
+                match self.r.read(&mut self.head[self.got..]) {
+                    Ok(0) => break,
+                    Ok(k) => self.got += k,
+                    Err(e) if e.kind() == ErrorKind::Interrupted => {}
+                    Err(e) => return Err(e),
+                }
+            }
+            self.checked = true;
+            let h = &self.head[..self.got];
+            let what = if h.len() >= 12 && &h[..4] == b"RIFF" && &h[8..12] == b"WAVE" {
+                Some("a WAV header (RIFF…WAVE)")
+            } else if h.starts_with(b"fLaC") {
+                Some("a FLAC header (fLaC)")
+            } else {
+                None
+            };
+            if let Some(what) = what {
+                return Err(std::io::Error::new(
+                    ErrorKind::InvalidData,
+                    format!(
+                        "the input starts with {what}, but raw input is headerless PCM: \
+                         drop --raw, --raw-channels and --rate (the header gives them)"
+                    ),
+                ));
+            }
+        }
+        if self.given < self.got {
+            let n = buf.len().min(self.got - self.given);
+            buf[..n].copy_from_slice(&self.head[self.given..self.given + n]);
+            self.given += n;
+            return Ok(n);
+        }
+        self.r.read(buf)
+    }
 }
 
 impl<R: Read + Send> RawSource<R> {
@@ -305,7 +358,13 @@ impl<R: Read + Send> RawSource<R> {
         }
         Ok(RawSource {
             pcm: PcmReader {
-                r,
+                r: NoHeader {
+                    r,
+                    head: [0; 12],
+                    got: 0,
+                    given: 0,
+                    checked: false,
+                },
                 enc,
                 channels,
                 left: None,
