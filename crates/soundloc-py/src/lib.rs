@@ -139,7 +139,7 @@ pub(crate) fn results<'py>(
     let r: &[LocalizationResult] = &out.results;
     let width = match config.peaks_out() {
         usize::MAX => 0,
-        n => n,
+        n => n.min(num_dirs),
     };
     let s = r.iter().map(|x| x.sources.len()).max().unwrap_or(0).max(width);
     let n = r.len();

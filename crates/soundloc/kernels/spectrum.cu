@@ -20,7 +20,8 @@
 // issue), the same order in the one- and four-direction forms.
 //
 // St [bin][dir][M] the denominator's steering (whitened for the textbook GEVD),
-// n2den/n2num [bin][dir] its ‖·‖² and the raw ‖a‖², E [wl*nb + b][ne][M] the basis of the
+// n2den/n2num [bin][dir] its ‖·‖² and the numerator (the raw ‖a‖², or the textbook GEVD's
+// other choice: Plan::numerator_norm2), E [wl*nb + b][ne][M] the basis of the
 // sub-batch's windows (ne = ns, or M for the unsquared form), E64 the same signal vectors
 // in double (squared form), gain [wl*nb + b].
 // Block: dt directions × (blockDim.x / (dt / RD)) windows, RD directions of one window per

@@ -310,7 +310,8 @@ struct DenRefs<'a, T: Real> {
     floor: T,
 }
 
-/// acc(d) += gain·‖a‖²/(‖a_den‖² − sig(d)) for the block's directions, sig(d) = Σ_s
+/// acc(d) += gain·num(d)/(‖a_den‖² − sig(d)) for the block's directions (num: the
+/// numerator, [`Plan::numerator_norm2`]), sig(d) = Σ_s
 /// |aᴴe_s|²: branch-free over contiguous arrays (it vectorises), then the few directions
 /// whose complement fell below [`REFINE_RATIO`]·‖a‖² recomputed in f64.
 fn quotients<T: Real>(

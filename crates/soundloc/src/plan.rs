@@ -355,7 +355,10 @@ fn validate_config(c: &LocalizeConfig) -> Result<()> {
     }
     if !c.numerator.is_raw() && c.algorithm != Algorithm::Gevd {
         return bad(format!(
-            "the {} numerator is defined for the textbook gevd (K whitens its steering              vectors), not for {}, whose spectrum uses ‖a‖²; drop --numerator or use              --algorithm gevd",
+            "the {} numerator is defined for the textbook gevd (K whitens its steering \
+             vectors), not for {}, whose spectrum uses ‖a‖²: drop the numerator (--numerator, \
+             numerator= in Python), or give a noise source (the robust default) or name the \
+             textbook gevd (--algorithm gevd)",
             c.numerator.name(),
             c.algorithm.name()
         ));

@@ -32,6 +32,9 @@
 //!    (at its position after steps 1–2, including sources started earlier in this step) is
 //!    ≥ `MIN_SRC_INTERVAL` starts a new source with the next id (`MIN_ID`, `MIN_ID`+1, …).
 //!    An unclaimed peak closer than that to a source is a duplicate of it and is dropped.
+//!    (Angles within [`ANGLE_TOL_DEG`] of `MIN_SRC_INTERVAL` count as equal to it, in
+//!    steps 1 and 3: grid directions a whole number of steps apart must not depend on
+//!    rounding.)
 //!
 //! The output holds every alive source — claimed, new **and carried** — as HARK's
 //! SourceTracker outputs its whole source list each frame: a carried source appears at its
@@ -155,7 +158,7 @@ impl TrackerConfig {
 /// 20.00000000000003° at others, and an id must not depend on which.
 pub const ANGLE_TOL_DEG: f64 = 1e-9;
 
-/// Largest |`min_id`| a tracker takes.
+/// Largest `min_id` a tracker takes (ids start at 0 or above).
 pub const MAX_MIN_ID: i64 = 1_000_000_000;
 
 /// HARK SourceIntervalExtender parameters.

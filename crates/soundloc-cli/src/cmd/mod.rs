@@ -155,6 +155,27 @@ pub enum SpectrumWeightArg {
     AWeighting,
 }
 
+/// `--numerator`.
+#[derive(ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum NumeratorArg {
+    /// ‖a‖² (spec §5).
+    Raw,
+    /// ‖a_w‖² = aᴴK⁻¹a.
+    Whitened,
+    /// ‖a‖·‖a_w‖.
+    Geometric,
+}
+
+impl From<NumeratorArg> for soundloc::config::Numerator {
+    fn from(n: NumeratorArg) -> Self {
+        match n {
+            NumeratorArg::Raw => Self::Raw,
+            NumeratorArg::Whitened => Self::Whitened,
+            NumeratorArg::Geometric => Self::Geometric,
+        }
+    }
+}
+
 #[derive(ValueEnum, Clone, Copy, Debug)]
 pub enum DenominatorArg {
     /// Σ|aᴴe|² (HARK's code).

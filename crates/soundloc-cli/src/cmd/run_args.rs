@@ -4,7 +4,8 @@
 use super::sinks::LiveArgs;
 use super::FormatArg;
 use super::{
-    AlgorithmArg, DenominatorArg, DeviceArg, PrecisionArg, SpectrumWeightArg, WindowFnArg, WindowTypeArg,
+    AlgorithmArg, DenominatorArg, DeviceArg, NumeratorArg, PrecisionArg, SpectrumWeightArg, WindowFnArg,
+    WindowTypeArg,
 };
 use anyhow::{anyhow, bail, Context};
 use soundloc::array::freefield::DEFAULT_SPEED_OF_SOUND_M_S;
@@ -426,24 +427,9 @@ impl RunArgs {
             coherence: choice(self.analysis.coherence, self.analysis.no_coherence),
             refine: choice(self.analysis.refine, self.analysis.no_refine),
             normalize_bins: choice(self.analysis.normalize_bins, self.analysis.no_normalize_bins),
-            numerator: self.analysis.numerator.map(|n| match n {
-                NumeratorArg::Raw => soundloc::config::Numerator::Raw,
-                NumeratorArg::Whitened => soundloc::config::Numerator::Whitened,
-                NumeratorArg::Geometric => soundloc::config::Numerator::Geometric,
-            }),
+            numerator: self.analysis.numerator.map(Into::into),
         })
     }
-}
-
-/// `--numerator`.
-#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
-pub enum NumeratorArg {
-    /// ‖a‖² (spec §5).
-    Raw,
-    /// ‖a_w‖² = aᴴK⁻¹a.
-    Whitened,
-    /// ‖a‖·‖a_w‖.
-    Geometric,
 }
 
 /// A `--X` / `--no-X` pair: Some(true), Some(false), or None (the default's choice).

@@ -133,10 +133,11 @@ impl OdasOut {
             OdasOut::Net(n) => {
                 let what = n.what().to_string();
                 let peer = n.peer().to_string();
-                for m in n.take_notes() {
+                let (stats, notes) = n.finish_noted(NET_GRACE);
+                for m in notes {
                     note(quiet, &m);
                 }
-                report(quiet, &what, &peer, n.finish(Duration::from_secs(2)));
+                report(quiet, &what, &peer, stats);
             }
             OdasOut::File(mut f, p) => {
                 f.flush()
@@ -147,6 +148,9 @@ impl OdasOut {
         Ok(())
     }
 }
+
+/// How long network outputs may keep sending what is queued once the run ends.
+const NET_GRACE: Duration = Duration::from_secs(2);
 
 fn report(quiet: bool, what: &str, peer: &str, s: soundloc::output::netsink::NetStats) {
     if s.dropped > 0 {
@@ -498,13 +502,26 @@ impl Sinks {
     }
 
     /// The end-of-run outputs, then the `-o` file is renamed into place.
-    pub fn finish(self, a: &RunArgs, loc: &Localizer, title: &str) -> anyhow::Result<()> {
+    pub fn finish(mut self, a: &RunArgs, loc: &Localizer, title: &str) -> anyhow::Result<()> {
+        // The network outputs wind down together: each has NET_GRACE from now.
+        if let Some(h) = &mut self.hark {
+            h.close(NET_GRACE);
+        }
+        for o in [self.ssl.as_mut(), self.sst.as_mut().map(|s| &mut s.0)]
+            .into_iter()
+            .flatten()
+        {
+            if let OdasOut::Net(n) = o {
+                n.close(NET_GRACE);
+            }
+        }
         if let Some(h) = self.hark {
             let peer = h.peer().to_string();
-            for m in h.net().take_notes() {
+            let (stats, notes) = h.finish_noted(NET_GRACE);
+            for m in notes {
                 note(a.quiet, &m);
             }
-            report(a.quiet, "HARK stream", &peer, h.finish(Duration::from_secs(2)));
+            report(a.quiet, "HARK stream", &peer, stats);
         }
         if let Some(o) = self.ssl {
             o.finish(a.quiet)?;

@@ -290,10 +290,9 @@ pub struct RawSource<R> {
     name: PathBuf,
 }
 
-/// A reader that refuses a stream starting with a WAV or FLAC header: read as raw PCM,
-/// its 44 header bytes would shift every sample (a WAV's 22 samples of s16le rotate the
-/// channels of an 8-channel stream by 6) and give wrong directions without a word. The
-/// first 12 bytes are held until they are all here (or the input ends), then passed on.
+/// A reader that refuses a stream starting with a container's header ([`container`]).
+/// The first 12 bytes are checked at the first read, not when the source is made: a live
+/// stream's first bytes may come only after the caller has set everything else up.
 struct NoHeader<R> {
     r: R,
     head: [u8; 12],
@@ -306,29 +305,14 @@ struct NoHeader<R> {
 impl<R: Read> Read for NoHeader<R> {
     fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
         if !self.checked {
-            while self.got < self.head.len() {
-                match self.r.read(&mut self.head[self.got..]) {
-                    Ok(0) => break,
-                    Ok(k) => self.got += k,
-                    Err(e) if e.kind() == ErrorKind::Interrupted => {}
-                    Err(e) => return Err(e),
-                }
-            }
+            self.got = read_full(&mut self.r, &mut self.head)?;
             self.checked = true;
-            let h = &self.head[..self.got];
-            let what = if h.len() >= 12 && &h[..4] == b"RIFF" && &h[8..12] == b"WAVE" {
-                Some("a WAV header (RIFF…WAVE)")
-            } else if h.starts_with(b"fLaC") {
-                Some("a FLAC header (fLaC)")
-            } else {
-                None
-            };
-            if let Some(what) = what {
+            if let Some(what) = container(&self.head[..self.got]) {
                 return Err(std::io::Error::new(
                     ErrorKind::InvalidData,
                     format!(
-                        "the input starts with {what}, but raw input is headerless PCM: \
-                         drop --raw, --raw-channels and --rate (the header gives them)"
+                        "the input starts with {what}, but raw input is headerless PCM: drop --raw, \
+                         --raw-channels and --rate (the header gives them)"
                     ),
                 ));
             }
@@ -340,6 +324,22 @@ impl<R: Read> Read for NoHeader<R> {
             return Ok(n);
         }
         self.r.read(buf)
+    }
+}
+
+/// What a stream's first bytes say it is, when they are a WAV (RIFF, RF64, BW64) or FLAC
+/// header: read as raw PCM, a header would shift every sample (a WAV's 44 bytes are 22
+/// samples of s16le: an 8-channel stream's channels rotate by 6) and give wrong
+/// directions without a word.
+fn container(head: &[u8]) -> Option<&'static str> {
+    let riff =
+        head.len() >= 12 && matches!(&head[..4], b"RIFF" | b"RF64" | b"BW64") && &head[8..12] == b"WAVE";
+    if riff {
+        Some("a WAV header (RIFF…WAVE)")
+    } else if head.starts_with(b"fLaC") {
+        Some("a FLAC header (fLaC)")
+    } else {
+        None
     }
 }
 

@@ -140,9 +140,19 @@ impl HarkStreamSender {
         &self.net
     }
 
+    /// [`NetSender::close`]: start winding down, `grace` from now.
+    pub fn close(&mut self, grace: std::time::Duration) {
+        self.net.close(grace);
+    }
+
     /// Stop, sending what is queued within `grace`; the final counts.
     pub fn finish(self, grace: std::time::Duration) -> NetStats {
         self.net.finish(grace)
+    }
+
+    /// [`NetSender::finish_noted`].
+    pub fn finish_noted(self, grace: std::time::Duration) -> (NetStats, Vec<String>) {
+        self.net.finish_noted(grace)
     }
 
     /// Sends `result` with frame count `count`, time-stamped with the current wall clock.

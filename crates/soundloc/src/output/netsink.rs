@@ -157,18 +157,32 @@ impl NetSender {
 
     /// Stop: what is queued is sent if a receiver is connected within `grace`; the rest is
     /// dropped and counted. Returns the final counts.
-    pub fn finish(mut self, grace: Duration) -> NetStats {
-        self.stop(grace);
-        self.shared.stats()
+    pub fn finish(self, grace: Duration) -> NetStats {
+        self.finish_noted(grace).0
     }
 
-    fn stop(&mut self, grace: Duration) {
+    /// [`NetSender::finish`], with the notes raised until it stopped (a connection lost
+    /// while sending what was queued).
+    pub fn finish_noted(mut self, grace: Duration) -> (NetStats, Vec<String>) {
+        self.stop(grace);
+        (self.shared.stats(), self.take_notes())
+    }
+
+    /// Start shutting down without waiting: nothing more is queued, and the sender gives
+    /// up `grace` from now. Outputs closed together wind down at the same time (a run with
+    /// several stalled receivers waits for the slowest, not for their sum);
+    /// [`NetSender::finish`] then waits.
+    pub fn close(&mut self, grace: Duration) {
         let Some(tx) = self.tx.take() else { return };
         // Tell the thread when to give up, then close the queue.
         if let Ok(mut d) = self.shared.deadline.lock() {
             *d = Some(Instant::now() + grace);
         }
         drop(tx);
+    }
+
+    fn stop(&mut self, grace: Duration) {
+        self.close(grace);
         if let Some(t) = self.thread.take() {
             let _ = t.join();
         }
@@ -286,7 +300,14 @@ fn run(what: &str, peer: &str, addrs: &[SocketAddr], rx: &Receiver<Vec<u8>>, sh:
                             sh.dropped.fetch_add(unconfirmed, Ordering::Relaxed);
                             unconfirmed = 0;
                             sh.connected.store(false, Ordering::Relaxed);
-                            sh.note(format!("{what}: connection to {peer} lost ({e}); reconnecting"));
+                            let why = match e.kind() {
+                                std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut => format!(
+                                    "a write timed out after {} s: the receiver is not reading",
+                                    WRITE_TIMEOUT.as_secs()
+                                ),
+                                _ => e.to_string(),
+                            };
+                            sh.note(format!("{what}: connection to {peer} lost ({why}); reconnecting"));
                             conn = None;
                             next_try = Instant::now();
                         }

@@ -67,8 +67,10 @@ pub fn stream(loc: &mut Localizer, channels: &[Vec<f32>], max_block: usize, seed
 /// frames, in order), also while the interval extender holds results back; returns the
 /// new (results, rows) counts.
 fn rows_follow_results(out: &Output, (r0, s0): (usize, usize)) -> (usize, usize) {
+    // No rows yet: the results so far stay unmatched, and rows that come later must
+    // start with theirs (a localizer that wants no spectrum never has rows).
     let Some(t) = &out.spectrum else {
-        return (out.results.len(), 0);
+        return (r0, 0);
     };
     let results: Vec<usize> = out.results[r0..].iter().map(|r| r.frame).collect();
     assert_eq!(

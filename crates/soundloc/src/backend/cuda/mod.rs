@@ -12,7 +12,7 @@
 //!                                      iteration, top-Ns vectors (squared denominator, M ≤ 64)
 //!   decompose  (otherwise)             G = W R Wᴴ | W R W | W R | R, one-sided    decompose.cu
 //!                                      Jacobi in shared memory (all vectors when unsquared)
-//!   spectrum   direction tiles         P̄ = Σ_k w_k g_k ‖a‖²/den, complement+refine  spectrum.cu
+//!   spectrum   direction tiles         P̄ = Σ_k w_k g_k num/den, complement+refine  spectrum.cu
 //!   peaks      one block per window    dB, local maxima, sorted candidates        peaks.cu
 //!  ─► only the peak candidates (and the dB spectrum / bin weights when asked) come back.
 //! ```

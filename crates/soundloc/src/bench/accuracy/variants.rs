@@ -101,9 +101,14 @@ pub fn variants_for(array: StudyArray, period: usize) -> Vec<Variant> {
         StudyArray::Ring8 => &[5, 6],
         StudyArray::Sphere60 => &[6, 8, 12, 16, 20, 24, 30],
     };
+    // Every "robust …" variant is the robust default as it runs (the geometric numerator
+    // since 2026-11-29) with one change; "robust raw numerator" changes the numerator.
     let mut push = |name: String, f: &dyn Fn(&mut LocalizeConfig)| {
         let mut c = base.clone();
         c.refine = true;
+        if name.starts_with("robust") {
+            c.numerator = Numerator::Geometric;
+        }
         f(&mut c);
         vs.push(Variant { name, config: c });
     };
@@ -113,15 +118,17 @@ pub fn variants_for(array: StudyArray, period: usize) -> Vec<Variant> {
     };
     let robust = crate::localizer::robust_subspace_dim(base.num_sources, mics);
     push(format!("robust default (subspace {robust} refined)"), &|c| {
-        c.subspace_dim = Some(robust);
-        c.numerator = Numerator::Geometric
+        c.subspace_dim = Some(robust)
     });
     // The spectrum's numerator (docs/accuracy.md, "The spectrum's numerator"): the robust
     // default before 2026-11-29 (raw ‖a‖²), the whitened ‖a_w‖², and the textbook GEVD
     // with the geometric one.
     push(
         format!("robust raw numerator (subspace {robust} refined)"),
-        &|c| c.subspace_dim = Some(robust),
+        &|c| {
+            c.subspace_dim = Some(robust);
+            c.numerator = Numerator::Raw
+        },
     );
     push("robust whitened numerator".into(), &|c| {
         c.subspace_dim = Some(robust);
