@@ -191,3 +191,19 @@ fn a_half_closed_receiver_still_gets_every_message() {
         "{stats:?}"
     );
 }
+
+/// A receiver address that is not HOST:PORT is named as a bad form; one whose host does
+/// not resolve (the reserved `.invalid` domain, RFC 6761) is named as unresolvable.
+#[test]
+fn bad_addresses_are_named_by_what_is_wrong() {
+    let msg = |peer: &str| NetSender::start("HARK stream", peer).unwrap_err().to_string();
+    for bad in ["localhost", "localhost:port", ":5530"] {
+        let e = msg(bad);
+        assert!(e.contains("is not a HOST:PORT address"), "{bad}: {e}");
+    }
+    let e = msg("no-such-host.invalid:5530");
+    assert!(
+        e.contains("cannot resolve the host of \"no-such-host.invalid:5530\""),
+        "{e}"
+    );
+}

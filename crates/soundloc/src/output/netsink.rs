@@ -93,7 +93,17 @@ impl NetSender {
     pub fn start(what: &str, peer: &str) -> crate::Result<Self> {
         let addrs: Vec<SocketAddr> = peer
             .to_socket_addrs()
-            .map_err(|e| crate::Error::Config(format!("{what}: {peer:?} is not a HOST:PORT address ({e})")))?
+            .map_err(|e| {
+                // A HOST:PORT whose host does not resolve is named as such, not as a bad form.
+                let form_ok = peer
+                    .rsplit_once(':')
+                    .is_some_and(|(h, p)| !h.is_empty() && p.parse::<u16>().is_ok());
+                crate::Error::Config(if form_ok {
+                    format!("{what}: cannot resolve the host of {peer:?} ({e})")
+                } else {
+                    format!("{what}: {peer:?} is not a HOST:PORT address ({e})")
+                })
+            })?
             .collect();
         if addrs.is_empty() {
             return Err(crate::Error::Config(format!(
