@@ -330,3 +330,39 @@ fn a_loud_noise_source_in_k_is_not_taken_for_a_talker() {
 /// at −10 dB those where spec §5's numerator puts the interferer above the talker in most
 /// windows.
 const INTERFERER_SEEDS: [u64; 2] = [2, 6];
+
+/// A 4-mic ring (3.2 cm, a ReSpeaker 4-mic array's) in a room of RT60 0.3 s with a point
+/// noise source sounding throughout, K from its first second, one talker: the robust
+/// default keeps half of the array's four dimensions for the noise (a signal subspace of
+/// 2) and finds the talker; the rule before 2026-12-01 (max(num_sources + 2, M/2) = 3)
+/// left one noise vector and lost it. Scenes of the study (`--array ring4 --scene
+/// interferer`) at +10 dB (seed 3) and 0 dB (seed 1).
+#[test]
+fn robust_default_keeps_half_a_small_array_for_the_noise() {
+    let kind = SceneKind {
+        noise: StudyNoise::Interferer,
+        position_error_m: 0.0,
+        gain_error_db: 0.0,
+    };
+    for (snr_db, seed) in [(10.0, 3), (0.0, 1)] {
+        let c = Condition {
+            rt60_s: 0.3,
+            talkers: 1,
+            snr_db,
+        };
+        let sc = scene_with(StudyArray::Ring4, kind, c, seed).unwrap();
+        let audio = sc.render();
+        let mut spec = drone_spec(&sc);
+        let mut robust = Localizer::new(&spec).unwrap();
+        assert_eq!(robust.config().signal_dim(), 2);
+        let r = robust.localize(&audio.channels).unwrap();
+        spec.analysis.subspace_dim = Some(3);
+        let former = Localizer::new(&spec).unwrap().localize(&audio.channels).unwrap();
+        assert_default_beats_named(
+            &sc,
+            &r.results,
+            &former.results,
+            ["robust default", "former subspace 3 of 4"],
+        );
+    }
+}

@@ -35,7 +35,7 @@ pub struct Args {
     #[arg(long)]
     pub coherence: bool,
     /// Signal-subspace dimension when it should differ from --num-sources (the robust
-    /// default uses max(--num-sources + 2, M/2)).
+    /// default uses max(--num-sources, M/2)).
     #[arg(long)]
     pub subspace_dim: Option<usize>,
     /// Windows per batch for the throughput figure.
@@ -148,6 +148,8 @@ pub enum ArrayArg {
     Ring8,
     /// 60 mics, 2522 directions.
     Seed,
+    /// 4-mic circle (3.2 cm, a ReSpeaker 4-mic array's), 72 directions: --accuracy only.
+    Ring4,
 }
 
 fn run_stream(a: &Args, algs: &[AlgorithmArg]) -> anyhow::Result<ExitCode> {
@@ -166,6 +168,7 @@ fn run_stream(a: &Args, algs: &[AlgorithmArg]) -> anyhow::Result<ExitCode> {
                 array: match arr {
                     ArrayArg::Ring8 => StreamArray::Ring8,
                     ArrayArg::Seed => StreamArray::Seed,
+                    ArrayArg::Ring4 => anyhow::bail!("--array ring4 is for --accuracy only"),
                 },
                 algorithm: alg.into(),
                 period: a.period,
@@ -226,6 +229,7 @@ fn run_stream(a: &Args, algs: &[AlgorithmArg]) -> anyhow::Result<ExitCode> {
             let study = match arr {
                 ArrayArg::Ring8 => soundloc::bench::accuracy::StudyArray::Ring8,
                 ArrayArg::Seed => soundloc::bench::accuracy::StudyArray::Sphere60,
+                ArrayArg::Ring4 => anyhow::bail!("--array ring4 is for --accuracy only"),
             };
             for &alg in algs {
                 let g = soundloc::bench::tracking::agreement(study, alg.into(), a.period, 2_000_000, 2)?;
@@ -329,6 +333,7 @@ fn run_accuracy(a: &Args) -> anyhow::Result<ExitCode> {
     }
     let array = match a.arrays.first() {
         Some(ArrayArg::Seed) => StudyArray::Sphere60,
+        Some(ArrayArg::Ring4) => StudyArray::Ring4,
         _ => StudyArray::Ring8,
     };
     let seed0 = match a.split {

@@ -25,7 +25,7 @@ use std::path::PathBuf;
 pub struct AnalysisArgs {
     /// MUSIC_ALGORITHM. Unnamed: the room default without a noise source (sevd as
     /// NormMUSIC, subspace min(M/2, round(2√M)), refined), the robust gevd with one
-    /// (subspace max(num-sources+2, M/2), refined). Named: exactly HARK's.
+    /// (subspace max(num-sources, M/2), refined). Named: exactly HARK's.
     #[arg(long, value_enum)]
     pub algorithm: Option<AlgorithmArg>,
     /// NUM_SOURCE: the number of sources (peaks reported and, in HARK, the signal subspace
@@ -85,7 +85,7 @@ pub struct AnalysisArgs {
     /// Signal-subspace dimension of the decomposition when it should differ from
     /// --num-sources (reverberant rooms and large arrays need more than the talkers);
     /// default: --num-sources, as HARK, when an algorithm is named; unnamed,
-    /// min(M/2, round(2√M)) in the room default and max(--num-sources + 2, M/2) in the
+    /// min(M/2, round(2√M)) in the room default and max(--num-sources, M/2) in the
     /// robust default.
     #[arg(long)]
     pub subspace_dim: Option<usize>,

@@ -28,7 +28,7 @@ Arguments (HARK LocalizeMUSIC name / pyroomacoustics name):
     algorithm: "sevd" | "gevd" | "gevd-hark" | "gsvd" | "srp-phat" (MUSIC_ALGORITHM); default
         (None): without a noise source the room default (NormMUSIC: sevd with every bin
         normalised, subspace min(M/2, round(2√M)), coherence, refinement), with one the robust gevd
-        (subspace max(num_sources+2, M/2), numerator ‖a‖·‖a_w‖, refinement); a named algorithm
+        (subspace max(num_sources, M/2), numerator ‖a‖·‖a_w‖, refinement); a named algorithm
         runs as HARK's.
     subspace_dim (signal subspace when it should differ from num_sources), normalize_bins
         (NormMUSIC) and refine (sub-grid peak directions): None = the default's choice (both

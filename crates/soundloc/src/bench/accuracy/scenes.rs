@@ -15,6 +15,28 @@ pub enum StudyArray {
     Ring8,
     /// 60 mics on a 10 cm sphere, 2522-point sphere grid.
     Sphere60,
+    /// 4 mics on a 3.2 cm circle (a ReSpeaker 4-mic array's), 5° ring grid.
+    Ring4,
+}
+
+impl StudyArray {
+    /// Its number of microphones.
+    pub fn num_mics(self) -> usize {
+        match self {
+            StudyArray::Ring8 => 8,
+            StudyArray::Sphere60 => 60,
+            StudyArray::Ring4 => 4,
+        }
+    }
+
+    /// A source's elevation, degrees: 0 for the rings (their grid is the plane), −30…45°
+    /// for the sphere.
+    fn elevation(self, rng: &mut impl Rng) -> f64 {
+        match self {
+            StudyArray::Ring8 | StudyArray::Ring4 => 0.0,
+            StudyArray::Sphere60 => rng.gen_range(-30.0..45.0),
+        }
+    }
 }
 
 /// What else sounds in the scenes besides the talkers.
@@ -102,6 +124,7 @@ pub fn scene_with(array: StudyArray, kind: SceneKind, c: Condition, seed: u64) -
     let mut rng = rand::rngs::StdRng::seed_from_u64(seed ^ 0x5EED_AC0C);
     let (geometry, grid, step) = match array {
         StudyArray::Ring8 => (Geometry::circle(8, 0.0365, 0.0), Grid::ring(5.0, 0.0, 1.0), 5.0),
+        StudyArray::Ring4 => (Geometry::circle(4, 0.032, 0.0), Grid::ring(5.0, 0.0, 1.0), 5.0),
         StudyArray::Sphere60 => {
             let n = 2522;
             let step = (4.0 * std::f64::consts::PI / n as f64).sqrt().to_degrees();
@@ -128,10 +151,7 @@ pub fn scene_with(array: StudyArray, kind: SceneKind, c: Condition, seed: u64) -
     while talkers.len() < c.talkers {
         tries += 1;
         let az: f64 = rng.gen_range(-180.0..180.0);
-        let el: f64 = match array {
-            StudyArray::Ring8 => 0.0,
-            StudyArray::Sphere60 => rng.gen_range(-30.0..45.0),
-        };
+        let el = array.elevation(&mut rng);
         let dist = rng.gen_range(1.5..2.5);
         let p = position_from_az_el(az, el, dist);
         let apart = talkers.iter().all(|&(a, e)| {
@@ -177,10 +197,7 @@ pub fn scene_with(array: StudyArray, kind: SceneKind, c: Condition, seed: u64) -
             loop {
                 tries += 1;
                 let az: f64 = rng.gen_range(-180.0..180.0);
-                let el: f64 = match array {
-                    StudyArray::Ring8 => 0.0,
-                    StudyArray::Sphere60 => rng.gen_range(-30.0..45.0),
-                };
+                let el = array.elevation(&mut rng);
                 let p = position_from_az_el(az, el, rng.gen_range(1.0..3.0));
                 let apart = talkers.iter().all(|&(a, e)| {
                     crate::demo::angle_deg(

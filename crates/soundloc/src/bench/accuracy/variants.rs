@@ -100,6 +100,7 @@ pub fn variants_for(array: StudyArray, period: usize) -> Vec<Variant> {
     let dims: &[usize] = match array {
         StudyArray::Ring8 => &[5, 6],
         StudyArray::Sphere60 => &[6, 8, 12, 16, 20, 24, 30],
+        StudyArray::Ring4 => &[1, 3],
     };
     // Every "robust …" variant is the robust default as it runs (the geometric numerator
     // since 2026-11-29) with one change; "robust raw numerator" changes the numerator.
@@ -112,11 +113,16 @@ pub fn variants_for(array: StudyArray, period: usize) -> Vec<Variant> {
         f(&mut c);
         vs.push(Variant { name, config: c });
     };
-    let mics = match array {
-        StudyArray::Ring8 => 8,
-        StudyArray::Sphere60 => 60,
-    };
+    let mics = array.num_mics();
     let robust = crate::localizer::robust_subspace_dim(base.num_sources, mics);
+    // The robust default before 2026-12-01 (max(num_sources + 2, M/2), below M): on
+    // arrays of fewer than 8 microphones it differs from today's.
+    let former = (base.num_sources + 2).max(mics / 2).min(mics - 1);
+    if former != robust {
+        push(format!("robust former subspace ({former} refined)"), &|c| {
+            c.subspace_dim = Some(former)
+        });
+    }
     push(format!("robust default (subspace {robust} refined)"), &|c| {
         c.subspace_dim = Some(robust)
     });
@@ -205,6 +211,13 @@ pub fn variants_for(array: StudyArray, period: usize) -> Vec<Variant> {
             c.diagonal_loading = loading
         });
     }
+    valid_for(vs, mics)
+}
+
+/// The variants an array of `mics` microphones can run: fewer sources and signal vectors
+/// than microphones (the 4-mic ring drops "Ns=4").
+fn valid_for(mut vs: Vec<Variant>, mics: usize) -> Vec<Variant> {
+    vs.retain(|v| v.config.num_sources < mics && v.config.subspace_dim.is_none_or(|d| d < mics));
     vs
 }
 
@@ -225,9 +238,11 @@ pub fn variants_without_noise(array: StudyArray, period: usize) -> Vec<Variant> 
         f(&mut c);
         vs.push(Variant { name, config: c });
     };
-    let (mics, dims): (usize, &[usize]) = match array {
-        StudyArray::Ring8 => (8, &[3, 4, 5, 6]),
-        StudyArray::Sphere60 => (60, &[4, 8, 12, 16, 20, 30, 45]),
+    let mics = array.num_mics();
+    let dims: &[usize] = match array {
+        StudyArray::Ring8 => &[3, 4, 5, 6],
+        StudyArray::Sphere60 => &[4, 8, 12, 16, 20, 30, 45],
+        StudyArray::Ring4 => &[1, 3],
     };
     push("sevd (Ns=2)".into(), &|_| {});
     push("sevd refined".into(), &|c| c.refine = true);
@@ -288,5 +303,5 @@ pub fn variants_without_noise(array: StudyArray, period: usize) -> Vec<Variant> 
             c.numerator = Numerator::Geometric
         },
     );
-    vs
+    valid_for(vs, mics)
 }
