@@ -350,3 +350,56 @@ fn an_array_away_from_the_origin_reports_its_own_directions() {
         }
     }
 }
+
+/// A linear array (Kinect-like, 4 microphones along x) can tell only a direction's angle to
+/// its line: on the full ring a source at −60° and its mirror image at +60° give the same
+/// spectrum, and the localizer says so; with peaks kept to azimuths 0…180° (one
+/// half-plane through the line) every angle is reported once, at +60°, with no note.
+#[test]
+fn a_linear_array_is_noted_and_reports_the_angle_to_its_line() {
+    use soundloc::array::grid::GridSpec;
+    use soundloc::sim::{position_from_az_el, render, Scene, SceneSource, Signal};
+    use soundloc::{array::Geometry, Localizer, LocalizerSpec};
+    let line = Geometry {
+        mics: vec![
+            [-0.113, 0.0, 0.0],
+            [0.036, 0.0, 0.0],
+            [0.076, 0.0, 0.0],
+            [0.113, 0.0, 0.0],
+        ],
+    };
+    let scene = Scene {
+        sensor_noise_std: 0.02,
+        ..Scene::new()
+    }
+    .with_source(SceneSource::new(
+        position_from_az_el(-60.0, 0.0, 3.0),
+        Signal::Speech,
+    ));
+    let audio = render(&scene, &line, 16000, 2.0, 5);
+    let mut spec = LocalizerSpec::free_field(
+        line.mics.clone(),
+        GridSpec::Ring {
+            step_deg: 5.0,
+            elevation_deg: 0.0,
+        },
+    );
+    spec.analysis.num_sources = 1;
+    let cone = |loc: &Localizer| loc.notes().iter().any(|n| n.contains("lie on one line"));
+    let mut full = Localizer::new(&spec).unwrap();
+    assert!(cone(&full), "{:?}", full.notes());
+    let r = full.localize(&audio.channels).unwrap();
+    assert!(r.results.len() >= 3);
+    for res in &r.results {
+        let az = res.sources[0].azimuth_deg;
+        assert!((az.abs() - 60.0).abs() <= 3.0, "frame {}: {az}°", res.frame);
+    }
+    spec.analysis.min_deg = 0.0;
+    spec.analysis.max_deg = 180.0;
+    let mut half = Localizer::new(&spec).unwrap();
+    assert!(!cone(&half), "{:?}", half.notes());
+    for res in &half.localize(&audio.channels).unwrap().results {
+        let az = res.sources[0].azimuth_deg;
+        assert!((az - 60.0).abs() <= 3.0, "frame {}: {az}°", res.frame);
+    }
+}

@@ -385,22 +385,89 @@ pub fn plane_normal(positions: &[[f64; 3]]) -> Option<[f64; 3]> {
         .then_some(n)
 }
 
-/// A note when the microphones at `positions` lie in one plane and `grid` holds
-/// directions on both sides of it: a point and its mirror image through that plane are
-/// the same distance from every microphone, so their spectra are equal and a source may be
-/// reported at its mirror image.
-pub fn mirror_note(positions: &[[f64; 3]], grid: &super::Grid) -> Option<String> {
-    let n = plane_normal(positions)?;
+/// The unit direction of the line all `positions` lie on (within 10⁻⁴ of the largest
+/// distance from the first position), or None: fewer than two distinct positions, or not
+/// on one line.
+pub fn line_direction(positions: &[[f64; 3]]) -> Option<[f64; 3]> {
+    let (&p0, rest) = positions.split_first()?;
+    let far = rest
+        .iter()
+        .copied()
+        .max_by(|a, b| dist(*a, p0).total_cmp(&dist(*b, p0)))?;
+    let span = dist(far, p0);
+    if !(span > 0.0 && span.is_finite()) {
+        return None;
+    }
+    let e = sub(far, p0).map(|v| v / span);
+    positions
+        .iter()
+        .all(|&p| {
+            let c = cross(e, sub(p, p0));
+            dot(c, c).sqrt() <= 1e-4 * span
+        })
+        .then_some(e)
+}
+
+/// A note when free-field transfer functions cannot tell some of `grid`'s directions
+/// apart because of where the microphones at `positions` lie:
+/// - on one line: a direction's spectrum depends only on its angle to the line, so every
+///   direction of a cone around it gives the same spectrum (on a ring in a plane through
+///   the line, a direction and its mirror image across it); noted when the grid holds two
+///   directions more than 5° apart whose angles to the line differ by less than 0.5°;
+/// - in one plane, with directions on both sides of it: a point and its mirror image
+///   through that plane are the same distance from every microphone, so a source may be
+///   reported at its mirror image.
+///
+/// `points` are the directions that can be reported (the grid's within the azimuth range).
+pub fn mirror_note(positions: &[[f64; 3]], points: &[[f64; 3]]) -> Option<String> {
     let c = Geometry {
         mics: positions.to_vec(),
     }
     .centroid();
+    let unit = |p: [f64; 3]| {
+        let v = sub(p, c);
+        let l = dot(v, v).sqrt();
+        (l > 0.0).then(|| v.map(|x| x / l))
+    };
+    if let Some(axis) = line_direction(positions) {
+        // Directions sorted by their angle to the line; a run of angles within 0.5° of
+        // its first whose directions are not all within 5° of its first one lies on one
+        // cone (a ring through the line holds exact mirror images, a sphere grid a point
+        // every fraction of a degree of angle).
+        let mut by_angle: Vec<([f64; 3], f64)> = points
+            .iter()
+            .filter_map(|&p| unit(p))
+            .map(|u| (u, dot(u, axis).clamp(-1.0, 1.0).acos().to_degrees()))
+            .collect();
+        by_angle.sort_by(|a, b| a.1.total_cmp(&b.1));
+        let apart = 5f64.to_radians().cos();
+        let mut first = 0;
+        let mut cone = false;
+        for i in 1..by_angle.len() {
+            if by_angle[i].1 - by_angle[first].1 > 0.5 {
+                first = i;
+            } else if dot(by_angle[i].0, by_angle[first].0) < apart {
+                cone = true;
+                break;
+            }
+        }
+        return cone.then(|| {
+            "the microphones lie on one line: in free field only a direction's angle to that line \
+             can be told apart (every direction on a cone around the line gives the same spectrum; on \
+             a ring through the line, a direction and its mirror image across it), so a source may be \
+             reported anywhere on its cone; use a grid of one half-plane through the line (on a ring: \
+             --min-deg/--max-deg spanning 180° from the line's direction), or an array that is not \
+             linear"
+                .to_string()
+        });
+    }
+    let n = plane_normal(positions)?;
     let side = |p: [f64; 3]| {
         let v = sub(p, c);
         let h = dot(v, n);
         (h.abs() > 0.05 * dot(v, v).sqrt()).then_some(h > 0.0)
     };
-    let sides: Vec<bool> = grid.points.iter().filter_map(|&p| side(p)).collect();
+    let sides: Vec<bool> = points.iter().filter_map(|&p| side(p)).collect();
     (sides.contains(&true) && sides.contains(&false)).then(|| {
         "the microphones lie in one plane and the grid has directions on both sides of it: in free \
          field a direction and its mirror image through the plane give the same spectrum, so a source \
@@ -439,22 +506,59 @@ mod tests {
         let n = plane_normal(&ring.mics).unwrap();
         assert!((n[2].abs() - 1.0).abs() < 1e-12, "{n:?}");
         // Both hemispheres: the note; the ring's own plane or one side only: none.
-        assert!(mirror_note(&ring.mics, &Grid::sphere(200, 1.0))
+        assert!(mirror_note(&ring.mics, &Grid::sphere(200, 1.0).points)
             .unwrap()
             .contains("mirror image"));
-        assert_eq!(mirror_note(&ring.mics, &Grid::ring(5.0, 0.0, 1.0)), None);
-        assert_eq!(mirror_note(&ring.mics, &Grid::ring(5.0, 30.0, 1.0)), None);
+        assert_eq!(mirror_note(&ring.mics, &Grid::ring(5.0, 0.0, 1.0).points), None);
+        assert_eq!(mirror_note(&ring.mics, &Grid::ring(5.0, 30.0, 1.0).points), None);
         // A tilted plane, a 3-D array, a line.
         let tilted: Vec<[f64; 3]> = ring.mics.iter().map(|p| [p[0], p[1], 0.5 * p[0] + 1.0]).collect();
         assert!(plane_normal(&tilted).is_some());
         assert_eq!(plane_normal(&Geometry::sphere(60, 0.1).mics), None);
         assert_eq!(
-            mirror_note(&Geometry::sphere(60, 0.1).mics, &Grid::sphere(200, 1.0)),
+            mirror_note(&Geometry::sphere(60, 0.1).mics, &Grid::sphere(200, 1.0).points),
             None
         );
         let line: Vec<[f64; 3]> = (0..4).map(|i| [0.05 * i as f64, 0.0, 0.0]).collect();
         assert_eq!(plane_normal(&line), None);
         assert_eq!(plane_normal(&line[..2]), None);
+    }
+
+    /// A linear array: every grid that holds two directions on one cone around the line
+    /// gets the cone note (a full ring through the line, a ring across it, a sphere); a
+    /// half ring from the line's direction does not; the ring array keeps its own rule.
+    #[test]
+    fn a_linear_array_with_directions_on_one_cone_gets_a_note() {
+        use crate::array::Grid;
+        // Kinect-like: 4 microphones along x, unevenly spaced.
+        let line = vec![
+            [-0.113, 0.0, 0.0],
+            [0.036, 0.0, 0.0],
+            [0.076, 0.0, 0.0],
+            [0.113, 0.0, 0.0],
+        ];
+        let axis = line_direction(&line).unwrap();
+        assert!((axis[0].abs() - 1.0).abs() < 1e-12, "{axis:?}");
+        for grid in [Grid::ring(5.0, 0.0, 1.0), Grid::sphere(500, 1.0)] {
+            assert!(mirror_note(&line, &grid.points).unwrap().contains("cone"));
+        }
+        // Along z, a ring in the x-y plane is one cone (every direction at 90°).
+        let vertical: Vec<[f64; 3]> = line.iter().map(|p| [0.0, 0.0, p[0]]).collect();
+        assert!(mirror_note(&vertical, &Grid::ring(5.0, 0.0, 1.0).points).is_some());
+        // Azimuth 0…180° (one half-plane through the x axis): each angle once.
+        let ring = Grid::ring(5.0, 0.0, 1.0);
+        let half: Vec<[f64; 3]> = (0..ring.len())
+            .filter(|&i| crate::peaks::azimuth_in_range(ring.azimuth_deg(i), 0.0, 180.0))
+            .map(|i| ring.points[i])
+            .collect();
+        assert_eq!(half.len(), 37);
+        assert_eq!(mirror_note(&line, &half), None);
+        assert_eq!(line_direction(&Geometry::circle(8, 0.0365, 0.0).mics), None);
+        assert_eq!(line_direction(&[[0.0; 3], [0.0; 3]]), None);
+        assert_eq!(
+            mirror_note(&Geometry::circle(8, 0.0365, 0.0).mics, &ring.points),
+            None
+        );
     }
 
     #[test]

@@ -109,7 +109,16 @@ pub(crate) fn prepare(
     // Free-field TFs only: measured ones carry the body's scattering, which breaks the
     // mirror symmetry.
     if matches!(spec.array, ArraySpec::FreeField { .. }) && tf.mic_positions.len() == tf.num_mics {
-        notes.extend(crate::array::geometry::mirror_note(&tf.mic_positions, &tf.grid));
+        let reportable: Vec<[f64; 3]> = (0..tf.grid.len())
+            .filter(|&i| {
+                crate::peaks::azimuth_in_range(tf.grid.azimuth_deg(i), config.min_deg, config.max_deg)
+            })
+            .map(|i| tf.grid.points[i])
+            .collect();
+        notes.extend(crate::array::geometry::mirror_note(
+            &tf.mic_positions,
+            &reportable,
+        ));
     }
     // A tracker threshold that no peak of a normalised spectrum can reach would drop
     // every result without a word (HARK thresholds are tuned on SEVD's scale).
