@@ -20,6 +20,10 @@ pub(crate) struct PyLocalizer {
     /// Files the localizer was built from (the TF file, a noise-CM pair or recording):
     /// `localize_file` never writes over them.
     files: Vec<PathBuf>,
+    /// The spec, kept while the analysis rate is open (`geometry=` without `fs=`,
+    /// [`PySpec::rate_open`]): `localize(x, fs)` and `localize_file` rebuild the
+    /// localizer for the audio's rate.
+    open_rate: Option<PySpec>,
 }
 
 #[pymethods]
@@ -41,6 +45,7 @@ impl PyLocalizer {
             inner: Turns::new(spec.localizer(py)?, "localizer"),
             channels_first: spec.channels_first,
             files,
+            open_rate: spec.rate_open().then(|| spec.clone()),
         })
     }
 
@@ -60,6 +65,9 @@ impl PyLocalizer {
         // One lock throughout: another thread's call cannot come between the reset and
         // the recording.
         let mut guard = self.lock(py)?;
+        if let Some(f) = fs {
+            self.adopt_rate(py, &mut guard, f)?;
+        }
         let loc = &mut *guard;
         let mut out = match converter(loc, &s, fs, channels_first)? {
             None => {
@@ -93,6 +101,13 @@ impl PyLocalizer {
         };
         let files = self.files.clone();
         let mut inner = self.lock(py)?;
+        if self.open_rate.is_some() {
+            // The recording's rate, from its header, is the rate to analyse at.
+            let fs = py
+                .allow_threads(|| soundloc::audio::open_source(&input).map(|s| s.format().sample_rate_hz))
+                .map_err(err)?;
+            self.adopt_rate(py, &mut inner, fs)?;
+        }
         let loc = &mut *inner;
         py.allow_threads(|| -> soundloc::Result<usize> {
             let ins: Vec<(&std::path::Path, &str)> = std::iter::once((input.as_path(), "input"))
@@ -199,6 +214,18 @@ impl PyLocalizer {
 impl PyLocalizer {
     fn lock(&self, py: Python<'_>) -> PyResult<Turn<'_, Localizer>> {
         self.inner.lock(py)
+    }
+
+    /// With an open rate ([`PySpec::rate_open`]), the localizer rebuilt for audio at
+    /// `fs` Hz when it analyses another rate (the stream starts anew, as `localize` and
+    /// `localize_file` start it anyway).
+    fn adopt_rate(&self, py: Python<'_>, loc: &mut Localizer, fs: u32) -> PyResult<()> {
+        if let Some(spec) = self.open_rate.as_ref().and_then(|s| s.at_rate(fs)) {
+            if loc.config().sample_rate_hz != fs {
+                *loc = spec.localizer(py)?;
+            }
+        }
+        Ok(())
     }
 }
 

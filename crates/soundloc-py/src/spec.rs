@@ -19,6 +19,7 @@ use std::path::{Path, PathBuf};
 
 /// A localizer's description: the library's spec and the arrays Python passed.
 #[pyclass(module = "soundloc._native", name = "Spec", frozen)]
+#[derive(Clone)]
 pub(crate) struct PySpec {
     pub spec: LocalizerSpec,
     /// `grid=` as a (D, 3) array of directions.
@@ -375,8 +376,47 @@ impl PySpec {
         Ok(Some((tf, k, note)))
     }
 
+    /// Whether the analysis rate is open: free-field TFs (`geometry=`) with no `fs=` and
+    /// no `resample=True`, so the audio's rate, where a call names it, is the rate to
+    /// analyse at (16 kHz until then).
+    pub fn rate_open(&self) -> bool {
+        self.fs_given.is_none()
+            && !self.spec.resample
+            && matches!(self.spec.array, ArraySpec::FreeField { .. })
+    }
+
+    /// This spec for audio at `fs` Hz (free-field TFs made for that rate), where the rate
+    /// is open ([`Self::rate_open`]).
+    pub fn at_rate(&self, fs: u32) -> Option<PySpec> {
+        self.rate_open().then(|| {
+            let mut s = self.clone();
+            s.spec.analysis.sample_rate_hz = fs;
+            s
+        })
+    }
+
+    /// The note of an open rate ([`Self::rate_open`]).
+    fn rate_note(&self) -> Option<String> {
+        self.rate_open().then(|| {
+            format!(
+                "no fs= given: the free-field transfer functions are made for {} Hz audio; \
+                 localize(x, fs) and localize_file take the audio's rate instead, push() assumes this \
+                 one (pass fs= for audio at another rate)",
+                self.spec.analysis.sample_rate_hz
+            )
+        })
+    }
+
     /// A localizer (the GIL released while files load and the plan is built).
     pub fn localizer(&self, py: Python<'_>) -> PyResult<Localizer> {
+        let mut loc = self.localizer_noted(py)?;
+        if let Some(n) = self.rate_note() {
+            loc.prepend_note(n);
+        }
+        Ok(loc)
+    }
+
+    fn localizer_noted(&self, py: Python<'_>) -> PyResult<Localizer> {
         self.check_fs_early()?;
         let loc = py
             .allow_threads(|| match self.arrays()? {
@@ -410,6 +450,10 @@ impl PySpec {
             })
             .map_err(err)?;
         self.check_fs(g.config().sample_rate_hz)?;
+        let mut g = g;
+        if let Some(n) = self.rate_note() {
+            g.prepend_note(n);
+        }
         Ok(g)
     }
 

@@ -21,8 +21,9 @@ Arguments (HARK LocalizeMUSIC name / pyroomacoustics name):
         configuration ``*.cfg``, whose mapping.map picks the microphones among the device's
         raw.nChannels channels) with grid: "ring:STEP_DEG[:ELEV]", "sphere:N" or
         a (D, 3) array of unit directions, grid_radius (metres, default 1) and
-        speed_of_sound (m/s, default 343); fs (SAMPLING_RATE, for geometry=; with tf= the
-        file's rate, and another one is an error). Directions are seen from the origin of
+        speed_of_sound (m/s, default 343); fs (SAMPLING_RATE, for geometry=; without it
+        the rate localize(x, fs) or localize_file's header names, 16000 for push() until
+        then; with tf= the file's rate, and another one is an error). Directions are seen from the origin of
         the positions' frame, or from the microphones' centroid when that origin lies
         outside the array (room coordinates, as pyroomacoustics' ``L``).
     algorithm: "sevd" | "gevd" | "gevd-hark" | "gsvd" | "srp-phat" (MUSIC_ALGORITHM); default
