@@ -50,6 +50,71 @@ fn azimuths(jsonl: &str) -> Vec<Vec<f64>> {
         .collect()
 }
 
+/// Free-field TFs at 48 kHz: without --fft-length/--hop the frames are HARK's 32 ms and
+/// 10 ms there (1536 and 480 samples, said in a note), so a result still comes every 0.5 s
+/// at PERIOD 50 and the talkers are found as at 16 kHz; given sizes are kept.
+#[test]
+fn geometry_frames_keep_harks_durations_at_48_khz() {
+    let (audio, geo, wav16) = scene();
+    let a48 = soundloc::audio::resample::resample_audio(&audio, 48000).unwrap();
+    let wav48 = tmp("ring8-48k-frames.wav");
+    a48.write_wav(&wav48, soundloc::audio::SampleFormat::Float32)
+        .unwrap();
+    let run = |wav: &Path, extra: &[&str]| {
+        let o = bin()
+            .arg("localize")
+            .arg(wav)
+            .arg("--geometry")
+            .arg(&geo)
+            .args(["--grid", "ring:5", "--device", "cpu"])
+            .args(extra)
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        (
+            String::from_utf8(o.stdout).unwrap(),
+            String::from_utf8(o.stderr).unwrap(),
+        )
+    };
+    let times = |jsonl: &str| -> Vec<f64> {
+        jsonl
+            .lines()
+            .map(|l| {
+                serde_json::from_str::<serde_json::Value>(l).unwrap()["time_s"]
+                    .as_f64()
+                    .unwrap()
+            })
+            .collect()
+    };
+    let (out48, err48) = run(&wav48, &[]);
+    assert!(
+        err48.contains("at 48000 Hz the frames are 1536 samples with a hop of 480"),
+        "{err48}"
+    );
+    let (given, _) = run(&wav48, &["--fft-length", "1536", "--hop", "480", "-q"]);
+    assert_eq!(out48, given);
+    let (out16, err16) = run(&wav16, &[]);
+    assert!(!err16.contains("the frames are"), "{err16}");
+    assert_eq!(times(&out48), times(&out16));
+    assert!(times(&out48).len() >= 3 && times(&out48)[1] == 0.5);
+    let near = |a: f64, b: f64| ((a - b + 540.0) % 360.0 - 180.0).abs() <= 5.0;
+    let both = |r: &Vec<f64>| [30.0, -120.0].iter().all(|&t| r.iter().any(|&a| near(a, t)));
+    let (got, want) = (azimuths(&out48), azimuths(&out16));
+    let hits = |rows: &Vec<Vec<f64>>| rows.iter().filter(|r| both(r)).count();
+    assert!(
+        hits(&want) * 10 >= want.len() * 5,
+        "the 16 kHz run itself: {want:?}"
+    );
+    assert!(
+        hits(&got) >= hits(&want),
+        "48 kHz {got:?} against 16 kHz {want:?}"
+    );
+    // HARK's sample counts, given: kept (a result every 50 × 160 samples).
+    let (hark, err) = run(&wav48, &["--fft-length", "512", "--hop", "160"]);
+    assert!(!err.contains("the frames are"), "{err}");
+    assert!((times(&hark)[1] - 8000.0 / 48000.0).abs() < 1e-9);
+}
+
 #[test]
 fn resample_converts_a_48_khz_input_and_noise_recording() {
     let (audio, geo, wav16) = scene();

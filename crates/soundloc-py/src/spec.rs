@@ -31,6 +31,21 @@ pub(crate) struct PySpec {
     speed_of_sound: f64,
     /// `fs=` as given (with `tf=` it must be the file's rate).
     fs_given: Option<u32>,
+    /// `nfft=`, `hop=` as given (None: [`frame_sizes`] at the analysis rate).
+    frames_given: (Option<usize>, Option<usize>),
+}
+
+/// `nfft=`, `hop=` where given, else HARK's (512, 160), or with free-field transfer
+/// functions (`geometry=`) their durations at `fs` (the CLI's rule,
+/// [`soundloc::config::frame_sizes_for_rate`]).
+fn frame_sizes(given: (Option<usize>, Option<usize>), fs: u32, free_field: bool) -> (usize, usize) {
+    let (nfft, hop) = if free_field {
+        soundloc::config::frame_sizes_for_rate(fs)
+    } else {
+        let d = soundloc::LocalizeConfig::default();
+        (d.nfft, d.hop)
+    };
+    (given.0.unwrap_or(nfft), given.1.unwrap_or(hop))
 }
 
 #[pymethods]
@@ -44,7 +59,7 @@ impl PySpec {
 /// The spec from `soundloc.Localizer`'s keyword arguments.
 #[pyfunction]
 #[pyo3(signature = (*, tf=None, geometry=None, grid=None, algorithm=None, num_sources=2, max_peaks=-1,
-    window=50, period=50, window_type="future", freq_range=None, nfft=512, hop=160, fs=None,
+    window=50, period=50, window_type="future", freq_range=None, nfft=None, hop=None, fs=None,
     noise=None, noise_range=None, noise_cm=None, noise_segments=None, noise_preceding=None,
     track=false, tracker_thresh_db=0.0, tracker_pause_length=None, tracker_min_src_interval_deg=None,
     tracker_min_id=None, preroll=0, device="auto", precision="f32", channels=None,
@@ -63,8 +78,8 @@ pub(crate) fn spec(
     period: usize,
     window_type: &str,
     freq_range: Option<&Bound<'_, PyAny>>,
-    nfft: usize,
-    hop: usize,
+    nfft: Option<usize>,
+    hop: Option<usize>,
     fs: Option<&Bound<'_, PyAny>>,
     noise: Option<&Bound<'_, PyAny>>,
     noise_range: Option<&Bound<'_, PyAny>>,
@@ -186,9 +201,9 @@ pub(crate) fn spec(
     a.period = period;
     a.window_type = parse::<WindowType>("window_type", window_type)?;
     (a.lower_freq_hz, a.upper_freq_hz) = freq_range;
-    a.nfft = nfft;
-    a.hop = hop;
     a.sample_rate_hz = fs;
+    let frames_given = (nfft, hop);
+    (a.nfft, a.hop) = frame_sizes(frames_given, fs, geometry.is_some());
     a.diagonal_loading = diagonal_loading;
     spec.channels = channels.unwrap_or_default();
     spec.input_channels = input_channels.unwrap_or_default();
@@ -265,6 +280,7 @@ pub(crate) fn spec(
         grid_radius,
         speed_of_sound,
         fs_given,
+        frames_given,
     })
 }
 
@@ -391,6 +407,7 @@ impl PySpec {
         self.rate_open().then(|| {
             let mut s = self.clone();
             s.spec.analysis.sample_rate_hz = fs;
+            (s.spec.analysis.nfft, s.spec.analysis.hop) = frame_sizes(self.frames_given, fs, true);
             s
         })
     }

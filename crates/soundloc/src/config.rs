@@ -281,6 +281,20 @@ impl Default for LocalizeConfig {
     }
 }
 
+/// HARK's `LENGTH` 512 and `ADVANCE` 160, which are samples at 16 kHz, as the durations
+/// they are there (32 ms, 10 ms) at `sample_rate_hz`: (the even FFT length nearest
+/// 0.032·fs, the hop nearest 0.01·fs), at least (4, 1) — 1536 and 480 at 48 kHz, 1412
+/// and 441 at 44.1 kHz. The free-field default when no frame sizes are given: with 512
+/// samples at 48 kHz the window of 50 frames covers 0.17 s instead of 0.5 s, and a
+/// user-style sweep (pyroomacoustics rooms, 2026-12-01) lost 12–24 points of
+/// talker-windows against the same audio at 16 kHz, which these sizes gave back.
+pub fn frame_sizes_for_rate(sample_rate_hz: u32) -> (usize, usize) {
+    let fs = sample_rate_hz as f64;
+    let nfft = ((0.032 * fs / 2.0).round() as usize * 2).max(4);
+    let hop = ((0.01 * fs).round() as usize).max(1);
+    (nfft, hop)
+}
+
 impl LocalizeConfig {
     /// The used bins: k from ⌊lower·N/fs⌋ up to but not including ⌊upper·N/fs⌋.
     pub fn bin_range(&self) -> std::ops::Range<usize> {
@@ -344,6 +358,16 @@ impl LocalizeConfig {
 
 #[cfg(test)]
 mod tests {
+    /// HARK's sizes at 16 kHz, their durations elsewhere.
+    #[test]
+    fn frame_sizes_keep_harks_durations() {
+        assert_eq!(super::frame_sizes_for_rate(16000), (512, 160));
+        assert_eq!(super::frame_sizes_for_rate(48000), (1536, 480));
+        assert_eq!(super::frame_sizes_for_rate(44100), (1412, 441));
+        assert_eq!(super::frame_sizes_for_rate(8000), (256, 80));
+        assert_eq!(super::frame_sizes_for_rate(1), (4, 1));
+    }
+
     use super::*;
     #[test]
     fn default_bins_are_16_to_88() {

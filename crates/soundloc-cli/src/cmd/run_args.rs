@@ -58,12 +58,14 @@ pub struct AnalysisArgs {
     /// UPPER_BOUND_FREQUENCY, Hz (exclusive bin).
     #[arg(long, default_value_t = 2800.0)]
     pub upper_freq: f64,
-    /// LENGTH: FFT length in samples.
-    #[arg(long, default_value_t = 512)]
-    pub fft_length: usize,
-    /// ADVANCE: hop in samples.
-    #[arg(long, default_value_t = 160)]
-    pub hop: usize,
+    /// LENGTH: FFT length in samples [default: 512; with --geometry 32 ms of the input's
+    /// rate (512 at 16 kHz, 1536 at 48 kHz)].
+    #[arg(long)]
+    pub fft_length: Option<usize>,
+    /// ADVANCE: hop in samples [default: 160; with --geometry 10 ms of the input's rate
+    /// (160 at 16 kHz, 480 at 48 kHz)].
+    #[arg(long)]
+    pub hop: Option<usize>,
     /// STFT window function (MultiFFT WINDOW).
     #[arg(long, value_enum, default_value = "conj")]
     pub window_function: WindowFnArg,
@@ -255,12 +257,20 @@ pub struct RunArgs {
 }
 
 impl AnalysisArgs {
-    /// The typed config (the algorithm resolved by the caller).
-    pub fn config(&self, algorithm: Algorithm, sample_rate_hz: u32) -> LocalizeConfig {
+    /// The typed config (the algorithm resolved by the caller); frame sizes not given are
+    /// HARK's (512, 160), or with free-field transfer functions (`free_field`) their
+    /// durations at the input's rate ([`soundloc::config::frame_sizes_for_rate`]).
+    pub fn config(&self, algorithm: Algorithm, sample_rate_hz: u32, free_field: bool) -> LocalizeConfig {
+        let (nfft, hop) = if free_field {
+            soundloc::config::frame_sizes_for_rate(sample_rate_hz)
+        } else {
+            let d = LocalizeConfig::default();
+            (d.nfft, d.hop)
+        };
         LocalizeConfig {
             algorithm,
-            nfft: self.fft_length,
-            hop: self.hop,
+            nfft: self.fft_length.unwrap_or(nfft),
+            hop: self.hop.unwrap_or(hop),
             sample_rate_hz,
             window_function: match self.window_function {
                 WindowFnArg::Conj => WindowFunction::Conj,
@@ -401,10 +411,11 @@ impl RunArgs {
             }
             None
         };
+        let free_field = matches!(array, ArraySpec::FreeField { .. });
         Ok(LocalizerSpec {
             array,
             algorithm: self.analysis.algorithm.map(Into::into),
-            analysis: self.analysis.config(Algorithm::Sevd, rate_hz),
+            analysis: self.analysis.config(Algorithm::Sevd, rate_hz, free_field),
             channels: self.channels.clone(),
             input_channels: self.input_channels.clone(),
             raw_mapping,

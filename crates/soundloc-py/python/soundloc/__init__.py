@@ -47,7 +47,8 @@ Arguments (HARK LocalizeMUSIC name / pyroomacoustics name):
     num_sources (NUM_SOURCE / num_src), max_peaks (MAXNUM_OUT_PEAKS), window (WINDOW, frames),
     period (PERIOD), window_type "past"|"middle"|"future" (WINDOW_TYPE), freq_range
         (LOWER/UPPER_BOUND_FREQUENCY, Hz; pyroomacoustics' freq_range), nfft (LENGTH),
-        hop (ADVANCE).
+        hop (ADVANCE): 512 and 160 samples, with geometry= 32 and 10 ms of the rate (the
+        same at 16 kHz, 1536 and 480 at 48 kHz).
     noise: (samples, channels) noise-only array; noise_range: (t0, t1) seconds of the input;
         noise_cm: HARK noise-CM file; noise_segments ([(t0, t1), ...] seconds) /
         noise_preceding (FRAMES or (FRAMES, GAP): K from the FRAMES frames ending GAP frames

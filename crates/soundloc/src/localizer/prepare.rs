@@ -106,6 +106,20 @@ pub(crate) fn prepare(
             config.upper_freq_hz, config.sample_rate_hz
         ));
     }
+    // The frame sizes the CLI and Python choose for free-field TFs at another rate than
+    // 16 kHz (HARK's durations), said once so that a user comparing with HARK's sample
+    // counts knows.
+    let fs = config.sample_rate_hz;
+    if matches!(spec.array, ArraySpec::FreeField { .. })
+        && fs != 16000
+        && (config.nfft, config.hop) == crate::config::frame_sizes_for_rate(fs)
+    {
+        notes.push(format!(
+            "at {fs} Hz the frames are {} samples with a hop of {} (32 ms and 10 ms, as HARK's 512 and \
+             160 at 16 kHz; others: --fft-length/--hop, nfft=/hop= in Python)",
+            config.nfft, config.hop
+        ));
+    }
     // Free-field TFs only: measured ones carry the body's scattering, which breaks the
     // mirror symmetry.
     if matches!(spec.array, ArraySpec::FreeField { .. }) && tf.mic_positions.len() == tf.num_mics {
