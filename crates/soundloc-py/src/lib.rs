@@ -118,6 +118,21 @@ pub(crate) fn points(x: &Bound<'_, PyAny>, what: &str) -> PyResult<Vec<[f64; 3]>
         .and_then(|l| l.extract())
         .or_else(|_| x.extract())
         .map_err(|_| PyValueError::new_err(format!("{what}: expected an (N, 3) array of positions")))?;
+    // pyroomacoustics' L is (2 or 3, M): one microphone per column.
+    let by_columns = matches!(v.len(), 2 | 3) && v.iter().all(|r| r.len() == v[0].len() && r.len() != 3);
+    if by_columns {
+        return Err(PyValueError::new_err(format!(
+            "{what}: a ({}, {}) array holds one microphone per column (pyroomacoustics' L); give one per \
+             row, (M, 3): L.T{}",
+            v.len(),
+            v[0].len(),
+            if v.len() == 2 {
+                " with a column of zeros for z"
+            } else {
+                ""
+            }
+        )));
+    }
     v.into_iter()
         .map(|p| {
             <[f64; 3]>::try_from(p.as_slice())

@@ -33,6 +33,8 @@ pub(crate) struct PySpec {
     fs_given: Option<u32>,
     /// `nfft=`, `hop=` as given (None: [`frame_sizes`] at the analysis rate).
     frames_given: (Option<usize>, Option<usize>),
+    /// A note when `geometry=` was a 3 × 3 array (rows or columns?).
+    square_note: Option<String>,
 }
 
 /// `nfft=`, `hop=` where given, else HARK's (512, 160), or with free-field transfer
@@ -160,6 +162,12 @@ pub(crate) fn spec(
             Err(_) => Some(points(g, "geometry")?),
         },
     };
+    // Three microphones as a 3 × 3 array: rows or columns alike (pyroomacoustics' L).
+    let square_note = mics.as_ref().is_some_and(|m| m.len() == 3).then(|| {
+        "geometry= is a 3 × 3 array: read as one microphone per row (x, y, z); pyroomacoustics' L \
+         holds one per column: pass L.T if it is that"
+            .to_string()
+    });
     let array = match (&tf, &mics) {
         (Some(p), None) => ArraySpec::TransferFunctions { path: p.clone() },
         (None, Some(m)) => ArraySpec::FreeField {
@@ -281,6 +289,7 @@ pub(crate) fn spec(
         speed_of_sound,
         fs_given,
         frames_given,
+        square_note,
     })
 }
 
@@ -412,6 +421,14 @@ impl PySpec {
         })
     }
 
+    /// Notes on what Python passed: an open rate ([`Self::rate_open`]), a 3 × 3 geometry.
+    fn notes(&self) -> Vec<String> {
+        self.rate_note()
+            .into_iter()
+            .chain(self.square_note.clone())
+            .collect()
+    }
+
     /// The note of an open rate ([`Self::rate_open`]).
     fn rate_note(&self) -> Option<String> {
         self.rate_open().then(|| {
@@ -427,7 +444,7 @@ impl PySpec {
     /// A localizer (the GIL released while files load and the plan is built).
     pub fn localizer(&self, py: Python<'_>) -> PyResult<Localizer> {
         let mut loc = self.localizer_noted(py)?;
-        if let Some(n) = self.rate_note() {
+        for n in self.notes().into_iter().rev() {
             loc.prepend_note(n);
         }
         Ok(loc)
@@ -468,7 +485,7 @@ impl PySpec {
             .map_err(err)?;
         self.check_fs(g.config().sample_rate_hz)?;
         let mut g = g;
-        if let Some(n) = self.rate_note() {
+        for n in self.notes().into_iter().rev() {
             g.prepend_note(n);
         }
         Ok(g)

@@ -415,6 +415,22 @@ def test_geometry_without_fs_takes_the_audios_rate(tmp_path):
     assert not any("no fs= given" in n for n in localizer(fs=FS).notes)
 
 
+def test_geometry_by_columns_and_a_hop_past_the_frame_are_named():
+    """pyroomacoustics' L (one microphone per column) is refused with the transpose to
+    pass, a 3 × 3 array (rows or columns alike) is read by rows with a note, and a hop
+    longer than the frame gets a note (samples between frames go unanalysed)."""
+    with pytest.raises(ValueError, match=r"\(3, 8\) array holds one microphone per column .*L\.T"):
+        soundloc.Localizer(geometry=MICS.T, grid="ring:5", device="cpu")
+    with pytest.raises(ValueError, match=r"\(2, 8\) array .*L\.T with a column of zeros"):
+        soundloc.Localizer(geometry=MICS.T[:2], grid="ring:5", device="cpu")
+    three = soundloc.Localizer(geometry=MICS[[0, 3, 5]], grid="ring:5", device="cpu", num_sources=1)
+    assert any("3 × 3 array" in n for n in three.notes)
+    assert not any("3 × 3" in n for n in localizer().notes)
+    assert any("the hop (1024 samples) is longer than the frame (512)" in n
+               for n in localizer(nfft=512, hop=1024).notes)
+    assert not any("longer than the frame" in n for n in localizer().notes)
+
+
 def test_arguments_as_pyroomacoustics_users_write_them():
     """Lists and arrays for ranges, a float sample rate, diagonal loading of K, and a
     rejected block that leaves the stream as it was."""

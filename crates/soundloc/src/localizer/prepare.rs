@@ -106,6 +106,12 @@ pub(crate) fn prepare(
             config.upper_freq_hz, config.sample_rate_hz
         ));
     }
+    if config.hop > config.nfft {
+        notes.push(format!(
+            "the hop ({} samples) is longer than the frame ({}): the samples between frames are not analysed",
+            config.hop, config.nfft
+        ));
+    }
     // The frame sizes the CLI and Python choose for free-field TFs at another rate than
     // 16 kHz (HARK's durations), said once so that a user comparing with HARK's sample
     // counts knows.
