@@ -192,6 +192,13 @@ pub(crate) fn results<'py>(
     d.set_item("power_db", shape(pw).map_err(bad)?.into_pyarray(py))?;
     d.set_item("grid_index", shape_i(gi).map_err(bad)?.into_pyarray(py))?;
     d.set_item("ids", shape_i(ids).map_err(bad)?.into_pyarray(py))?;
+    d.set_item(
+        "num_active",
+        r.iter()
+            .map(|x| x.num_active.map_or(-1, |n| n as i64))
+            .collect::<Vec<_>>()
+            .into_pyarray(py),
+    )?;
     match out.spectrum.take() {
         Some(t) => {
             let rows = t.frames.len();

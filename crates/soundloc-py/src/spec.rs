@@ -64,7 +64,7 @@ impl PySpec {
     window=50, period=50, window_type="future", freq_range=None, nfft=None, hop=None, fs=None,
     noise=None, noise_range=None, noise_cm=None, noise_segments=None, noise_preceding=None,
     track=false, tracker_thresh_db=0.0, tracker_pause_length=None, tracker_min_src_interval_deg=None,
-    tracker_min_id=None, preroll=0, device="auto", precision="f32", channels=None,
+    tracker_min_id=None, preroll=0, track_active_only=None, device="auto", precision="f32", channels=None,
     input_channels=None, spectrum=true, grid_radius=None, speed_of_sound=None, channels_first=false,
     subspace_dim=None, normalize_bins=None, refine=None, subspace_tracking=false, resample=false,
     diagonal_loading=0.0, coherence=None, numerator=None))]
@@ -94,6 +94,7 @@ pub(crate) fn spec(
     tracker_min_src_interval_deg: Option<f64>,
     tracker_min_id: Option<i64>,
     preroll: usize,
+    track_active_only: Option<bool>,
     device: &str,
     precision: &str,
     channels: Option<Vec<usize>>,
@@ -244,10 +245,11 @@ pub(crate) fn spec(
         || tracker_min_src_interval_deg.is_some()
         || tracker_min_id.is_some()
         || preroll > 0
+        || track_active_only.is_some()
         || tracker_thresh_db != 0.0;
     if given && !track {
         return Err(PyValueError::new_err(
-            "tracker_* and preroll set the tracker: give track=True too",
+            "tracker_*, preroll and track_active_only set the tracker: give track=True too",
         ));
     }
     let d = soundloc::tracking::TrackerConfig::default();
@@ -258,7 +260,11 @@ pub(crate) fn spec(
         min_id: tracker_min_id.unwrap_or(d.min_id),
     };
     tracker.validate().map_err(err)?;
-    spec.tracking = track.then_some(TrackingSpec { tracker, preroll });
+    spec.tracking = track.then_some(TrackingSpec {
+        tracker,
+        preroll,
+        active_only: track_active_only,
+    });
     spec.device = parse::<DeviceChoice>("device", device)?;
     spec.precision = parse::<Precision>("precision", precision)?;
     spec.spectrum = spectrum;

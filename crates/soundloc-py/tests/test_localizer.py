@@ -269,6 +269,8 @@ def test_python_equals_the_cli(tmp_path):
         assert l["frame"] == r.frames[i]
         assert [s["azimuth_deg"] for s in l["sources"]] == list(r.azimuth_deg[i])
         assert [s["power_db"] for s in l["sources"]] == list(r.power_db[i])
+        assert l["num_active"] == r.num_active[i]
+    assert [rec["num_active"] for rec in r.to_records()] == [l["num_active"] for l in lines]
 
 
 def test_bad_input_raises_the_right_exception(tmp_path):
@@ -429,6 +431,28 @@ def test_geometry_by_columns_and_a_hop_past_the_frame_are_named():
     assert any("the hop (1024 samples) is longer than the frame (512)" in n
                for n in localizer(nfft=512, hop=1024).notes)
     assert not any("longer than the frame" in n for n in localizer().notes)
+
+
+def test_room_default_tracks_start_only_where_sources_are_active():
+    """track=True in the room default: a second of sensor noise before the talkers feeds
+    the tracker nothing (num_active 0 there), so no track starts in it; with
+    track_active_only=False (HARK's tracker, every window) tracks start in the silence."""
+    rng = np.random.default_rng(5)
+    quiet = np.round(rng.standard_normal((FS, 8)) * 30).astype(np.int16)
+    x = np.concatenate([quiet, scene(seconds=2.0, seed=9)])
+    kw = dict(track=True, period=10, window_type="past")
+    gated = localizer(**kw).localize(x, FS)
+    silent = gated.times < 0.99
+    assert silent.sum() >= 5
+    assert np.all(gated.num_active[silent] == 0)
+    assert np.all(np.isnan(gated.azimuth_deg[silent]))
+    talk = gated.times >= 1.6
+    for t in TALKERS:
+        assert np.mean([min(angle(a, t) for a in row if a == a) <= 5.0 for row in gated.azimuth_deg[talk]]) >= 0.8
+    hark = localizer(track_active_only=False, **kw).localize(x, FS)
+    assert np.mean(~np.isnan(hark.azimuth_deg[silent][:, 0])) >= 0.5
+    with pytest.raises(ValueError, match="track=True"):
+        localizer(track_active_only=True)
 
 
 def test_arguments_as_pyroomacoustics_users_write_them():

@@ -41,7 +41,8 @@
 // Outputs as decompose.cu: E [blk][Ns][M] (rank order) in T and, when E64 is not null, the
 // same vectors in double (the spectrum's near-peak recomputation), gain[mat] = w_b·g,
 // bw[mat] = g (g = √val with eigw, else 1; val = λ_0, or σ_0 = √λ_0 for GSVD), info[mat]
-// = multisection rounds (diagnostics).
+// = multisection rounds (diagnostics); when tri is not null, T itself (scaled: diagonal,
+// then off-diagonal, 2M doubles per matrix of the sub-batch) for count.cu.
 #include "common.cuh"
 
 #define EH_THREADS 256
@@ -144,7 +145,8 @@ template <typename T, int NT>
 __device__ void eigh_impl(const zd* __restrict__ R, const zd* __restrict__ Hg, int M, int nb, int mode, int ns, int eigw,
                           const T* __restrict__ weights, int mat0, int scr_len, cplx<T>* __restrict__ E,
                           zd* __restrict__ E64, T* __restrict__ gain,
-                          float* __restrict__ bw, int* __restrict__ info, long long* __restrict__ prof) {
+                          float* __restrict__ bw, int* __restrict__ info, long long* __restrict__ prof,
+                          double* __restrict__ tri) {
     constexpr int PARTS = NT / 64;  // threads per row in the matrix-vector product
     SL_DYN_SMEM(sm);
     const int n = M;
@@ -358,11 +360,16 @@ __device__ void eigh_impl(const zd* __restrict__ R, const zd* __restrict__ Hg, i
     for (int off = 1; off < 32; off <<= 1) tn = fmax(tn, __shfl_xor_sync(0xffffffffu, tn, off));
     const double tscale = tn > 0.0 ? 1.0 / tn : 0.0;
     __syncthreads();  // every warp has its norm before ee is rescaled
+    double* tr = tri != nullptr ? tri + (size_t)blockIdx.x * 2 * n : nullptr;  // count.cu's input
     for (int i = tid; i < n; i += nt) {
         dd[i] = A[pcol(n, i) + i].re * tscale;
         if (i < n - 1) {
             ee[i] *= tscale;
             e2[i] = ee[i] * ee[i];
+        }
+        if (tr != nullptr) {
+            tr[i] = dd[i];
+            if (i < n - 1) tr[n + i] = ee[i];
         }
     }
     __syncthreads();
@@ -455,8 +462,9 @@ __device__ void eigh_impl(const zd* __restrict__ R, const zd* __restrict__ Hg, i
 #define SL_EIGH(NAME, T, NT, MINB)                                                                             \
     extern "C" __global__ void __launch_bounds__(NT, MINB)                                                    \
         NAME(const zd* R, const zd* Hg, int M, int nb, int mode, int ns, int eigw, const T* weights, int mat0,   \
-             int scr_len, cplx<T>* E, zd* E64, T* gain, float* bw, int* info, long long* prof) {              \
-        eigh_impl<T, NT>(R, Hg, M, nb, mode, ns, eigw, weights, mat0, scr_len, E, E64, gain, bw, info, prof);  \
+             int scr_len, cplx<T>* E, zd* E64, T* gain, float* bw, int* info, long long* prof, double* tri) { \
+        eigh_impl<T, NT>(R, Hg, M, nb, mode, ns, eigw, weights, mat0, scr_len, E, E64, gain, bw, info, prof,    \
+                         tri);                                                                                 \
     }
 
 // Two eigensolver sizes (the host's `eigh_shape` picks one): EH_THREADS = 256 threads,

@@ -75,6 +75,8 @@ struct Run {
     db: Vec<f32>,
     peaks: Vec<Vec<usize>>,
     bin_weight: Vec<f32>,
+    /// The estimated number of active sources per window (empty where not estimated).
+    counts: Vec<u32>,
 }
 
 fn run<T: Real>(b: &mut dyn Backend<T>, spectra: &Spectra<T>, windows: &[WindowSpec], batch: usize) -> Run {
@@ -82,6 +84,7 @@ fn run<T: Real>(b: &mut dyn Backend<T>, spectra: &Spectra<T>, windows: &[WindowS
         db: Vec::new(),
         peaks: Vec::new(),
         bin_weight: Vec::new(),
+        counts: Vec::new(),
     };
     let mut out = BatchOutput::default();
     for chunk in windows.chunks(batch.max(1)) {
@@ -90,6 +93,7 @@ fn run<T: Real>(b: &mut dyn Backend<T>, spectra: &Spectra<T>, windows: &[WindowS
         assert_eq!(out.peaks.len(), chunk.len());
         r.db.extend_from_slice(&out.spectrum_db);
         r.bin_weight.extend_from_slice(&out.bin_weight);
+        r.counts.extend_from_slice(&out.source_count);
         r.peaks.extend(
             out.peaks
                 .iter()
@@ -291,6 +295,31 @@ fn parity_case(
         "  max relative bin-weight difference (gpu f64) {bw:.2e}"
     ));
     assert!(bw < 1e-6, "{label}: bin weights differ by {bw}");
+    // The number of active sources (count.cu): on the tridiagonal path (squared
+    // denominator, up to 64 microphones) in every window, the CPU's in nearly all (MDL is
+    // an argmin: eigenvalues a rounding apart may tip a bin, rarely the median).
+    let tridiagonal =
+        config.counts_sources() && config.denominator == Denominator::Squared && p64.num_mics <= 64;
+    assert_eq!(
+        cpu64.counts.len(),
+        if config.counts_sources() { windows.len() } else { 0 }
+    );
+    if tridiagonal {
+        for (what, g) in [("gpu f32", &gpu32), ("gpu f64", &gpu64)] {
+            assert_eq!(g.counts.len(), windows.len(), "{label}: {what} counts");
+            let same = g.counts.iter().zip(&cpu64.counts).filter(|(x, y)| x == y).count();
+            note(&format!(
+                "  {what}: source count equal to the CPU's in {same} of {} windows",
+                windows.len()
+            ));
+            assert!(
+                same * 100 >= windows.len() * 95,
+                "{label}: {what} counts {:?} vs CPU {:?}",
+                g.counts,
+                cpu64.counts
+            );
+        }
+    }
     (a, b, c)
 }
 

@@ -220,6 +220,15 @@ pub struct RunArgs {
     /// SourceIntervalExtender PREROLL_LENGTH (frames); 0 = off.
     #[arg(long, requires = "track", default_value_t = 0)]
     pub preroll: usize,
+    /// Windows judged noise-only (num_active 0) feed the tracker no sources: silence
+    /// starts no tracks. Default: on in the room default (no algorithm, no noise source),
+    /// whose powers do not tell silence from talkers; off otherwise (HARK).
+    #[arg(long, requires = "track", overrides_with = "no_active_only")]
+    pub active_only: bool,
+    /// Every window feeds the tracker its peaks, as HARK's SourceTracker (also in the
+    /// room default).
+    #[arg(long, requires = "track", overrides_with = "active_only")]
+    pub no_active_only: bool,
     /// With --track: write the per-source summary (JSON) here.
     #[arg(long)]
     pub summary: Option<PathBuf>,
@@ -404,6 +413,7 @@ impl RunArgs {
             Some(TrackingSpec {
                 tracker,
                 preroll: self.preroll,
+                active_only: choice(self.active_only, self.no_active_only),
             })
         } else {
             if self.summary.is_some() {

@@ -57,7 +57,10 @@ Arguments (HARK LocalizeMUSIC name / pyroomacoustics name):
         (PAUSE_LENGTH, in tenths of a frame as HARK's: 800 keeps a silent source 80 frames),
         tracker_min_src_interval_deg (MIN_SRC_INTERVAL), tracker_min_id
         (MIN_ID) and preroll (SourceIntervalExtender's PREROLL_LENGTH, frames; delays results);
-        as the CLI's --thresh, --pause-length, --min-src-interval, --min-id, --preroll.
+        track_active_only (windows with num_active 0 feed the tracker nothing, so silence
+        starts no tracks; None: on in the room default, whose powers do not tell silence from
+        talkers, off otherwise as HARK); as the CLI's --thresh, --pause-length,
+        --min-src-interval, --min-id, --preroll, --active-only/--no-active-only.
     device: "auto"|"cpu"|"cuda"; precision: "f32"|"f64".
     channels (TF_CHANNEL_SELECTION), input_channels (ChannelSelector); diagonal_loading: K + δ·(tr K / M)·I
         (a K that is not positive definite is otherwise an error).
@@ -145,6 +148,8 @@ class Results:
     ids: np.ndarray
     spectrum_db: Optional[np.ndarray]
     notes: List[str] = field(default_factory=list)
+    # The estimated number of active sources per result (MDL; -1 where not estimated).
+    num_active: Optional[np.ndarray] = None
 
     def __len__(self) -> int:
         return len(self.times)
@@ -175,12 +180,14 @@ class Results:
             ids=cat("ids", -1, np.int64),
             spectrum_db=np.concatenate(spectra) if spectra else None,
             notes=[n for p in parts for n in p.notes],
+            num_active=np.concatenate([p.num_active if p.num_active is not None else np.full(len(p), -1)
+                                       for p in parts] or [np.zeros(0, dtype=np.int64)]).astype(np.int64),
         )
 
     def to_records(self) -> list:
         """One dict per result, as ``soundloc localize`` writes JSON lines: frame, time_s,
         sources (id, grid_index, azimuth_deg, elevation_deg, x, y, z as a unit vector,
-        power_db)."""
+        power_db), num_active where estimated."""
         out = []
         for i in range(len(self.times)):
             sources = []
@@ -196,7 +203,10 @@ class Results:
                     x=float(np.cos(e) * np.cos(a)), y=float(np.cos(e) * np.sin(a)), z=float(np.sin(e)),
                     power_db=float(self.power_db[i, j]),
                 ))
-            out.append(dict(frame=int(self.frames[i]), time_s=float(self.times[i]), sources=sources))
+            rec = dict(frame=int(self.frames[i]), time_s=float(self.times[i]), sources=sources)
+            if self.num_active is not None and self.num_active[i] >= 0:
+                rec["num_active"] = int(self.num_active[i])
+            out.append(rec)
         return out
 
     def to_pandas(self):

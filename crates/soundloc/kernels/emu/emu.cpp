@@ -17,6 +17,7 @@
 #include <vector>
 
 #include "../correlate.cu"
+#include "../count.cu"
 #include "../decompose.cu"
 #include "../eigh.cu"
 #include "../peaks.cu"
@@ -108,6 +109,7 @@ const std::unordered_map<std::string, Binder>& registry() {
         REG(decompose_gn_f64), REG(decompose_gv_f64), REG(spectrum_f32),     REG(spectrum_f64),     REG(spectrum4_f32),    REG(spectrum4_f64),
         REG(peaks_f32),        REG(peaks_f64),        REG(eigh_f32),         REG(eigh_f64),     REG(eigh_narrow_f32), REG(eigh_narrow_f64),
         REG(form_h_f32),       REG(form_h_f64),       REG(correlate_phat_f32), REG(correlate_phat_f64), REG(coherence_f64),
+        REG(count_sources),
     };
     return r;
 }

@@ -63,6 +63,8 @@ pub struct Engine<T: Real> {
     current: Option<KSource>,
     options: StreamOptions,
     tracker: Option<SourceTracker>,
+    /// [`TrackingSpec::active_only`] as resolved.
+    track_active_only: bool,
     extender: Option<IntervalExtender>,
     /// Spectrum rows of windows whose results the extender still holds: a row goes out
     /// with its result, so that an [`Output`]'s rows and results stay one to one.
@@ -117,6 +119,7 @@ impl<T: Real> Engine<T> {
             noise,
             current,
             tracker: options.tracking.map(|t| SourceTracker::new(t.tracker)),
+            track_active_only: options.tracking.is_some_and(|t| t.active_only == Some(true)),
             extender: options.tracking.filter(|t| t.preroll > 0).map(|t| {
                 IntervalExtender::new(IntervalExtenderConfig {
                     preroll_length: t.preroll,

@@ -43,7 +43,16 @@ impl<T: Real> Engine<T> {
                     .collect(),
             };
             if let Some(t) = &mut self.tracker {
-                let tracked = t.update(&r);
+                // A window judged noise-only feeds no sources where asked
+                // (TrackingSpec::active_only).
+                let tracked = if self.track_active_only && r.num_active == Some(0) {
+                    t.update(&LocalizationResult {
+                        sources: Vec::new(),
+                        ..r.clone()
+                    })
+                } else {
+                    t.update(&r)
+                };
                 let untracked = std::mem::replace(&mut r, tracked);
                 if let Some(p) = &mut out.peaks {
                     p.push(untracked);

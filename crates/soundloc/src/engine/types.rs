@@ -116,6 +116,14 @@ pub struct TrackingSpec {
     pub tracker: TrackerConfig,
     /// SourceIntervalExtender PREROLL_LENGTH in frames (0 = off; delays results by it).
     pub preroll: usize,
+    /// Whether windows judged noise-only (`num_active` 0) feed the tracker no sources, so
+    /// that silence starts no tracks and lets tracks end (their PAUSE_LENGTH still runs);
+    /// a window without an estimate feeds its peaks. None: the default, on in the room
+    /// default (no algorithm named, no noise source: NormMUSIC's powers do not tell
+    /// silence from a talker, so THRESH cannot), off otherwise (HARK's SourceTracker
+    /// sees every window).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub active_only: Option<bool>,
 }
 
 /// How a stream is run (beside the plan): noise policy, tracking, channel map, spectra.

@@ -550,6 +550,7 @@ mod tests {
             Some(TrackingSpec {
                 tracker: crate::tracking::TrackerConfig::with_thresh(thresh_db),
                 preroll: 0,
+                active_only: None,
             })
         };
         spec.tracking = track(25.0);

@@ -6,7 +6,7 @@ use super::{ArraySpec, LocalizerSpec, NoiseSource};
 use crate::array::TransferFunctions;
 use crate::backend::DeviceChoice;
 use crate::config::LocalizeConfig;
-use crate::engine::{make_backend, Engine, StreamOptions};
+use crate::engine::{make_backend, Engine, StreamOptions, TrackingSpec};
 use crate::input::ChannelMap;
 use crate::noise::policy::InitialNoise;
 use crate::noise::NoiseMatrices;
@@ -157,10 +157,15 @@ pub(crate) fn prepare(
             )));
         }
     }
+    let room_default = spec.algorithm.is_none() && !spec.noise_given();
+    let tracking = spec.tracking.map(|t| TrackingSpec {
+        active_only: Some(t.active_only.unwrap_or(room_default)),
+        ..t
+    });
     let options = StreamOptions {
         initial_noise,
         noise_update: spec.noise_update.clone(),
-        tracking: spec.tracking,
+        tracking,
         channels,
         want_spectrum: spec.spectrum,
     };

@@ -65,6 +65,10 @@ pub(super) enum Scratch {
     Spec,
     Out,
     BinMax,
+    /// eigh.cu's T for count.cu, [sub-batch matrix][2M] doubles.
+    Tri,
+    /// count.cu's k̂, [window · nb + bin] ints.
+    Count,
 }
 
 #[derive(Clone, Copy)]
@@ -77,6 +81,8 @@ pub(super) enum HostBuf {
     Bw,
     /// Zeros (to clear device buffers with a copy).
     Zero,
+    /// count.cu's k̂ per matrix.
+    Count,
 }
 
 impl<T: Real> CudaBackend<T> {
@@ -165,6 +171,8 @@ impl<T: Real> CudaBackend<T> {
             Scratch::Spec => &mut self.d_spec,
             Scratch::Out => &mut self.d_out,
             Scratch::BinMax => &mut self.d_binmax,
+            Scratch::Tri => &mut self.d_tri,
+            Scratch::Count => &mut self.d_count,
         }
     }
 
@@ -197,6 +205,7 @@ impl<T: Real> CudaBackend<T> {
             HostBuf::Spec => &self.h_spec,
             HostBuf::Bw => &self.h_bw,
             HostBuf::Zero => &self.h_zero,
+            HostBuf::Count => &self.h_count,
         };
         if cur.bytes >= need {
             return Ok(cur.ptr);
@@ -217,6 +226,7 @@ impl<T: Real> CudaBackend<T> {
             HostBuf::Out => &mut self.h_out,
             HostBuf::Spec => &mut self.h_spec,
             HostBuf::Bw => &mut self.h_bw,
+            HostBuf::Count => &mut self.h_count,
             HostBuf::Zero => {
                 // SAFETY: p holds `grow` bytes, just allocated.
                 unsafe { std::ptr::write_bytes(p, 0, grow) };

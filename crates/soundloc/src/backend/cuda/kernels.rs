@@ -1,7 +1,7 @@
 //! The kernel sources (embedded with `include_str!`) and their run-time compilation with
 //! NVRTC.
 //!
-//! One module holds every stage (`correlate`, `decompose`, `spectrum`, `peaks`), each a
+//! One module holds every stage (`correlate`, `decompose`, `eigh`, `count`, `spectrum`, `peaks`), each a
 //! template over the real type with `extern "C"` wrappers `name_f32` / `name_f64`. The
 //! Jacobi kernel keeps each lane's rows of a column pair in registers, so its layout is a
 //! compile-time [`Variant`] chosen from the number of microphones and passed as `-D`
@@ -22,15 +22,17 @@ pub(crate) enum KernelId {
     Correlate,
     Decompose,
     Eigh,
+    Count,
     Spectrum,
     Peaks,
 }
 
 impl KernelId {
-    pub(crate) const ALL: [KernelId; 5] = [
+    pub(crate) const ALL: [KernelId; 6] = [
         KernelId::Correlate,
         KernelId::Decompose,
         KernelId::Eigh,
+        KernelId::Count,
         KernelId::Spectrum,
         KernelId::Peaks,
     ];
@@ -40,6 +42,7 @@ impl KernelId {
             KernelId::Correlate => include_str!("../../../kernels/correlate.cu"),
             KernelId::Decompose => include_str!("../../../kernels/decompose.cu"),
             KernelId::Eigh => include_str!("../../../kernels/eigh.cu"),
+            KernelId::Count => include_str!("../../../kernels/count.cu"),
             KernelId::Spectrum => include_str!("../../../kernels/spectrum.cu"),
             KernelId::Peaks => include_str!("../../../kernels/peaks.cu"),
         }

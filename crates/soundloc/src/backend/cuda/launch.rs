@@ -178,13 +178,39 @@ impl<T: Real> CudaBackend<T> {
             .p(self.d_bw.ptr)
             .p(self.d_info.ptr)
             .p(if self.profile { self.d_prof.ptr } else { 0 })
+            .p(if l.count { self.d_tri.ptr } else { 0 })
             .launch(
                 &*self.gpu,
                 self.f.eigh,
                 [nmat, 1, 1],
                 l.eigh_shape.threads,
                 l.eigh_shape.smem,
-            )
+            )?;
+        if l.count {
+            // k̂ per matrix from T's eigenvalues (count.cu), the CPU's MDL
+            // (subspace::count::mdl) with N = W·hop/N_fft snapshots.
+            let c = &self.plan.config;
+            let overlap = c.hop.min(c.nfft) as f64 / c.nfft as f64;
+            Args::new()
+                .p(self.d_tri.ptr)
+                .i(l.m)
+                .i(nmat)
+                .i(l.nb)
+                .i(mat0)
+                .p(self.d_win.ptr)
+                .r(overlap)
+                .r(self.plan.count_floor)
+                .i(usize::from(l.alg == Algorithm::Gsvd))
+                .p(self.d_count.ptr)
+                .launch(
+                    &*self.gpu,
+                    self.f.count,
+                    [nmat.div_ceil(COUNT_THREADS), 1, 1],
+                    COUNT_THREADS,
+                    0,
+                )?;
+        }
+        Ok(())
     }
 
     /// The Jacobi decomposition (decompose.cu) of this sub-batch's matrices.
@@ -360,6 +386,14 @@ impl<T: Real> CudaBackend<T> {
                 g.dtoh(
                     self.h_bw.ptr.add(mat0 * 4),
                     self.d_bw.ptr + (mat0 * 4) as u64,
+                    nmat * 4,
+                    Stream::Compute,
+                )?;
+            }
+            if l.count {
+                g.dtoh(
+                    self.h_count.ptr.add(mat0 * 4),
+                    self.d_count.ptr + (mat0 * 4) as u64,
                     nmat * 4,
                     Stream::Compute,
                 )?;

@@ -38,6 +38,11 @@ pub(super) struct Layout {
     /// Whether the signal subspace comes from the tridiagonal eigensolver (eigh.cu)
     /// instead of the Jacobi kernel.
     pub(super) eigh: bool,
+    /// Whether the number of active sources is estimated (count.cu on eigh.cu's T): the
+    /// plan asks for it ([`crate::config::LocalizeConfig::counts_sources`]) and the
+    /// tridiagonal path runs (the Jacobi path, for M > 64, the unsquared denominator or
+    /// `SOUNDLOC_CUDA_DEC=jacobi`, reports none).
+    pub(super) count: bool,
     /// The eigensolver's block: threads, shared memory, scratch ([`eigh_shape`]).
     pub(super) eigh_shape: EighShape,
     pub(super) form_h_smem: usize,
@@ -262,7 +267,12 @@ pub(super) fn layout<T: Real>(plan: &Plan<T>, gpu: &dyn Gpu) -> Result<Layout> {
     let peak_cap = d.next_power_of_two().clamp(1, 4096);
     let peak_kout = plan.peak_table.max_out.min(peak_cap);
     let peak_smem = peak_cap * 12;
+    // (SOUNDLOC_CUDA_COUNT=0 leaves it out: for A/B runs of its cost.)
+    let count = eigh
+        && plan.config.counts_sources()
+        && std::env::var("SOUNDLOC_CUDA_COUNT").map_or(true, |v| v != "0");
     Ok(Layout {
+        count,
         m,
         nb,
         d,

@@ -104,6 +104,8 @@ const SMEM_DEFAULT: usize = 48 * 1024;
 const FORM_H_THREADS: usize = 256;
 /// Threads per block of `coherence_f64` (one block per matrix).
 const COHERENCE_THREADS: usize = 128;
+/// Threads per block of count.cu (one per matrix; its `__launch_bounds__`).
+const COUNT_THREADS: usize = 128;
 
 /// Name of CUDA device 0 and its capability, or why CUDA cannot be used.
 pub fn probe() -> std::result::Result<String, String> {
@@ -194,6 +196,7 @@ struct Funcs {
     decompose: Func,
     eigh: Func,
     form_h: Func,
+    count: Func,
     spectrum: Func,
     peaks: Func,
 }
@@ -244,12 +247,17 @@ pub struct CudaBackend<T: Real> {
     d_out: Buf,
     /// Per (window, bin) maximum over directions (NormMUSIC's first pass).
     d_binmax: Buf,
+    /// eigh.cu's T per matrix of a sub-batch, for count.cu.
+    d_tri: Buf,
+    /// count.cu's k̂ per (window, bin).
+    d_count: Buf,
     h_stage: [Pinned; 2],
     h_win: Pinned,
     h_out: Pinned,
     h_spec: Pinned,
     h_bw: Pinned,
     h_zero: Pinned,
+    h_count: Pinned,
     /// Staging buffers 0 and 1 reusable; the window table is up.
     chunk_ev: [Event; 3],
     /// Where streams' frames are in `d_x`.
@@ -277,6 +285,7 @@ impl<T: Real> CudaBackend<T> {
                 decompose: 0,
                 eigh: 0,
                 form_h: 0,
+                count: 0,
                 spectrum: 0,
                 peaks: 0,
             },
@@ -312,12 +321,15 @@ impl<T: Real> CudaBackend<T> {
             d_spec: Buf::default(),
             d_out: Buf::default(),
             d_binmax: Buf::default(),
+            d_tri: Buf::default(),
+            d_count: Buf::default(),
             h_stage: [Pinned::default(), Pinned::default()],
             h_win: Pinned::default(),
             h_out: Pinned::default(),
             h_spec: Pinned::default(),
             h_bw: Pinned::default(),
             h_zero: Pinned::default(),
+            h_count: Pinned::default(),
             chunk_ev: [0, 0, 0],
             arena: frames::FrameArena::default(),
             phased: false,
@@ -350,6 +362,7 @@ impl<T: Real> CudaBackend<T> {
             decompose: self.gpu.function(&dec)?,
             eigh: self.gpu.function(&l.eigh_shape.kernel(t))?,
             form_h: self.gpu.function(&format!("form_h_{t}"))?,
+            count: self.gpu.function("count_sources")?,
             spectrum: self.gpu.function(&if l.spec_rd == 4 {
                 format!("spectrum4_{t}")
             } else {
@@ -386,6 +399,7 @@ impl<T: Real> CudaBackend<T> {
             (self.f.decompose, "decompose", l.dec_threads),
             (self.f.eigh, "eigh", l.eigh_shape.threads),
             (self.f.form_h, "form_h", FORM_H_THREADS),
+            (self.f.count, "count", COUNT_THREADS),
             (self.f.spectrum, "spectrum", l.spec_threads(l.spec_wg)),
             (self.f.peaks, "peaks", 256),
         ] {
@@ -545,6 +559,8 @@ impl<T: Real> Drop for CudaBackend<T> {
             self.d_spec.ptr,
             self.d_out.ptr,
             self.d_binmax.ptr,
+            self.d_tri.ptr,
+            self.d_count.ptr,
         ];
         for p in bufs {
             if p != 0 {
@@ -559,6 +575,7 @@ impl<T: Real> Drop for CudaBackend<T> {
             self.h_spec.ptr,
             self.h_bw.ptr,
             self.h_zero.ptr,
+            self.h_count.ptr,
         ];
         for p in pinned {
             if !p.is_null() {

@@ -75,6 +75,10 @@ impl<T: Real> CudaBackend<T> {
         if l.eigh && l.valmode != 0 {
             self.ensure(Scratch::H, nwb_max * nb * m * m * 16)?;
         }
+        if l.count {
+            self.ensure(Scratch::Tri, nwb_max * nb * 2 * m * 8)?;
+            self.ensure(Scratch::Count, nw * nb * 4)?;
+        }
         self.ensure(Scratch::Scale, nwb_max * nb * l.r_size / 2)?;
         self.ensure(Scratch::Db, nw * d * 8)?;
         if want_spectrum {
@@ -94,6 +98,9 @@ impl<T: Real> CudaBackend<T> {
         if want_spectrum {
             self.ensure_pinned(HostBuf::Spec, nw * d * 4)?;
             self.ensure_pinned(HostBuf::Bw, nw * nb * 4)?;
+        }
+        if l.count {
+            self.ensure_pinned(HostBuf::Count, nw * nb * 4)?;
         }
         while self.events.len() < 5 * nsb {
             let e = self.gpu.event()?;
@@ -277,6 +284,20 @@ impl<T: Real> CudaBackend<T> {
                 v.push(Peak { dir, power_db: db });
             }
             out.peaks.push(v);
+        }
+        if l.count {
+            // The number of active sources: the median of k̂ over the bins that carry
+            // weight (the CPU's rule, cpu.rs).
+            // SAFETY: filled by the per-sub-batch downloads; the stream is idle.
+            let k = unsafe { std::slice::from_raw_parts(self.h_count.ptr as *const i32, nw * nb) };
+            let w = &self.plan.weights;
+            out.source_count.extend((0..nw).map(|wi| {
+                let used = (0..nb)
+                    .filter(|&b| w[b] != T::zero())
+                    .map(|b| k[wi * nb + b].max(0) as usize)
+                    .collect();
+                crate::subspace::count::median(used) as u32
+            }));
         }
         if self.debug && !l.srp {
             // Jacobi sweeps or multisection rounds per matrix (SOUNDLOC_CUDA_DEBUG=1).
