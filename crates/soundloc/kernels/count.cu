@@ -11,8 +11,14 @@
 // sq     1: the values are σ = √λ (GSVD: singular values of K⁻¹R, T being A Aᴴ's)
 // kout   [window · nb + bin] k̂ (absolute matrix index, as gain[] in eigh.cu)
 //
-// One thread per matrix: T's eigenvalues by the implicit QL algorithm with Wilkinson
-// shifts (EISPACK's tql1, eigenvalues only: ~30 M² flops), sorted descending.
+// Two warps per matrix, from Sturm counts (tridiag.cuh's `sturm_count`; this file comes
+// after eigh.cu in the translation unit): 64 geometric slicing points at once, a lane
+// each, put every value in a slice a factor of 2.5 wide; then each value is bisected
+// geometrically inside its slice in a lane of its own (mdl_count raises those below the
+// floor to it, as the CPU does). Bound by the instructions of the counts' recurrence:
+// +5.3 µs per GSVD localization of the seed config on an H200 (2026-12-01, docs/gpu.md).
+// Tried first there: a thread per matrix running the implicit QL algorithm (EISPACK's
+// tql1) took 72 µs, halving the throughput; bisection from T's whole interval 6.6–8.4 µs.
 #include "common.cuh"
 
 #define CNT_MAXN 64
@@ -43,75 +49,69 @@ __device__ int mdl_count(const double* v, int m, int snapshots, double floor_rat
     return bk;
 }
 
-// Eigenvalues of the symmetric tridiagonal (d, e), e[i] coupling d[i] and d[i + 1]
-// (e[n − 1] = 0), into d (unordered): implicit QL with Wilkinson shifts.
-__device__ void tql1(double* d, double* e, int n) {
-    for (int l = 0; l < n; ++l) {
-        for (int iter = 0; iter < 60; ++iter) {
-            int m = l;
-            for (; m < n - 1; ++m) {
-                const double dd = fabs(d[m]) + fabs(d[m + 1]);
-                if (fabs(e[m]) <= 2.220446049250313e-16 * dd) break;
-            }
-            if (m == l) break;
-            double g = (d[l + 1] - d[l]) / (2.0 * e[l]);
-            double r = hypot(g, 1.0);
-            g = d[m] - d[l] + e[l] / (g + (g >= 0.0 ? r : -r));
-            double s = 1.0, c = 1.0, p = 0.0;
-            int i = m - 1;
-            bool split = false;
-            for (; i >= l; --i) {
-                const double f = s * e[i], b = c * e[i];
-                r = hypot(f, g);
-                e[i + 1] = r;
-                if (r == 0.0) {  // underflow: T splits here
-                    d[i + 1] -= p;
-                    e[m] = 0.0;
-                    split = true;
-                    break;
-                }
-                s = f / r;
-                c = g / r;
-                g = d[i + 1] - p;
-                r = (d[i] - g) * s + 2.0 * c * b;
-                p = s * r;
-                d[i + 1] = g + p;
-                g = c * r - b;
-            }
-            if (split) continue;
-            d[l] -= p;
-            e[l] = g;
-            e[m] = 0.0;
-        }
-    }
-}
+// Matrices per block, 64 threads (two warps) each: a lane per value (M ≤ 64).
+#define CNT_MATS 2
+// Slicing: 64 points 10^(−25 + 25·s/63), s = 0 … 63, a factor of 10^(25/63) ≈ 2.5 apart
+// from 10⁻²⁵ to ‖T‖ = 1 (T is scaled so; values below 10⁻²⁵ lie under every floor:
+// floor ≥ 10⁻¹², squared for GSVD, times λ_0 ≥ ‖T‖/3 for a semidefinite T), one per lane.
+#define CNT_DECADES 25.0
+// Geometric bisection steps inside a slice: ln 2.5 / 2¹⁰ leaves each value within 10⁻³ of
+// itself. MDL needs no more: a value off by δ moves a score by at most 2·N·(M − k)·δ (N
+// snapshots; ~2 at M = 60, N = 16), against penalty steps of ~½(2M − 2k − 1)·ln N (~100
+// there); the median over the bins then rarely moves at all.
+#define CNT_STEPS 10
 
-extern "C" __global__ void __launch_bounds__(128) count_sources(const double* tri, int n, int nmat, int nb, int mat0,
-                                                                const int* win, double overlap, double floor_ratio,
-                                                                int sq, int* kout) {
-    const int i = blockIdx.x * blockDim.x + threadIdx.x;
-    if (i >= nmat || n > CNT_MAXN) return;
-    const int mat = mat0 + i;
-    const int w = mat / nb;
-    double d[CNT_MAXN], e[CNT_MAXN];
-    const double* t = tri + (size_t)i * 2 * n;
-    for (int k = 0; k < n; ++k) {
-        d[k] = t[k];
-        e[k] = k < n - 1 ? t[n + k] : 0.0;
+extern "C" __global__ void __launch_bounds__(64 * CNT_MATS)
+    count_sources(const double* tri, int n, int nmat, int nb, int mat0, const int* win, double overlap,
+                  double floor_ratio, int sq, int* kout) {
+    __shared__ double sd[CNT_MATS][CNT_MAXN], se2[CNT_MATS][CNT_MAXN], sv[CNT_MATS][CNT_MAXN];
+    __shared__ int sc[CNT_MATS][64];
+    const int sub = threadIdx.x & 63, slot = threadIdx.x >> 6;
+    const int i = blockIdx.x * CNT_MATS + slot;
+    const bool live = i < nmat && n <= CNT_MAXN;  // uniform over the matrix's 64 threads
+    double* d = sd[slot];
+    double* e2 = se2[slot];
+    double* v = sv[slot];
+    int* cs = sc[slot];
+    const double pivmin = 1e-30;
+    const double ratio = pow(10.0, CNT_DECADES / 63.0);
+    const double p0 = pow(10.0, -CNT_DECADES);
+    if (live && sub < n) {
+        const double* t = tri + (size_t)i * 2 * n;
+        d[sub] = t[sub];
+        e2[sub] = sub < n - 1 ? t[n + sub] * t[n + sub] : 0.0;
     }
-    tql1(d, e, n);
-    for (int k = 0; k < n; ++k) d[k] = sq ? sqrt(fmax(d[k], 0.0)) : d[k];
-    // Descending (insertion sort; NaN last).
-    for (int a = 1; a < n; ++a) {
-        const double x = d[a];
-        int b = a - 1;
-        while (b >= 0 && (d[b] < x || (d[b] != d[b] && x == x))) {
-            d[b + 1] = d[b];
-            --b;
+    __syncthreads();
+    // The number of values below each slicing point (tridiag.cuh's division-free count).
+    if (live) cs[sub] = sturm_count(d, e2, n, p0 * pow(ratio, (double)sub), pivmin);
+    __syncthreads();
+    if (live && sub < n) {
+        // Value `sub` (0 = the largest), ascending index `want`: the first point with more
+        // than `want` values below it ends its slice; then geometric bisection inside.
+        const int want = n - 1 - sub;
+        int s0 = 0;
+        while (s0 < 64 && cs[s0] <= want) ++s0;
+        double lam = 0.0;  // below 10⁻²⁵ (or negative): under every floor
+        if (s0 > 0) {
+            double a = p0 * pow(ratio, (double)(s0 - 1));
+            double b = s0 < 64 ? a * ratio : 1.0 + 8.0 * n * 2.220446049250313e-16;
+            for (int k = 0; k < CNT_STEPS; ++k) {
+                const double mid = sqrt(a * b);
+                if (sturm_count(d, e2, n, mid, pivmin) > want) {
+                    b = mid;
+                } else {
+                    a = mid;
+                }
+            }
+            lam = sqrt(a * b);
         }
-        d[b + 1] = x;
+        v[sub] = sq ? sqrt(lam) : lam;
     }
-    const double len = (double)win[2 * w + 1];
-    const int snapshots = max(1, (int)floor(len * overlap + 0.5));  // Rust's round (len ≥ 0)
-    kout[mat] = mdl_count(d, n, snapshots, floor_ratio);
+    __syncthreads();
+    if (live && sub == 0) {
+        const int mat = mat0 + i;
+        const double len = (double)win[2 * (mat / nb) + 1];
+        const int snapshots = max(1, (int)floor(len * overlap + 0.5));  // Rust's round (len ≥ 0)
+        kout[mat] = mdl_count(v, n, snapshots, floor_ratio);
+    }
 }

@@ -17,9 +17,9 @@
 #include <vector>
 
 #include "../correlate.cu"
-#include "../count.cu"
 #include "../decompose.cu"
 #include "../eigh.cu"
+#include "../count.cu"  // after eigh.cu: it uses tridiag.cuh's sturm_count
 #include "../peaks.cu"
 #include "../spectrum.cu"
 

@@ -205,7 +205,7 @@ impl<T: Real> CudaBackend<T> {
                 .launch(
                     &*self.gpu,
                     self.f.count,
-                    [nmat.div_ceil(COUNT_THREADS), 1, 1],
+                    [nmat.div_ceil(COUNT_THREADS / 64), 1, 1],
                     COUNT_THREADS,
                     0,
                 )?;

@@ -104,7 +104,7 @@ const SMEM_DEFAULT: usize = 48 * 1024;
 const FORM_H_THREADS: usize = 256;
 /// Threads per block of `coherence_f64` (one block per matrix).
 const COHERENCE_THREADS: usize = 128;
-/// Threads per block of count.cu (one per matrix; its `__launch_bounds__`).
+/// Threads per block of count.cu (64 per matrix, CNT_MATS matrices; its `__launch_bounds__`).
 const COUNT_THREADS: usize = 128;
 
 /// Name of CUDA device 0 and its capability, or why CUDA cannot be used.
