@@ -628,3 +628,19 @@ def test_switches_off_in_the_default_and_options_a_tf_file_does_not_take(tmp_pat
     # A robot's frame (the origin 0.36 m from the array, within half the 1 m grid) is kept.
     near = localizer(geometry=MICS + np.array([0.3, -0.2, 0.0]))
     assert any("directions are seen from the origin" in n for n in near.notes)
+
+
+def test_input_checks_name_a_flipped_and_a_dead_channel():
+    """The engine's input checks reach Python's notes: none on a clean scene, one naming
+    the polarity-inverted channel, one naming a dead channel (input channel numbers)."""
+    x = scene(seconds=3.0)
+    checks = lambda r: [n for n in r.notes if "input channel" in n]
+    assert checks(localizer().localize(x, FS)) == []
+    flipped = x.copy()
+    flipped[:, 5] = -flipped[:, 5].astype(np.int32).clip(-32767, 32767)
+    n = checks(localizer().localize(flipped, FS))
+    assert len(n) == 1 and "input channel 5 (0-based) looks polarity-inverted" in n[0], n
+    dead = x.copy()
+    dead[:, 2] = 0
+    n = checks(localizer().localize(dead, FS))
+    assert len(n) == 1 and "input channel 2 (0-based) is constant" in n[0], n

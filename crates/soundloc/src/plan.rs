@@ -96,12 +96,35 @@ pub struct Plan<T: Real> {
     /// clone whose steering, whitening or algorithm is changed by hand keeps the old sums
     /// (as it keeps `planar`): build a new plan instead.
     pub(crate) steering_sums: Arc<std::sync::OnceLock<Vec<f32>>>,
+    /// The input checks' close microphone pairs and band edge
+    /// ([`crate::audio::health::close_pairs`] at the lowest used bin), formed on the first
+    /// stream's first push and shared by every stream of the plan.
+    pub(crate) close_pairs: Arc<std::sync::OnceLock<Option<ClosePairs>>>,
     /// The source count's floor relative to each bin's largest value
     /// ([`crate::subspace::count::model_floor`], from the TFs' microphone positions).
     pub count_floor: f64,
 }
 
+/// Microphone pairs and a band edge in Hz ([`crate::audio::health::close_pairs`]).
+pub type ClosePairs = (Vec<(usize, usize)>, f64);
+
 impl<T: Real> Plan<T> {
+    /// The input checks' close pairs (formed once, see the field).
+    pub fn close_pairs(&self) -> Option<ClosePairs> {
+        self.close_pairs
+            .get_or_init(|| {
+                let (m, d) = (self.num_mics, self.num_dirs);
+                let b0 = self.bins.start;
+                let c = &self.config;
+                let fs = c.sample_rate_hz as f64;
+                let f0 = b0 as f64 * fs / c.nfft as f64;
+                self.steering
+                    .get(..d * m)
+                    .and_then(|st| crate::audio::health::close_pairs(st, m, f0, fs))
+            })
+            .clone()
+    }
+
     /// Validate and precompute. `noise` is K (None = identity) and is ignored by SEVD.
     pub fn new(
         config: &LocalizeConfig,
@@ -243,6 +266,7 @@ impl<T: Real> Plan<T> {
             peak_table,
             planar: None,
             steering_sums: Default::default(),
+            close_pairs: Default::default(),
             // Positions that are not an array (HARK's sample zips hold placeholders, several
             // microphones at one point) are not used.
             count_floor: crate::subspace::count::model_floor(

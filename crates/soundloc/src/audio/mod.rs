@@ -13,6 +13,7 @@
 //! unsupported bit depth.
 
 pub mod flac_write;
+pub mod health;
 pub mod resample;
 pub mod source;
 

@@ -21,6 +21,7 @@
 //! the frames of a preceding-frames K); a large block is processed in pieces of
 //! [`CHUNK_FRAMES`] frames.
 
+use crate::audio::health::ChannelHealth;
 use crate::backend::{Backend, BatchOutput, DeviceChoice, StageTimes, StreamId, WindowSpec};
 use crate::correlation::WindowScheduler;
 use crate::input::{Block, ChannelMap};
@@ -77,9 +78,9 @@ pub struct Engine<T: Real> {
     /// Absolute input sample of local sample 0 (moves forward at a gap, see
     /// [`Engine::skip`]).
     origin: u64,
-    /// Per microphone, the first sample and whether any later one differed: a constant
-    /// (silent or DC-only) input is reported at flush.
-    constant: Vec<(Option<f32>, bool)>,
+    /// Checks of this stream's channels (dead, clipping, polarity-inverted), from its
+    /// first push: notes once they can tell, and at flush.
+    health: Option<ChannelHealth>,
     /// This stream's frames to the backend (fresh after a reset or a gap).
     stream: StreamId,
     /// Start of the last window run: its frames stay while windows overlap by more than
@@ -132,7 +133,7 @@ impl<T: Real> Engine<T> {
             finished: false,
             batch: BatchOutput::default(),
             origin: 0,
-            constant: Vec::new(),
+            health: None,
             stream: StreamId::fresh(),
             last_start: None,
             cpu_fallback: false,
@@ -382,15 +383,16 @@ impl<T: Real> Engine<T> {
             self.stft
                 .append(n, |bufs| block.extend_channels(idx, pos..pos + n, bufs));
             let (buf_start, buf) = self.stft.buffered();
-            self.constant.resize(buf.len(), (None, false));
-            for (c, ch) in buf.iter().enumerate() {
-                let tail = &ch[first - buf_start..];
-                let k = &mut self.constant[c];
-                if !k.1 {
-                    let v0 = *k.0.get_or_insert(tail.first().copied().unwrap_or(0.0));
-                    k.1 = tail.iter().any(|&v| v != v0);
-                }
-            }
+            let health = self.health.get_or_insert_with(|| {
+                ChannelHealth::new(
+                    idx.to_vec(),
+                    self.plan.config.sample_rate_hz as f64,
+                    self.plan.close_pairs(),
+                )
+            });
+            let tails: Vec<&[f32]> = buf.iter().map(|ch| &ch[first - buf_start..]).collect();
+            health.observe(&tails);
+            out.notes.extend(health.notes(false));
             let notes = self.noise.observe_samples(buf_start, buf, first + n)?;
             out.notes.extend(notes);
             self.advance(out)?;
@@ -431,18 +433,8 @@ impl<T: Real> Engine<T> {
                 .get_or_insert_with(|| SpectrumTable::empty(held.num_dirs, held.num_bins))
                 .append(held);
         }
-        if !self.constant.is_empty() && self.constant.iter().all(|k| !k.1) {
-            let v = self
-                .constant
-                .iter()
-                .filter_map(|k| k.0)
-                .fold(0.0f32, |a, b| a.max(b.abs()));
-            out.notes.push(if v == 0.0 {
-                "warning: the input is silent (every sample is 0): the reported directions mean nothing".into()
-            } else {
-                "warning: every channel is constant (DC only, no sound in the analysed band): the reported directions mean nothing"
-                    .into()
-            });
+        if let Some(h) = &mut self.health {
+            out.notes.extend(h.notes(true));
         }
         if self.windows_run == 0 {
             let c = &self.plan.config;
@@ -478,7 +470,7 @@ impl<T: Real> Engine<T> {
         self.windows_run = 0;
         self.finished = false;
         self.origin = 0;
-        self.constant.clear();
+        self.health = None;
         self.new_stream_id();
         if let Some(b) = self.backend.as_mut() {
             b.reset_stage_times();
