@@ -16,6 +16,7 @@
 //! After `Plan::new` a backend's per-batch calls fail only on shape or device errors.
 
 use crate::array::{Grid, TransferFunctions};
+use crate::audio::health::ClosePairs;
 use crate::config::{Algorithm, LocalizeConfig, SpectrumWeight};
 use crate::lanes::{self, Planar};
 use crate::noise::NoiseMatrices;
@@ -105,22 +106,22 @@ pub struct Plan<T: Real> {
     pub count_floor: f64,
 }
 
-/// Microphone pairs and a band edge in Hz ([`crate::audio::health::close_pairs`]).
-pub type ClosePairs = (Vec<(usize, usize)>, f64);
-
 impl<T: Real> Plan<T> {
     /// The input checks' close pairs (formed once, see the field).
     pub fn close_pairs(&self) -> Option<ClosePairs> {
         self.close_pairs
             .get_or_init(|| {
                 let (m, d) = (self.num_mics, self.num_dirs);
-                let b0 = self.bins.start;
                 let c = &self.config;
-                let fs = c.sample_rate_hz as f64;
-                let f0 = b0 as f64 * fs / c.nfft as f64;
+                let bin_hz = c.sample_rate_hz as f64 / c.nfft as f64;
+                // The lowest used bin above DC.
+                let first = usize::from(self.bins.start == 0);
+                let f0 = (self.bins.start + first) as f64 * bin_hz;
                 self.steering
-                    .get(..d * m)
-                    .and_then(|st| crate::audio::health::close_pairs(st, m, f0, fs))
+                    .get(first * d * m..(first + 1) * d * m)
+                    .and_then(|st| {
+                        crate::audio::health::close_pairs(st, m, first, self.bins.len(), f0, bin_hz)
+                    })
             })
             .clone()
     }

@@ -387,6 +387,7 @@ impl<T: Real> Engine<T> {
                 ChannelHealth::new(
                     idx.to_vec(),
                     self.plan.config.sample_rate_hz as f64,
+                    self.plan.config.hop,
                     self.plan.close_pairs(),
                 )
             });

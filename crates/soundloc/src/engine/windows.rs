@@ -15,6 +15,12 @@ impl<T: Real> Engine<T> {
             .frames_into(&mut self.ring, self.noise.keep_samples_from());
         let after = self.ring.end();
         self.noise.observe_frames(&self.ring, before..after)?;
+        if let Some(h) = &mut self.health {
+            let sp = self.ring.spectra();
+            let fl = sp.num_bins * sp.num_mics;
+            let from = before.saturating_sub(self.ring.first());
+            h.observe_frames(&sp.data[from * fl..], sp.num_bins);
+        }
         let mut due = Vec::new();
         self.scheduler.due(after, &mut due);
         self.pending.extend(due);

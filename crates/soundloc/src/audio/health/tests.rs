@@ -70,8 +70,9 @@ fn field(mics: &[[f64; 3]], waves: usize, secs: f64, noise: f64, seed: u64) -> V
     out
 }
 
-fn check(chans: &[Vec<f32>], pairs: Option<ClosePairsT>, push: usize) -> Vec<String> {
-    let mut h = ChannelHealth::new((0..chans.len()).collect(), FS, pairs);
+/// The checks over `chans` pushed `push` samples at a time (no polarity test).
+fn check(chans: &[Vec<f32>], push: usize) -> Vec<String> {
+    let mut h = ChannelHealth::new((0..chans.len()).collect(), FS, 160, None);
     let n = chans[0].len();
     let mut notes = Vec::new();
     let mut at = 0;
@@ -86,61 +87,129 @@ fn check(chans: &[Vec<f32>], pairs: Option<ClosePairsT>, push: usize) -> Vec<Str
     notes
 }
 
-type ClosePairsT = (Vec<(usize, usize)>, f64);
+/// Used bins of the tests' frames: 16.. at 31.25 Hz (N = 512 at 16 kHz), 500 Hz up.
+const BIN0: usize = 16;
+const BIN_HZ: f64 = FS / 512.0;
+const NUM_BINS: usize = 73;
 
-fn ring_pairs(r: f64) -> Option<ClosePairsT> {
+/// `frames` STFT frames `[frame][bin][mic]` of `waves` plane waves from random
+/// azimuths (complex Gaussian spectra, the array's delays as phases) plus sensor noise
+/// of `noise` relative power, with `flip` microphones' signs inverted.
+fn frames(
+    mics: &[[f64; 3]],
+    waves: usize,
+    frames: usize,
+    noise: f64,
+    flip: &[usize],
+    seed: u64,
+) -> Vec<C<f32>> {
+    let mut rng = seed
+        .wrapping_mul(6364136223846793005)
+        .wrapping_add(1442695040888963407);
+    let mut next = move || {
+        rng = rng
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        (rng >> 11) as f64 / (1u64 << 53) as f64
+    };
+    let mut gauss = move || {
+        let (u, v) = (next().max(1e-300), next());
+        (-2.0 * u.ln()).sqrt() * (2.0 * PI * v).cos()
+    };
+    let m = mics.len();
+    let dirs: Vec<[f64; 3]> = (0..waves)
+        .map(|k| {
+            let az = 2.0 * PI * (k as f64 + 0.37) / waves.max(1) as f64;
+            [az.cos(), az.sin(), 0.0]
+        })
+        .collect();
+    let mut out = Vec::with_capacity(frames * NUM_BINS * m);
+    for _ in 0..frames {
+        for b in 0..NUM_BINS {
+            let f = (BIN0 + b) as f64 * BIN_HZ;
+            let mut x = vec![C::new(0.0f64, 0.0); m];
+            for u in &dirs {
+                let s = C::new(gauss(), gauss());
+                for (xm, p) in x.iter_mut().zip(mics) {
+                    let tau = -(u[0] * p[0] + u[1] * p[1] + u[2] * p[2]) / SOUND;
+                    let ph = -2.0 * PI * f * tau;
+                    *xm += s * C::new(ph.cos(), ph.sin());
+                }
+            }
+            for (k, xm) in x.iter().enumerate() {
+                let n = C::new(gauss(), gauss()) * noise.sqrt();
+                let v = if flip.contains(&k) { -(*xm + n) } else { *xm + n };
+                out.push(C::new(v.re as f32, v.im as f32));
+            }
+        }
+    }
+    out
+}
+
+/// The polarity test over `x` given `push` frames at a time; the notes at the end.
+fn polarity(x: &[C<f32>], pairs: Option<ClosePairs>, push: usize) -> Vec<String> {
+    let mut h = ChannelHealth::new((0..8).collect(), FS, 160, pairs);
+    h.observe(&vec![&[0.25f32, -0.5][..]; 8]);
+    let mut notes = Vec::new();
+    for part in x.chunks(push * NUM_BINS * 8) {
+        h.observe_frames(part, NUM_BINS);
+        notes.extend(h.notes(false));
+    }
+    notes.extend(h.notes(true));
+    notes
+}
+
+fn ring_pairs(r: f64) -> Option<ClosePairs> {
     let mics = ring(r);
-    close_pairs(&steering(&mics, 500.0, 72), 8, 500.0, FS)
+    close_pairs(&steering(&mics, 500.0, 72), 8, 0, NUM_BINS, 500.0, BIN_HZ)
 }
 
 #[test]
-fn a_ring_pairs_its_neighbours_below_a_band_edge_from_their_spacing() {
-    let (pairs, fc) = ring_pairs(0.05).unwrap();
-    // Adjacent microphones 2r·sin(π/8) = 3.83 cm apart (τ 112 µs), next but one 7.07 cm
-    // (206 µs ≤ 2τ_c): 16 pairs, f_c = 1/(16·112 µs).
-    assert_eq!(pairs.len(), 16, "{pairs:?}");
-    assert!(pairs.contains(&(0, 1)) && pairs.contains(&(0, 7)) && pairs.contains(&(0, 2)));
-    assert!(!pairs.contains(&(0, 3)) && !pairs.contains(&(0, 4)));
-    let tc = 2.0 * 0.05 * (PI / 8.0).sin() / SOUND;
-    assert!((fc - 1.0 / (16.0 * tc)).abs() < 5.0, "{fc}");
-    // Identical steering (no delays) and an array too wide for the band give nothing.
+fn a_ring_pairs_its_neighbours_in_bins_where_their_phases_stay_below_a_quarter_turn() {
+    let p = ring_pairs(0.05).unwrap();
+    // Adjacent microphones 2r·sin(π/8) = 3.83 cm apart (0.35 rad at 500 Hz), next but one
+    // 7.07 cm (0.65 rad ≤ 2·0.35): 16 pairs; the third, 9.24 cm, is past twice the nearest.
+    assert_eq!(p.pairs.len(), 16, "{:?}", p.pairs);
+    assert!(p.pairs.contains(&(0, 1)) && p.pairs.contains(&(0, 7)) && p.pairs.contains(&(0, 2)));
+    assert!(!p.pairs.contains(&(0, 3)) && !p.pairs.contains(&(0, 4)));
+    // π/2 at 500 Hz · (π/2) / 0.65 = 1213 Hz: more than 16 bins, so 16 (500–969 Hz).
+    assert_eq!((p.first, p.bins), (0, 16));
+    assert!((p.band_hz.1 - (500.0 + 15.0 * BIN_HZ)).abs() < 1e-9);
+    // A 20 cm ring: adjacent 15.3 cm (1.40 rad at 500 Hz) is past π/3: no pairs.
+    assert!(ring_pairs(0.2).is_none());
+    // A 12 cm ring: adjacent 9.2 cm (0.84 rad), next but one past π/3: 8 pairs, and the
+    // bins up to 500 · (π/2)/0.84 = 933 Hz.
+    let p = ring_pairs(0.12).unwrap();
+    assert_eq!(p.pairs.len(), 8, "{:?}", p.pairs);
+    assert_eq!(p.bins, 14, "{p:?}");
+    // Identical steering (no delays) gives nothing.
     let flat = vec![C::new(1.0f64, 0.0); 72 * 8];
-    assert!(close_pairs(&flat, 8, 500.0, FS).is_none());
-    let wide = ring(1.0);
-    assert!(close_pairs(&steering(&wide, 500.0, 72), 8, 500.0, FS).is_none());
+    assert!(close_pairs(&flat, 8, 0, NUM_BINS, 500.0, BIN_HZ).is_none());
 }
 
 #[test]
 fn a_polarity_inverted_channel_is_named_and_a_clean_field_gives_no_note() {
     let mics = ring(0.05);
     let pairs = ring_pairs(0.05);
-    let clean = field(&mics, 3, 4.0, 30.0, 1);
-    let notes = check(&clean, pairs.clone(), 1600);
-    assert!(notes.is_empty(), "{notes:?}");
-    let mut flipped = clean.clone();
-    for v in &mut flipped[3] {
-        *v = -*v;
-    }
-    let notes = check(&flipped, pairs.clone(), 1600);
+    // 3 s of frames (hop 160 at 16 kHz: 100 per second), three waves, sensor noise 10 dB down.
+    let n = 300;
+    let clean = polarity(&frames(&mics, 3, n, 0.1, &[], 1), pairs.clone(), 7);
+    assert!(clean.is_empty(), "{clean:?}");
+    let notes = polarity(&frames(&mics, 3, n, 0.1, &[3], 1), pairs.clone(), 7);
     assert_eq!(notes.len(), 1, "{notes:?}");
     assert!(
-        notes[0].contains("input channel 3 (0-based) looks polarity-inverted"),
+        notes[0].contains("input channel 3 (0-based) looks polarity-inverted: at 500-969 Hz"),
         "{notes:?}"
     );
     // Two flipped channels, given in one push; the note names each once.
-    for v in &mut flipped[6] {
-        *v = -*v;
-    }
-    let notes = check(&flipped, pairs.clone(), usize::MAX);
+    let notes = polarity(&frames(&mics, 3, n, 0.1, &[3, 6], 2), pairs.clone(), n);
     assert_eq!(notes.len(), 2, "{notes:?}");
     assert!(notes[0].contains("channel 3 ") && notes[1].contains("channel 6 "));
-    // Sensor noise alone (no field in the band) says nothing.
-    let quiet = field(&mics, 0, 4.0, 30.0, 2);
-    let mut q = quiet.clone();
-    for v in &mut q[3] {
-        *v = -*v;
-    }
-    assert!(check(&q, pairs, 1600).is_empty());
+    // Half the array flipped: nothing tells which half is right.
+    assert!(polarity(&frames(&mics, 3, n, 0.1, &[0, 1, 2, 3], 3), pairs.clone(), 7).is_empty());
+    // Sensor noise alone (no field) says nothing; nor does under a second of frames.
+    assert!(polarity(&frames(&mics, 0, n, 1.0, &[3], 4), pairs.clone(), 7).is_empty());
+    assert!(polarity(&frames(&mics, 3, 90, 0.1, &[3], 5), pairs, 7).is_empty());
 }
 
 #[test]
@@ -150,27 +219,27 @@ fn a_dead_or_constant_channel_is_named() {
     for v in &mut x[5] {
         *v *= 1e-3;
     }
-    let notes = check(&x, ring_pairs(0.05), 4000);
+    let notes = check(&x, 4000);
     assert_eq!(notes.len(), 1, "{notes:?}");
     assert!(notes[0].contains("input channel 5 (0-based) is 6"), "{notes:?}");
     assert!(notes[0].contains("dB below the median channel"));
     for v in &mut x[5] {
         *v = 7.0;
     }
-    let notes = check(&x, None, 4000);
+    let notes = check(&x, 4000);
     assert_eq!(notes.len(), 1, "{notes:?}");
     assert!(
         notes[0].contains("input channel 5 (0-based) is constant"),
         "{notes:?}"
     );
     // The channel names follow the input map.
-    let mut h = ChannelHealth::new((10..18).collect(), FS, None);
+    let mut h = ChannelHealth::new((10..18).collect(), FS, 160, None);
     h.observe(&x.iter().map(Vec::as_slice).collect::<Vec<_>>());
     let n = h.notes(true);
     assert!(n[0].contains("input channel 15 "), "{n:?}");
     // All channels zero: one note about the input.
     let zero = vec![vec![0.0f32; 1000]; 8];
-    let n = check(&zero, None, 300);
+    let n = check(&zero, 300);
     assert_eq!(n.len(), 1);
     assert!(n[0].contains("the input is silent"));
 }
@@ -185,13 +254,13 @@ fn clipping_at_full_scale_is_named_and_loud_unclipped_audio_is_not() {
         .iter()
         .map(|c| c.iter().map(|&v| (v * 30000.0 / peak).round()).collect())
         .collect();
-    assert!(check(&scaled, None, 1600).is_empty());
+    assert!(check(&scaled, 1600).is_empty());
     // Three times louder into an int16 converter: flat tops at −32768 and 32767.
     let clipped: Vec<Vec<f32>> = scaled
         .iter()
         .map(|c| c.iter().map(|&v| (3.0 * v).clamp(-32768.0, 32767.0)).collect())
         .collect();
-    let notes = check(&clipped, None, 1600);
+    let notes = check(&clipped, 1600);
     assert_eq!(notes.len(), 1, "{notes:?}");
     assert!(
         notes[0].contains("input channels 0, 1, 2, 3, 4, 5, 6, 7 (0-based) clip")
@@ -203,10 +272,10 @@ fn clipping_at_full_scale_is_named_and_loud_unclipped_audio_is_not() {
         .iter()
         .map(|c| c.iter().map(|&v| (2.0 * v / peak).clamp(-1.0, 1.0)).collect())
         .collect();
-    assert_eq!(check(&f, None, 1600).len(), 1);
+    assert_eq!(check(&f, 1600).len(), 1);
     let g: Vec<Vec<f32>> = x
         .iter()
         .map(|c| c.iter().map(|&v| (2.0 * v / peak).clamp(-0.9, 0.9)).collect())
         .collect();
-    assert!(check(&g, None, 1600).is_empty());
+    assert!(check(&g, 1600).is_empty());
 }
