@@ -149,7 +149,7 @@ fn frames(
 /// The polarity test over `x` given `push` frames at a time; the notes at the end.
 fn polarity(x: &[C<f32>], pairs: Option<ClosePairs>, push: usize) -> Vec<String> {
     let mut h = ChannelHealth::new((0..8).collect(), FS, 160, pairs);
-    h.observe(&vec![&[0.25f32, -0.5][..]; 8]);
+    h.observe(&[&[0.25f32, -0.5][..]; 8]);
     let mut notes = Vec::new();
     for part in x.chunks(push * NUM_BINS * 8) {
         h.observe_frames(part, NUM_BINS);
