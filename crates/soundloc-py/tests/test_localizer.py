@@ -644,3 +644,9 @@ def test_input_checks_name_a_flipped_and_a_dead_channel():
     dead[:, 2] = 0
     n = checks(localizer().localize(dead, FS))
     assert len(n) == 1 and "input channel 2 (0-based) is constant" in n[0], n
+
+
+def test_positions_in_millimetres_get_a_units_note():
+    notes = soundloc.Localizer(geometry=MICS * 1000, grid="ring:5", device="cpu").notes
+    assert any("span 73.0 m: positions are in metres" in n and "divide them by 1000" in n for n in notes), notes
+    assert not any("positions are in metres" in n for n in localizer().notes)

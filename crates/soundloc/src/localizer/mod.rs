@@ -248,11 +248,11 @@ impl LocalizerSpec {
 
     /// [`LocalizerSpec::load_array`], with a note for the user: what the TF cache did,
     /// that the directions are seen from the microphones' centroid
-    /// ([`Geometry::direction_frame`]), or that a free-field grid's radius puts its points
-    /// inside the array.
+    /// ([`Geometry::direction_frame`]), that a free-field grid's radius puts its points
+    /// inside the array, or that the positions look like millimetres or centimetres.
     pub fn load_array_noted(&self, config: &LocalizeConfig) -> Result<(TransferFunctions, Option<String>)> {
         let used = config.bin_range();
-        let mut note;
+        let note;
         let tf = match &self.array {
             ArraySpec::TransferFunctions { path } => {
                 // Resampling runs the analysis at the file's rate, whatever the input's:
@@ -287,23 +287,20 @@ impl LocalizerSpec {
                 }
                 let (geometry, moved) = Geometry::new(mics.clone(), Path::new("microphone positions"))?
                     .direction_frame(*radius_m);
-                note = moved;
+                let mut parts: Vec<String> = moved.into_iter().chain(geometry.units_note()).collect();
                 let reach = geometry
                     .mics
                     .iter()
                     .map(|&p| crate::array::geometry::dist(p, [0.0; 3]))
                     .fold(0.0, f64::max);
                 if *radius_m < reach {
-                    let inside = format!(
-                        "the grid radius {radius_m} m is inside the array (its farthest microphone is {reach} m \
+                    parts.push(format!(
+                        "the grid radius {radius_m} m is inside the array (its farthest microphone is {reach:.3} m \
                          from the grid's centre): the directions are points among the microphones, not far-field \
                          directions; HARK's free-field TFs use 1 m or more"
-                    );
-                    note = Some(match note {
-                        Some(n) => format!("{n}; {inside}"),
-                        None => inside,
-                    });
+                    ));
                 }
+                note = (!parts.is_empty()).then(|| parts.join("; "));
                 free_field(
                     &geometry,
                     &grid.build(*radius_m),

@@ -30,18 +30,23 @@ fn steering(mics: &[[f64; 3]], f: f64, dirs: usize) -> Vec<C<f64>> {
     out
 }
 
+/// Uniform numbers in [0, 1) from a linear congruential generator seeded with `seed`.
+fn uniform(seed: u64) -> impl FnMut() -> f64 {
+    let step = |x: u64| {
+        x.wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407)
+    };
+    let mut rng = step(seed);
+    move || {
+        rng = step(rng);
+        (rng >> 11) as f64 / (1u64 << 53) as f64
+    }
+}
+
 /// `secs` of a plane-wave field at the microphones: `waves` sources from random
 /// azimuths, each a sum of sinusoids 60–3000 Hz, plus white sensor noise of `noise` RMS.
 fn field(mics: &[[f64; 3]], waves: usize, secs: f64, noise: f64, seed: u64) -> Vec<Vec<f32>> {
-    let mut rng = seed
-        .wrapping_mul(6364136223846793005)
-        .wrapping_add(1442695040888963407);
-    let mut next = move || {
-        rng = rng
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        (rng >> 11) as f64 / (1u64 << 53) as f64
-    };
+    let mut next = uniform(seed);
     let n = (secs * FS) as usize;
     let mut out = vec![vec![0.0f32; n]; mics.len()];
     for _ in 0..waves {
@@ -103,15 +108,7 @@ fn frames(
     flip: &[usize],
     seed: u64,
 ) -> Vec<C<f32>> {
-    let mut rng = seed
-        .wrapping_mul(6364136223846793005)
-        .wrapping_add(1442695040888963407);
-    let mut next = move || {
-        rng = rng
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        (rng >> 11) as f64 / (1u64 << 53) as f64
-    };
+    let mut next = uniform(seed);
     let mut gauss = move || {
         let (u, v) = (next().max(1e-300), next());
         (-2.0 * u.ln()).sqrt() * (2.0 * PI * v).cos()
