@@ -372,16 +372,23 @@ pub(crate) fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
     ]
 }
 
-/// The unit normal of the plane all `positions` lie in (within 10⁻⁴ of the largest
-/// distance from the first position), or None: fewer than three, on one line, or not in
-/// one plane.
-pub fn plane_normal(positions: &[[f64; 3]]) -> Option<[f64; 3]> {
+/// The first of `positions`, the one farthest from it and their distance (None: fewer
+/// than two).
+fn farthest_from_first(positions: &[[f64; 3]]) -> Option<([f64; 3], [f64; 3], f64)> {
     let (&p0, rest) = positions.split_first()?;
     let far = rest
         .iter()
         .copied()
         .max_by(|a, b| dist(*a, p0).total_cmp(&dist(*b, p0)))?;
-    let span = dist(far, p0);
+    Some((p0, far, dist(far, p0)))
+}
+
+/// The unit normal of the plane all `positions` lie in (within 10⁻⁴ of the largest
+/// distance from the first position), or None: fewer than three, on one line, or not in
+/// one plane.
+pub fn plane_normal(positions: &[[f64; 3]]) -> Option<[f64; 3]> {
+    let (p0, far, span) = farthest_from_first(positions)?;
+    let rest = &positions[1..];
     let e = sub(far, p0);
     let n = rest
         .iter()
@@ -403,12 +410,7 @@ pub fn plane_normal(positions: &[[f64; 3]]) -> Option<[f64; 3]> {
 /// distance from the first position), or None: fewer than two distinct positions, or not
 /// on one line.
 pub fn line_direction(positions: &[[f64; 3]]) -> Option<[f64; 3]> {
-    let (&p0, rest) = positions.split_first()?;
-    let far = rest
-        .iter()
-        .copied()
-        .max_by(|a, b| dist(*a, p0).total_cmp(&dist(*b, p0)))?;
-    let span = dist(far, p0);
+    let (p0, far, span) = farthest_from_first(positions)?;
     if !(span > 0.0 && span.is_finite()) {
         return None;
     }
