@@ -68,6 +68,8 @@ pub struct ChannelHealth {
     inputs: Vec<usize>,
     levels: Vec<Level>,
     samples: u64,
+    /// Samples before the checks speak ahead of the end ([`DECIDE_SECONDS`]).
+    early: u64,
     coh: Option<Coherence>,
     /// Notes given: dead, clipping, polarity (per microphone), silent (the whole input).
     said: Vec<[bool; 3]>,
@@ -246,6 +248,7 @@ impl ChannelHealth {
         ChannelHealth {
             levels: vec![Level::default(); m],
             samples: 0,
+            early: (DECIDE_SECONDS * fs).ceil() as u64,
             coh,
             said: vec![[false; 3]; m],
             said_silent: false,
@@ -305,16 +308,18 @@ impl ChannelHealth {
     }
 
     /// Notes not given yet about what was seen so far: at the end of a stream
-    /// (`end`), or any time before it (a live stream's checks then speak once the
-    /// polarity test is done, see [`BAND_SECONDS`]).
+    /// (`end`), or any time before it (a live stream's checks then speak once
+    /// [`DECIDE_SECONDS`] are in and the polarity test is done, see [`BAND_SECONDS`]).
     pub fn notes(&mut self, end: bool) -> Vec<String> {
         let mut notes = Vec::new();
         let m = self.inputs.len();
         if self.samples == 0 || m == 0 {
             return notes;
         }
+        // Ahead of the end only once DECIDE_SECONDS are in and the polarity test is done: a
+        // channel silent for the first moments of a recording is not yet a dead one.
         let band_done = self.coh.as_ref().is_none_or(|c| c.frames >= c.max_frames);
-        if !end && !band_done {
+        if !end && !(band_done && self.samples >= self.early) {
             return notes;
         }
         if self.levels.iter().all(|l| !l.varies) {

@@ -276,3 +276,45 @@ fn clipping_at_full_scale_is_named_and_loud_unclipped_audio_is_not() {
         .collect();
     assert!(check(&g, 1600).is_empty());
 }
+
+#[test]
+fn a_channel_that_starts_late_is_not_called_dead_while_the_stream_runs() {
+    // Channel 3 gives zeros for its first 2 s, then the field: pushed 0.1 s at a time, no
+    // note before DECIDE_SECONDS, and none at the end (it varied and is as loud as the rest
+    // over the stream, within DEAD_DB).
+    let mics = ring(0.05);
+    let mut x = field(&mics, 2, 12.0, 10.0, 6);
+    for v in &mut x[3][..(2.0 * FS) as usize] {
+        *v = 0.0;
+    }
+    let mut h = ChannelHealth::new((0..8).collect(), FS, 160, None);
+    let mut early = Vec::new();
+    for at in (0..x[0].len()).step_by(1600) {
+        let part: Vec<&[f32]> = x.iter().map(|c| &c[at..(at + 1600).min(c.len())]).collect();
+        h.observe(&part);
+        early.extend(h.notes(false));
+    }
+    assert!(early.is_empty() && h.notes(true).is_empty(), "{early:?}");
+    // A channel dead for the whole stream is named once DECIDE_SECONDS are in.
+    let mut h = ChannelHealth::new((0..8).collect(), FS, 160, None);
+    let mut when = None;
+    for (k, at) in (0..x[0].len()).step_by(1600).enumerate() {
+        let part: Vec<Vec<f32>> = x
+            .iter()
+            .enumerate()
+            .map(|(c, v)| {
+                let s = &v[at..(at + 1600).min(v.len())];
+                if c == 5 {
+                    vec![0.0; s.len()]
+                } else {
+                    s.to_vec()
+                }
+            })
+            .collect();
+        h.observe(&part.iter().map(Vec::as_slice).collect::<Vec<_>>());
+        if !h.notes(false).is_empty() && when.is_none() {
+            when = Some(k);
+        }
+    }
+    assert_eq!(when, Some(99), "the note came at push {when:?}");
+}
