@@ -319,7 +319,8 @@ impl ChannelHealth {
         // Ahead of the end only once DECIDE_SECONDS are in and the polarity test is done: a
         // channel silent for the first moments of a recording is not yet a dead one.
         let band_done = self.coh.as_ref().is_none_or(|c| c.frames >= c.max_frames);
-        if !end && !(band_done && self.samples >= self.early) {
+        let ready = end || (band_done && self.samples >= self.early);
+        if !ready {
             return notes;
         }
         if self.levels.iter().all(|l| !l.varies) {
