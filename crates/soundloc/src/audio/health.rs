@@ -7,6 +7,10 @@
 //! - **Dead.** A channel whose RMS about its mean is more than [`DEAD_DB`] below the
 //!   median channel's (an unplugged or broken microphone leaves sensor or cable noise).
 //!   Near-field sources (rotors a few cm away) make level differences of 10–15 dB, not 30.
+//! - **Nearly silent.** Integer samples (16/24/32-bit files and devices) whose median
+//!   channel's RMS is below one quantisation step: the channels are mostly rounding, so a
+//!   live microphone a little quieter than the others reads as constant or far below
+//!   them. One note for the input instead of dead-microphone notes.
 //! - **Clipping.** More than [`CLIP_FRACTION`] of a channel's samples at the format's full
 //!   scale (±32767/32768 int16, ±8388607/8 int24, ±2³¹ int32, ±1.0 float): the flat tops
 //!   make the correlations wrong.
@@ -47,6 +51,9 @@ const MIN_BAND_SECONDS: f64 = 1.0;
 const PAR_MIN_SAMPLES: usize = 1 << 15;
 /// Bins the polarity test reads at most.
 const MAX_TEST_BINS: usize = 16;
+/// Non-zero samples per channel read to tell integer input (quantisation steps of 1)
+/// from float.
+const INTEGRAL_SAMPLES: u64 = 1 << 16;
 
 /// What the polarity test compares ([`close_pairs`]).
 #[derive(Debug, Clone, PartialEq)]
@@ -71,9 +78,11 @@ pub struct ChannelHealth {
     /// Samples before the checks speak ahead of the end ([`DECIDE_SECONDS`]).
     early: u64,
     coh: Option<Coherence>,
-    /// Notes given: dead, clipping, polarity (per microphone), silent (the whole input).
+    /// Notes given: dead, clipping, polarity (per microphone), silent and nearly silent
+    /// (the whole input).
     said: Vec<[bool; 3]>,
     said_silent: bool,
+    said_quiet: bool,
 }
 
 /// One channel's running level, peak and constancy.
@@ -87,10 +96,25 @@ struct Level {
     /// Largest |x| (full-scale values folded to one, see `fold`) and how often it came.
     peak: f32,
     at_peak: u64,
+    /// Whether a sample with a fractional part came among the first [`INTEGRAL_SAMPLES`]
+    /// non-zero ones (`read` of them seen; digital silence tells nothing).
+    fractional: bool,
+    read: u64,
 }
 
 impl Level {
     fn take(&mut self, x: &[f32]) {
+        if !self.fractional && self.read < INTEGRAL_SAMPLES {
+            for v in x.iter().filter(|&&v| v != 0.0) {
+                self.read += 1;
+                if v.fract() != 0.0 {
+                    self.fractional = true;
+                }
+                if self.fractional || self.read >= INTEGRAL_SAMPLES {
+                    break;
+                }
+            }
+        }
         if !self.varies {
             if let Some(&x0) = x.first() {
                 let v0 = *self.first.get_or_insert(x0);
@@ -152,9 +176,10 @@ fn fold(a: f32) -> f32 {
     }
 }
 
-/// Whether `peak` (folded) is a format's full scale.
-fn full_scale(peak: f32) -> bool {
-    peak == 32767.0 || peak == 8_388_607.0 || peak == 2_147_483_648.0 || peak == 1.0
+/// Whether `peak` (folded) is a format's full scale; ±1.0 only for samples with
+/// fractional parts (float formats: integer samples at ±1 are one quantisation step).
+fn full_scale(peak: f32, fractional: bool) -> bool {
+    peak == 32767.0 || peak == 8_388_607.0 || peak == 2_147_483_648.0 || (peak == 1.0 && fractional)
 }
 
 /// The pairs of microphones close enough for the polarity test and the bins to read,
@@ -252,6 +277,7 @@ impl ChannelHealth {
             coh,
             said: vec![[false; 3]; m],
             said_silent: false,
+            said_quiet: false,
             inputs,
         }
     }
@@ -352,32 +378,52 @@ impl ChannelHealth {
         sorted.sort_by(f64::total_cmp);
         let median = sorted[m / 2];
         let leave_out = "leave it out with the TF channel selection (--channels, channels= in Python)";
-        for (c, &level) in rms.iter().enumerate() {
-            if self.said[c][0] {
-                continue;
-            }
-            let what = if !self.levels[c].varies {
-                Some("is constant".to_string())
-            } else if median > 0.0 && level < median * 10f64.powf(-DEAD_DB / 20.0) {
-                Some(format!(
-                    "is {:.0} dB below the median channel",
-                    20.0 * (median / level.max(f64::MIN_POSITIVE)).log10()
-                ))
-            } else {
-                None
-            };
-            if let Some(w) = what {
-                self.said[c][0] = true;
+        // Integer samples under one quantisation step: rounding, not microphones, sets the
+        // levels (module docs).
+        if self.levels.iter().all(|l| !l.fractional) && median < 1.0 {
+            if !self.said_quiet {
+                self.said_quiet = true;
+                let flat: Vec<String> = (0..m)
+                    .filter(|&c| !self.levels[c].varies)
+                    .map(|c| self.inputs[c].to_string())
+                    .collect();
+                let flat = match flat.len() {
+                    0 => String::new(),
+                    1 => format!(" (input channel {} reads constant)", flat[0]),
+                    _ => format!(" (input channels {} read constant)", flat.join(", ")),
+                };
                 notes.push(format!(
-                    "warning: input channel {} (0-based) {w}: a dead or unplugged microphone? It adds only noise to every direction; {leave_out}",
-                    self.inputs[c]
+                    "warning: the input is nearly silent: the median channel's RMS is {median:.2} in the samples' integer units, below one quantisation step, so the channels are mostly rounding{flat} and the directions are unreliable; raise the input gain"
                 ));
+            }
+        } else {
+            for (c, &level) in rms.iter().enumerate() {
+                if self.said[c][0] {
+                    continue;
+                }
+                let what = if !self.levels[c].varies {
+                    Some("is constant".to_string())
+                } else if median > 0.0 && level < median * 10f64.powf(-DEAD_DB / 20.0) {
+                    Some(format!(
+                        "is {:.0} dB below the median channel",
+                        20.0 * (median / level.max(f64::MIN_POSITIVE)).log10()
+                    ))
+                } else {
+                    None
+                };
+                if let Some(w) = what {
+                    self.said[c][0] = true;
+                    notes.push(format!(
+                        "warning: input channel {} (0-based) {w}: a dead or unplugged microphone? It adds only noise to every direction; {leave_out}",
+                        self.inputs[c]
+                    ));
+                }
             }
         }
         let clipped: Vec<usize> = (0..m)
             .filter(|&c| {
                 !self.said[c][1]
-                    && full_scale(self.levels[c].peak)
+                    && full_scale(self.levels[c].peak, self.levels.iter().any(|l| l.fractional))
                     && self.levels[c].at_peak as f64 > CLIP_FRACTION * n
                     && self.levels[c].varies
             })
@@ -404,8 +450,8 @@ impl ChannelHealth {
                 if !self.said[c][2] {
                     self.said[c][2] = true;
                     notes.push(format!(
-                        "warning: input channel {} (0-based) looks polarity-inverted: at {:.0}-{:.0} Hz it is anticorrelated with its close neighbours (median correlation {rho:.2}; any sound field gives a positive one there): every direction will be wrong; fix its wiring or negate that channel in the recording",
-                        self.inputs[c], b.at.band_hz.0, b.at.band_hz.1
+                        "warning: input channel {} (0-based) looks polarity-inverted: at {:.0}-{:.0} Hz it is anticorrelated with its close neighbours (median correlation {rho:.2}; any sound field gives a positive one there): every direction will be wrong; fix its wiring, or negate it: --invert-channels {c} (invert_channels=[{c}] in Python)",
+                        self.inputs[c], b.at.band_hz.0, b.at.band_hz.1, c = self.inputs[c]
                     ));
                 }
             }

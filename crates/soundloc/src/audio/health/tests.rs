@@ -318,3 +318,75 @@ fn a_channel_that_starts_late_is_not_called_dead_while_the_stream_runs() {
     }
     assert_eq!(when, Some(99), "the note came at push {when:?}");
 }
+
+#[test]
+fn a_nearly_silent_integer_input_gets_one_note_and_no_dead_microphones() {
+    let mics = ring(0.05);
+    let x = field(&mics, 2, 2.0, 10.0, 5);
+    let rms = |c: &[f32]| (c.iter().map(|&v| (v as f64).powi(2)).sum::<f64>() / c.len() as f64).sqrt();
+    let level = rms(&x[0]);
+    // Integer samples (a 16-bit file): channel 3 at a quarter of the others' level.
+    let quantise = |to: f64| -> Vec<Vec<f32>> {
+        x.iter()
+            .enumerate()
+            .map(|(c, ch)| {
+                let g = to / level * if c == 3 { 0.25 } else { 1.0 };
+                ch.iter().map(|&v| (v as f64 * g).round() as f32).collect()
+            })
+            .collect()
+    };
+    // Median RMS about 0.7 of a step: channel 3 is mostly zeros.
+    let quiet = quantise(0.7);
+    let r3 = rms(&quiet[3]);
+    let r0 = rms(&quiet[0]);
+    assert!(r3 < r0 * 10f64.powf(-DEAD_DB / 20.0) || r3 < 0.2, "{r3} {r0}");
+    let notes = check(&quiet, 4000);
+    assert_eq!(notes.len(), 1, "{notes:?}");
+    assert!(notes[0].contains("the input is nearly silent"), "{notes:?}");
+    assert!(!notes[0].contains("dead"), "{notes:?}");
+    // The same scene at a usable level: no note; a channel of zeros in it is named.
+    let mut loud = quantise(300.0);
+    assert_eq!(check(&loud, 4000), Vec::<String>::new());
+    loud[6].iter_mut().for_each(|v| *v = 0.0);
+    let notes = check(&loud, 4000);
+    assert_eq!(notes.len(), 1, "{notes:?}");
+    assert!(
+        notes[0].contains("input channel 6 (0-based) is constant"),
+        "{notes:?}"
+    );
+    // Float samples as quiet are not rounding: the quiet channel is named as before.
+    let float: Vec<Vec<f32>> = x
+        .iter()
+        .enumerate()
+        .map(|(c, ch)| {
+            ch.iter()
+                .map(|&v| v / level as f32 * if c == 3 { 1e-3 } else { 0.7 })
+                .collect()
+        })
+        .collect();
+    let notes = check(&float, 4000);
+    assert_eq!(notes.len(), 1, "{notes:?}");
+    assert!(notes[0].contains("input channel 3 (0-based) is"), "{notes:?}");
+}
+
+/// Float audio (±1 full scale) that starts with seconds of digital silence is not taken
+/// for integer samples: no "nearly silent" note, and clipping at ±1.0 is still named.
+#[test]
+fn float_audio_after_digital_silence_is_still_float() {
+    let mics = ring(0.05);
+    let mut x = field(&mics, 2, 8.0, 10.0, 7);
+    let peak = x.iter().flatten().fold(0.0f32, |a, &v| a.max(v.abs()));
+    let start = 5 * FS as usize;
+    for ch in &mut x {
+        for (t, v) in ch.iter_mut().enumerate() {
+            *v = if t < start { 0.0 } else { *v / peak * 0.3 };
+        }
+    }
+    assert_eq!(check(&x, 4000), Vec::<String>::new());
+    for v in &mut x[2] {
+        *v = (*v * 20.0).clamp(-1.0, 1.0);
+    }
+    let notes = check(&x, 4000);
+    assert_eq!(notes.len(), 1, "{notes:?}");
+    assert!(notes[0].contains("input channel 2 (0-based) clip"), "{notes:?}");
+}
