@@ -547,3 +547,58 @@ fn input_channel_selector_drops_extra_channels() {
         "selected channels must give the original file's results"
     );
 }
+
+/// A recording with one channel's sign flipped: the input checks name it and the option
+/// they name (`--invert-channels`) gives the original file's results, with the flipped
+/// file as its own noise recording too.
+#[test]
+fn invert_channels_undoes_a_flipped_channel() {
+    let Some(d) = data() else {
+        return skipped("invert_channels_undoes_a_flipped_channel");
+    };
+    let a = soundloc::audio::read_audio(d.join("jinsei.wav")).unwrap();
+    let mut ch = a.channels.clone();
+    ch[5].iter_mut().for_each(|v| *v = -*v);
+    let flipped = tmp("flipped.wav");
+    soundloc::audio::Audio::new(a.sample_rate_hz, ch)
+        .unwrap()
+        .write_wav(&flipped, soundloc::audio::SampleFormat::Int16)
+        .unwrap();
+    let tf = d.join("tamago_rectf.zip");
+    let run = |wav: &Path, extra: &[&str]| {
+        bin()
+            .arg("localize")
+            .arg(wav)
+            .arg("--tf")
+            .arg(&tf)
+            .arg("--noise")
+            .arg(wav)
+            .args(["--device", "cpu", "--period", "25"])
+            .args(extra)
+            .output()
+            .unwrap()
+    };
+    let plain = run(&flipped, &[]);
+    assert!(plain.status.success(), "{}", stderr(&plain));
+    assert!(
+        stderr(&plain).contains("input channel 5 (0-based) looks polarity-inverted")
+            && stderr(&plain).contains("--invert-channels 5"),
+        "{}",
+        stderr(&plain)
+    );
+    let fixed = run(&flipped, &["--invert-channels", "5"]);
+    assert!(fixed.status.success(), "{}", stderr(&fixed));
+    assert!(!stderr(&fixed).contains("polarity"), "{}", stderr(&fixed));
+    let direct = run(&d.join("jinsei.wav"), &[]);
+    assert!(!direct.stdout.is_empty());
+    assert_eq!(
+        fixed.stdout, direct.stdout,
+        "the inverted channel must give the original results"
+    );
+    assert_ne!(plain.stdout, direct.stdout);
+    let o = run(&flipped, &["--invert-channels", "8"]);
+    assert_clean_failure(
+        &o,
+        &["input channel 8 is to be inverted, but it feeds no microphone"],
+    );
+}

@@ -65,7 +65,7 @@ impl PySpec {
     noise=None, noise_range=None, noise_cm=None, noise_segments=None, noise_preceding=None,
     track=false, tracker_thresh_db=0.0, tracker_pause_length=None, tracker_min_src_interval_deg=None,
     tracker_min_id=None, preroll=0, track_active_only=None, device="auto", precision="f32", channels=None,
-    input_channels=None, spectrum=true, grid_radius=None, speed_of_sound=None, channels_first=false,
+    input_channels=None, invert_channels=None, spectrum=true, grid_radius=None, speed_of_sound=None, channels_first=false,
     subspace_dim=None, normalize_bins=None, refine=None, subspace_tracking=false, resample=false,
     diagonal_loading=0.0, coherence=None, numerator=None))]
 #[allow(clippy::too_many_arguments)] // mirrors the Python keywords
@@ -99,6 +99,7 @@ pub(crate) fn spec(
     precision: &str,
     channels: Option<Vec<usize>>,
     input_channels: Option<Vec<usize>>,
+    invert_channels: Option<Vec<usize>>,
     spectrum: bool,
     grid_radius: Option<f64>,
     speed_of_sound: Option<f64>,
@@ -216,6 +217,7 @@ pub(crate) fn spec(
     a.diagonal_loading = diagonal_loading;
     spec.channels = channels.unwrap_or_default();
     spec.input_channels = input_channels.unwrap_or_default();
+    spec.invert_channels = invert_channels.unwrap_or_default();
     spec.raw_mapping = raw_mapping;
     let given = [noise.is_some(), noise_range.is_some(), noise_cm.is_some()];
     if given.iter().filter(|&&g| g).count() > 1 {
@@ -550,7 +552,7 @@ fn noise_matrices(
     let idx = map
         .resolve(nch)
         .map_err(|e| soundloc::Error::Mismatch(format!("noise of shape ({rows}, {cols}): {e}")))?;
-    let planar: Vec<Vec<f32>> = idx
+    let mut planar: Vec<Vec<f32>> = idx
         .iter()
         .map(|&c| {
             (0..len)
@@ -564,6 +566,7 @@ fn noise_matrices(
                 .collect()
         })
         .collect();
+    map.invert(&idx, &mut planar);
     let config = soundloc::LocalizeConfig {
         sample_rate_hz: tf.sample_rate_hz,
         ..config.clone()

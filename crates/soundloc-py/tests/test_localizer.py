@@ -640,6 +640,17 @@ def test_input_checks_name_a_flipped_and_a_dead_channel():
     flipped[:, 5] = -flipped[:, 5].astype(np.int32).clip(-32767, 32767)
     n = checks(localizer().localize(flipped, FS))
     assert len(n) == 1 and "input channel 5 (0-based) looks polarity-inverted" in n[0], n
+    assert "invert_channels=[5]" in n[0], n
+    # The option the note names negates it again: the clean scene's results, no note.
+    clean = x.copy()
+    clean[:, 5] = x[:, 5].astype(np.int32).clip(-32767, 32767)
+    want = localizer().localize(clean, FS)
+    got = localizer(invert_channels=[5]).localize(flipped, FS)
+    assert checks(got) == []
+    np.testing.assert_array_equal(got.azimuth_deg, want.azimuth_deg)
+    np.testing.assert_array_equal(got.power_db, want.power_db)
+    with pytest.raises(ValueError, match="input channel 9 is to be inverted"):
+        localizer(invert_channels=[9]).localize(flipped, FS)
     dead = x.copy()
     dead[:, 2] = 0
     n = checks(localizer().localize(dead, FS))

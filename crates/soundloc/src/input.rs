@@ -200,6 +200,10 @@ pub struct ChannelMap {
     /// `input_channels` is empty: see [`RawMapping`].
     #[serde(default)]
     pub raw: Option<RawMapping>,
+    /// Input channels whose samples are negated as they arrive (a microphone wired or
+    /// converted with its polarity inverted); each must feed a microphone.
+    #[serde(default)]
+    pub inverted: Vec<usize>,
 }
 
 /// A capture device's channel layout, as an ODAS configuration gives it (`raw.nChannels`
@@ -251,6 +255,23 @@ impl ChannelMap {
             full_mics: mics,
             mics,
             raw: None,
+            inverted: Vec::new(),
+        }
+    }
+
+    /// The microphones (positions in `idx`, as [`resolve`](Self::resolve) gives it) whose
+    /// input channel is inverted.
+    pub fn inverted_mics(&self, idx: &[usize]) -> Vec<usize> {
+        (0..idx.len())
+            .filter(|&m| self.inverted.contains(&idx[m]))
+            .collect()
+    }
+
+    /// Negate the inverted microphones' samples in `mics` (one channel per microphone, in
+    /// the order of `idx`).
+    pub fn invert(&self, idx: &[usize], mics: &mut [Vec<f32>]) {
+        for m in self.inverted_mics(idx) {
+            mics[m].iter_mut().for_each(|v| *v = -*v);
         }
     }
 
@@ -313,6 +334,12 @@ impl ChannelMap {
                 idx.len(),
                 self.mics,
                 self.mics
+            )));
+        }
+        if let Some(&c) = self.inverted.iter().find(|c| !idx.contains(c)) {
+            return Err(Error::Mismatch(format!(
+                "input channel {c} is to be inverted, but it feeds no microphone (the microphones' input channels, 0-based: {})",
+                idx.iter().map(|c| c.to_string()).collect::<Vec<_>>().join(", ")
             )));
         }
         Ok(idx)
@@ -389,6 +416,7 @@ mod tests {
             full_mics: 4,
             mics: 2,
             raw: None,
+            inverted: Vec::new(),
         };
         assert_eq!(m.resolve(5).unwrap(), vec![1, 3]);
         assert!(m.resolve(3).unwrap_err().to_string().contains("input channel 3"));
@@ -407,6 +435,7 @@ mod tests {
             full_mics: 4,
             mics: 2,
             raw: None,
+            inverted: Vec::new(),
         };
         assert_eq!(m.resolve(2).unwrap(), vec![0, 1]);
         assert_eq!(m.resolve(4).unwrap(), vec![0, 2]);

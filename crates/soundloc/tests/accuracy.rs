@@ -127,6 +127,48 @@ fn refinement_is_within_a_quarter_step_of_off_grid_sources() {
     );
 }
 
+/// A talker just beyond MAX_DEG: its peak at the range's edge would refine past it; the
+/// reported direction stays within the range (the grid's edge direction), and without
+/// the range the same peak refines toward the talker.
+#[test]
+fn refinement_keeps_peaks_within_the_azimuth_range() {
+    let sc = off_grid(
+        Geometry::circle(8, 0.05, 0.0),
+        Grid::ring(10.0, 0.0, 1.0),
+        10.0,
+        33.7,
+        0.0,
+    );
+    let audio = sc.render();
+    let azimuths = |max_deg: f64| -> Vec<f64> {
+        let cfg = LocalizeConfig {
+            num_sources: 1,
+            period: 25,
+            refine: true,
+            upper_freq_hz: 4000.0,
+            min_deg: -90.0,
+            max_deg,
+            ..Default::default()
+        };
+        let run = localize_scene::<f64>(&sc, &audio, &cfg, DeviceChoice::Cpu).unwrap();
+        run.results
+            .iter()
+            .filter(|r| r.time_s >= sc.talk_start_s && r.time_s < 1.5)
+            .map(|r| r.sources[0].azimuth_deg)
+            .collect()
+    };
+    let free = azimuths(90.0);
+    assert!(
+        free.len() >= 4 && free.iter().all(|a| (a - 33.7).abs() < 2.5),
+        "{free:?}"
+    );
+    let edge = azimuths(30.0);
+    assert!(
+        edge.len() >= 4 && edge.iter().all(|&a| (a - 30.0).abs() < 1e-9),
+        "{edge:?}"
+    );
+}
+
 /// Per-talker hit counts of a run over the results after the onset.
 fn per_talker(sc: &DemoScene, results: &[soundloc::LocalizationResult]) -> Vec<usize> {
     sc.score(results, 5.0).per_talker_hits

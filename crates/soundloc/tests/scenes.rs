@@ -404,99 +404,6 @@ fn a_linear_array_is_noted_and_reports_the_angle_to_its_line() {
     }
 }
 
-/// The room default with --track: a talker in a reverberant room (RT60 0.4 s) speaking
-/// from 1.5 s to 3.0 s, sensor noise only before and after. NormMUSIC's powers do not
-/// tell silence from the talker (noise-only windows' peaks reach the talker's), so HARK's
-/// tracker, which sees every window, keeps tracks in the silence; the room default feeds
-/// it only windows whose `num_active` is not 0: no track before the talker starts, the
-/// talker tracked while it speaks, and (with `--no-active-only`, `active_only: Some(false)`)
-/// the old behaviour back. A named algorithm keeps HARK's.
-#[test]
-fn the_room_default_starts_no_tracks_in_silence() {
-    use soundloc::array::grid::GridSpec;
-    use soundloc::sim::{position_from_az_el, render, Room, Scene, SceneSource, Signal};
-    use soundloc::{array::Geometry, Localizer, LocalizerSpec, TrackingSpec};
-    let ring = Geometry::circle(8, 0.0365, 0.0);
-    let talker = 40.0;
-    let scene = Scene {
-        sensor_noise_std: 0.02,
-        room: Some(Room::with_rt60([6.0, 5.0, 3.0], [-3.0, -2.5, -1.2], 0.4).unwrap()),
-        ..Scene::new()
-    }
-    .with_source(
-        SceneSource::new(position_from_az_el(talker, 0.0, 2.0), Signal::Speech).active_between(1.5, 3.0),
-    );
-    let audio = render(&scene, &ring, 16000, 4.0, 11);
-    let mut spec = LocalizerSpec::free_field(
-        ring.mics.clone(),
-        GridSpec::Ring {
-            step_deg: 5.0,
-            elevation_deg: 0.0,
-        },
-    );
-    spec.analysis.num_sources = 1;
-    spec.analysis.period = 5;
-    spec.analysis.window_type = soundloc::config::WindowType::Past;
-    let run = |spec: &LocalizerSpec| {
-        Localizer::new(spec)
-            .unwrap()
-            .localize(&audio.channels)
-            .unwrap()
-            .results
-    };
-    // Windows wholly before the onset (a PAST window at frame c covers c − 49 … c), and
-    // talk windows wholly inside the speech.
-    let silent = |r: &soundloc::LocalizationResult| r.time_s < 1.49;
-    let talking = |r: &soundloc::LocalizationResult| r.time_s >= 2.0 && r.time_s <= 2.95;
-    let near = |s: &soundloc::Source| ((s.azimuth_deg - talker + 540.0) % 360.0 - 180.0).abs() <= 5.0;
-    let untracked = run(&spec);
-    assert!(untracked
-        .iter()
-        .filter(|r| silent(r))
-        .all(|r| r.num_active == Some(0)));
-    spec.tracking = Some(TrackingSpec::default());
-    let gated = run(&spec);
-    let (quiet, talk): (Vec<_>, Vec<_>) = (
-        gated.iter().filter(|r| silent(r)).collect(),
-        gated.iter().filter(|r| talking(r)).collect(),
-    );
-    assert!(
-        quiet.len() >= 15 && talk.len() >= 10,
-        "{} {}",
-        quiet.len(),
-        talk.len()
-    );
-    assert!(quiet.iter().all(|r| r.sources.is_empty()), "{quiet:?}");
-    let tracked = talk.iter().filter(|r| r.sources.iter().any(near)).count();
-    assert!(
-        tracked * 10 >= talk.len() * 8,
-        "talker tracked in {tracked} of {}",
-        talk.len()
-    );
-    // HARK's tracker on the same spectra: tracks in the silence.
-    for off in [
-        Some(TrackingSpec {
-            active_only: Some(false),
-            ..TrackingSpec::default()
-        }),
-        None,
-    ] {
-        let mut s = spec.clone();
-        if let Some(t) = off {
-            s.tracking = Some(t);
-        } else {
-            s.algorithm = Some(soundloc::Algorithm::Sevd);
-        }
-        let all = run(&s);
-        let busy = all.iter().filter(|r| silent(r) && !r.sources.is_empty()).count();
-        assert!(
-            busy * 2 >= quiet.len(),
-            "{busy} of {} silent windows tracked",
-            quiet.len()
-        );
-    }
-}
-
 /// The input checks (`audio::health`) on realistic scenes: rotors 0.25 m from the ring
 /// and the sphere (level differences of the near field, array gain errors), a talker in
 /// a reverberant room: no note. The same audio with one channel's sign flipped, or one
@@ -574,7 +481,37 @@ fn the_input_checks_name_a_flipped_or_dead_channel_and_nothing_in_clean_scenes()
     let n = notes(&audio);
     assert_eq!(n.len(), 1, "{n:?}");
     assert!(
-        n[0].contains("input channel 6 (0-based) looks polarity-inverted"),
+        n[0].contains("input channel 6 (0-based) looks polarity-inverted")
+            && n[0].contains("--invert-channels 6 (invert_channels=[6] in Python)"),
         "{n:?}"
+    );
+    // The option the note names negates it again: the clean scene's results, bit for bit,
+    // and no note.
+    let clean = {
+        let mut a = audio.channels.clone();
+        a[6].iter_mut().for_each(|v| *v = -*v);
+        Localizer::new(&spec).unwrap().localize(&a).unwrap()
+    };
+    let fixed = LocalizerSpec {
+        invert_channels: vec![6],
+        ..spec.clone()
+    };
+    let r = Localizer::new(&fixed).unwrap().localize(&audio.channels).unwrap();
+    assert!(input_notes(&r.notes).is_empty(), "{:?}", r.notes);
+    assert_eq!(r.results, clean.results);
+    assert!(!clean.results.is_empty());
+    // A channel that feeds no microphone is named.
+    let wrong = LocalizerSpec {
+        invert_channels: vec![9],
+        ..spec.clone()
+    };
+    let e = Localizer::new(&wrong)
+        .unwrap()
+        .localize(&audio.channels)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("input channel 9 is to be inverted, but it feeds no microphone"),
+        "{e}"
     );
 }

@@ -83,6 +83,10 @@ pub struct MakeArgs {
     /// --input-channels`.
     #[arg(long, value_delimiter = ',', alias = "channels")]
     pub input_channels: Vec<usize>,
+    /// Input channels to negate, comma-separated (0-based), as `localize
+    /// --invert-channels`: K then matches a localization with the same option.
+    #[arg(long, value_delimiter = ',')]
+    pub invert_channels: Vec<usize>,
 }
 
 #[derive(clap::Args, Debug)]
@@ -152,13 +156,22 @@ fn make(a: MakeArgs) -> anyhow::Result<ExitCode> {
     }
     soundloc::output::atomic::check_outputs(&outs, &[(&a.input, "the recording")])?;
     let audio = read_audio(&a.input)?;
-    let audio = if a.input_channels.is_empty() {
-        audio
-    } else {
-        audio
-            .select_channels(&a.input_channels)
-            .with_context(|| format!("{}: --input-channels", a.input.display()))?
+    let kept = match a.input_channels.len() {
+        0 => audio.num_channels(),
+        k => k,
     };
+    let map = soundloc::input::ChannelMap {
+        input_channels: a.input_channels.clone(),
+        inverted: a.invert_channels.clone(),
+        ..soundloc::input::ChannelMap::identity(kept)
+    };
+    let idx = map
+        .resolve(audio.num_channels())
+        .with_context(|| format!("{}: --input-channels / --invert-channels", a.input.display()))?;
+    let mut audio = audio
+        .select_channels(&idx)
+        .with_context(|| format!("{}: --input-channels", a.input.display()))?;
+    map.invert(&idx, &mut audio.channels);
     let (cm, frames) = NoiseCm::estimate(
         &audio.channels,
         audio.sample_rate_hz,

@@ -169,6 +169,11 @@ pub struct RunArgs {
     /// recording and to --noise before anything else (e.g. drop a reference channel).
     #[arg(long, value_delimiter = ',')]
     pub input_channels: Vec<usize>,
+    /// Input channels to negate, comma-separated (0-based, as the input checks name them):
+    /// microphones wired with their polarity inverted. Applied to the recording and to
+    /// --noise; a --noise-cm file is taken as it is.
+    #[arg(long, value_delimiter = ',')]
+    pub invert_channels: Vec<usize>,
     /// Noise-only recording for K.
     #[arg(long, conflicts_with_all = ["noise_range", "noise_cm"])]
     pub noise: Option<PathBuf>,
@@ -220,12 +225,14 @@ pub struct RunArgs {
     /// SourceIntervalExtender PREROLL_LENGTH (frames); 0 = off.
     #[arg(long, requires = "track", default_value_t = 0)]
     pub preroll: usize,
-    /// Windows judged noise-only (num_active 0) feed the tracker no sources: silence
-    /// starts no tracks. Default: on in the room default (no algorithm, no noise source),
-    /// whose powers do not tell silence from talkers; off otherwise (HARK).
+    /// Each window feeds the tracker only its strongest num_active peaks (the source
+    /// count's estimate): silence (num_active 0) starts no tracks, and one talker's second
+    /// peak starts none either. Default: on in the room default (no algorithm, no noise
+    /// source), whose powers do not tell silence or sidelobes from talkers; off otherwise
+    /// (HARK).
     #[arg(long, requires = "track", overrides_with = "no_active_only")]
     pub active_only: bool,
-    /// Every window feeds the tracker its peaks, as HARK's SourceTracker (also in the
+    /// Every window feeds the tracker all its peaks, as HARK's SourceTracker (also in the
     /// room default).
     #[arg(long, requires = "track", overrides_with = "active_only")]
     pub no_active_only: bool,
@@ -428,6 +435,7 @@ impl RunArgs {
             analysis: self.analysis.config(Algorithm::Sevd, rate_hz, free_field),
             channels: self.channels.clone(),
             input_channels: self.input_channels.clone(),
+            invert_channels: self.invert_channels.clone(),
             raw_mapping,
             noise,
             noise_update: noise_update(self)?,

@@ -57,13 +57,18 @@ Arguments (HARK LocalizeMUSIC name / pyroomacoustics name):
         (PAUSE_LENGTH, in tenths of a frame as HARK's: 800 keeps a silent source 80 frames),
         tracker_min_src_interval_deg (MIN_SRC_INTERVAL), tracker_min_id
         (MIN_ID) and preroll (SourceIntervalExtender's PREROLL_LENGTH, frames; delays results);
-        track_active_only (windows with num_active 0 feed the tracker nothing, so silence
+        track_active_only (each window feeds the tracker its strongest num_active peaks,
+        none when 0, so silence
         starts no tracks; None: on in the room default, whose powers do not tell silence from
         talkers, off otherwise as HARK); as the CLI's --thresh, --pause-length,
         --min-src-interval, --min-id, --preroll, --active-only/--no-active-only.
     device: "auto"|"cpu"|"cuda"; precision: "f32"|"f64".
     channels (TF_CHANNEL_SELECTION), input_channels (ChannelSelector); diagonal_loading: K + δ·(tr K / M)·I
         (a K that is not positive definite is otherwise an error).
+    invert_channels: input channels (0-based, as the input checks' notes name them) whose
+        samples are negated, for microphones wired with their polarity inverted; applied
+        to the audio and to noise= (a noise_cm= file is taken as it is); the CLI's
+        --invert-channels.
     channels_first: arrays are (channels, samples) instead of (samples, channels).
     resample: audio given to localize(x, fs) or localize_file at another rate than the
         analysis's (e.g. 48 kHz with a 16 kHz TF file) is converted instead of refused
@@ -234,6 +239,7 @@ class Results:
 
 # Arguments that are counts or indices (unsigned in the library).
 _COUNTS = {"num_sources", "window", "period", "nfft", "hop", "channels", "input_channels",
+           "invert_channels",
            "subspace_dim", "preroll", "noise_preceding"}
 
 

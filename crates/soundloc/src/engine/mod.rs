@@ -376,12 +376,19 @@ impl<T: Real> Engine<T> {
     /// [`push`](Self::push) after the checks: `len` samples of `block`, channels `idx`.
     fn push_checked(&mut self, block: &Block<'_>, idx: &[usize], len: usize, out: &mut Output) -> Result<()> {
         let step = CHUNK_FRAMES * self.plan.config.hop;
+        let inverted = self.options.channels.inverted_mics(idx);
         let mut pos = 0;
         while pos < len {
             let n = step.min(len - pos);
             let first = self.stft.samples_received();
-            self.stft
-                .append(n, |bufs| block.extend_channels(idx, pos..pos + n, bufs));
+            self.stft.append(n, |bufs| {
+                block.extend_channels(idx, pos..pos + n, bufs);
+                for &m in &inverted {
+                    let b = &mut bufs[m];
+                    let from = b.len() - n;
+                    b[from..].iter_mut().for_each(|v| *v = -*v);
+                }
+            });
             let (buf_start, buf) = self.stft.buffered();
             let health = self.health.get_or_insert_with(|| {
                 ChannelHealth::new(

@@ -36,22 +36,24 @@ impl<T: Real> Engine<T> {
                         let mut s = source(&self.plan.grid, p.dir, p.power_db);
                         if refine {
                             let db = &batch.spectrum_db[wi * nd..(wi + 1) * nd];
-                            refine_source(&mut s, &self.plan.grid, &self.plan.peak_table, db);
+                            let range = (self.plan.config.min_deg, self.plan.config.max_deg);
+                            refine_source(&mut s, &self.plan.grid, &self.plan.peak_table, db, range);
                         }
                         s
                     })
                     .collect(),
             };
             if let Some(t) = &mut self.tracker {
-                // A window judged noise-only feeds no sources where asked
-                // (TrackingSpec::active_only).
-                let tracked = if self.track_active_only && r.num_active == Some(0) {
-                    t.update(&LocalizationResult {
-                        sources: Vec::new(),
-                        ..r.clone()
-                    })
-                } else {
-                    t.update(&r)
+                // Where asked (TrackingSpec::active_only), a window feeds its strongest
+                // `num_active` peaks: none when judged noise-only.
+                let tracked = match r.num_active {
+                    Some(n) if self.track_active_only && n < r.sources.len() => {
+                        t.update(&LocalizationResult {
+                            sources: r.sources[..n].to_vec(),
+                            ..r.clone()
+                        })
+                    }
+                    _ => t.update(&r),
                 };
                 let untracked = std::mem::replace(&mut r, tracked);
                 if let Some(p) = &mut out.peaks {
@@ -96,9 +98,20 @@ impl<T: Real> Engine<T> {
 }
 
 /// Move `s` (a grid peak) to its refined direction ([`crate::peaks::refine`]); the grid
-/// index stays; x/y/z become the refined unit vector.
-pub fn refine_source(s: &mut Source, grid: &crate::array::Grid, table: &crate::peaks::PeakTable, db: &[f32]) {
+/// index stays; x/y/z become the refined unit vector. A refined azimuth outside
+/// MIN_DEG…MAX_DEG (`range`, a peak at the range's edge leaning beyond it) keeps the grid
+/// direction: peaks are reported within the range asked for.
+pub fn refine_source(
+    s: &mut Source,
+    grid: &crate::array::Grid,
+    table: &crate::peaks::PeakTable,
+    db: &[f32],
+    (min_deg, max_deg): (f64, f64),
+) {
     let r = crate::peaks::refine::refine(grid, table, db, s.grid_index);
+    if !crate::peaks::azimuth_in_range(r.azimuth_deg, min_deg, max_deg) {
+        return;
+    }
     s.azimuth_deg = r.azimuth_deg;
     s.elevation_deg = r.elevation_deg;
     [s.x, s.y, s.z] = r.unit;

@@ -116,9 +116,11 @@ pub struct TrackingSpec {
     pub tracker: TrackerConfig,
     /// SourceIntervalExtender PREROLL_LENGTH in frames (0 = off; delays results by it).
     pub preroll: usize,
-    /// Whether windows judged noise-only (`num_active` 0) feed the tracker no sources, so
-    /// that silence starts no tracks and lets tracks end (their PAUSE_LENGTH still runs);
-    /// a window without an estimate feeds its peaks. None: the default, on in the room
+    /// Whether each window feeds the tracker only its strongest `num_active` peaks (the
+    /// source count's estimate): windows judged noise-only feed none, so that silence
+    /// starts no tracks and lets tracks end (their PAUSE_LENGTH still runs), and one
+    /// talker's window does not feed its second, noise or sidelobe, peak; a window
+    /// without an estimate feeds its peaks. None: the default, on in the room
     /// default (no algorithm named, no noise source: NormMUSIC's powers do not tell
     /// silence from a talker, so THRESH cannot), off otherwise (HARK's SourceTracker
     /// sees every window).

@@ -131,6 +131,11 @@ pub struct LocalizerSpec {
     /// mapping), used when `input_channels` is empty ([`RawMapping`]).
     #[serde(default)]
     pub raw_mapping: Option<RawMapping>,
+    /// Input channels (0-based, as the input checks name them) whose samples are negated:
+    /// microphones wired with their polarity inverted. Applied to the input and to a
+    /// noise recording; a noise-CM file is taken as it is.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub invert_channels: Vec<usize>,
     /// The noise matrix K.
     #[serde(default)]
     pub noise: NoiseSource,
@@ -213,6 +218,7 @@ impl LocalizerSpec {
                 self.channels.len()
             },
             raw: self.raw_mapping.clone(),
+            inverted: self.invert_channels.clone(),
         })
     }
 
@@ -225,6 +231,7 @@ impl LocalizerSpec {
             channels: Vec::new(),
             input_channels: Vec::new(),
             raw_mapping: None,
+            invert_channels: Vec::new(),
             noise: NoiseSource::None,
             noise_update: NoiseUpdate::Fixed,
             tracking: None,

@@ -96,6 +96,15 @@ pub(crate) fn prepare(
             InitialNoise::Given(Some(cm.to_noise_matrices(config.bin_range())?))
         }
     };
+    if let (false, Some(NoiseSource::CorrelationFile { path })) = (
+        spec.invert_channels.is_empty(),
+        algorithm.uses_noise().then_some(&spec.noise),
+    ) {
+        notes.push(format!(
+            "the inverted channels are negated in the audio, not in {}: its K must come from audio with the same channels inverted (soundloc noisecm --invert-channels)",
+            path.display()
+        ));
+    }
     if !algorithm.uses_noise() && spec.noise != NoiseSource::None {
         notes.push(format!("{} ignores the noise matrix", algorithm.name()));
     }
@@ -258,7 +267,8 @@ fn noise_from_recording(
         audio = crate::audio::resample::resample_audio(&audio, config.sample_rate_hz).map_err(ctx)?;
     }
     let idx = channels.resolve(audio.num_channels()).map_err(ctx)?;
-    let picked: Vec<Vec<f32>> = idx.iter().map(|&c| audio.channels[c].clone()).collect();
+    let mut picked: Vec<Vec<f32>> = idx.iter().map(|&c| audio.channels[c].clone()).collect();
+    channels.invert(&idx, &mut picked);
     crate::noise::estimate(config, audio.sample_rate_hz, &picked, None).map_err(ctx)
 }
 
