@@ -177,6 +177,13 @@ fn spectrum_and_plot_files_are_written() {
     let meta: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(format!("{}.json", npy.display())).unwrap()).unwrap();
     assert_eq!(meta["azimuth_deg"].as_array().unwrap().len(), 72);
+    // The room default's scale is named as it ran, not as the SEVD it is built on.
+    let label = meta["analysis"].as_str().unwrap();
+    assert!(
+        label.starts_with("normmusic (") && label.contains("coherence"),
+        "{meta}"
+    );
+    assert!(meta["description"].as_str().unwrap().contains(label), "{meta}");
 }
 
 #[test]

@@ -332,3 +332,57 @@ fn outputs_never_replace_a_noise_cm_pair() {
     }
     assert_eq!(std::fs::read(dir.join("K_i")).unwrap(), imag);
 }
+
+/// `-o -` is stdout, as without `-o` (also with the recording on stdin); "-" for any
+/// other output is refused, not written as a file named "-".
+#[test]
+fn dash_output_is_stdout_and_other_dash_outputs_are_refused() {
+    let (_, geo, wav) = scene();
+    let dir = tmp_dir("dash-out");
+    let run = |extra: &[&str]| {
+        bin()
+            .current_dir(&dir)
+            .arg("localize")
+            .arg(&wav)
+            .arg("--geometry")
+            .arg(&geo)
+            .args(OPTS)
+            .args(extra)
+            .output()
+            .unwrap()
+    };
+    let plain = run(&[]);
+    assert!(plain.status.success());
+    assert!(!plain.stdout.is_empty());
+    let dash = run(&["-o", "-"]);
+    assert!(dash.status.success(), "{}", String::from_utf8_lossy(&dash.stderr));
+    assert_eq!(dash.stdout, plain.stdout);
+    let mut child = spawn_piped(
+        bin()
+            .current_dir(&dir)
+            .args(["localize", "-", "--geometry"])
+            .arg(&geo)
+            .args(OPTS)
+            .args(["-o", "-"]),
+    );
+    child
+        .stdin
+        .take()
+        .unwrap()
+        .write_all(&std::fs::read(&wav).unwrap())
+        .unwrap();
+    let piped = child.wait_with_output().unwrap();
+    assert!(
+        piped.status.success(),
+        "{}",
+        String::from_utf8_lossy(&piped.stderr)
+    );
+    assert_eq!(piped.stdout, plain.stdout);
+    for flag in ["--log-text", "--odas-ssl", "--spectrum"] {
+        let o = run(&[flag, "-"]);
+        let e = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{flag}: {e}");
+        assert!(e.contains("\"-\" names no file here"), "{flag}: {e}");
+    }
+    assert!(!dir.join("-").exists());
+}

@@ -307,6 +307,9 @@ fn live_output_options_are_checked_before_any_work() {
     };
     assert!(run(&["--odas-sst", "127.0.0.1:9000"]).contains("--odas-sst needs --track"));
     assert!(run(&["--odas-ssl", "127.0.0.1:9001", "--odas-pots", "0"]).contains("--odas-pots"));
+    // Slot counts for an output that is not asked for are named, not ignored.
+    assert!(run(&["--odas-pots", "3"]).contains("--odas-ssl"));
+    assert!(run(&["--track", "--odas-tracks", "3"]).contains("--odas-sst"));
     assert!(run(&["--odas-ssl", "/no/such/dir/ssl.json"]).contains("/no/such/dir"));
     // An address with a typo is refused, not written to a file of that name.
     for bad in ["localhost:9000x", "localhost:9001 ", "127.0.0.1:"] {

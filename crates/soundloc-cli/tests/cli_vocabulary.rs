@@ -402,6 +402,25 @@ fn coherence_switches_say_what_ran() {
         );
         assert!(o.stdout.is_empty(), "{alg}: no work before the error");
     }
+    // Options SRP-PHAT has no use for are named, not ignored.
+    for opt in [
+        &["--coherence"][..],
+        &["--subspace-dim", "3"],
+        &["--denominator", "unsquared"],
+    ] {
+        let o = bin()
+            .args(["localize", w, "--geometry", g, "--algorithm", "srp-phat"])
+            .args(opt)
+            .output()
+            .unwrap();
+        let e = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{opt:?}: {e}");
+        assert!(
+            e.contains("would change nothing") && e.contains(opt[0]),
+            "{opt:?}: {e}"
+        );
+        assert!(o.stdout.is_empty());
+    }
 }
 
 /// `tf make` with positions in a frame whose origin lies outside the array (room

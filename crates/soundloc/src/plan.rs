@@ -17,7 +17,7 @@
 
 use crate::array::{Grid, TransferFunctions};
 use crate::audio::health::ClosePairs;
-use crate::config::{Algorithm, LocalizeConfig, SpectrumWeight};
+use crate::config::{Algorithm, Denominator, LocalizeConfig, SpectrumWeight};
 use crate::lanes::{self, Planar};
 use crate::noise::NoiseMatrices;
 use crate::peaks::PeakTable;
@@ -377,6 +377,26 @@ fn validate_config(c: &LocalizeConfig) -> Result<()> {
              or use --algorithm gevd",
             c.algorithm.name()
         ));
+    }
+    if c.algorithm == Algorithm::SrpPhat {
+        // SRP-PHAT has no subspace and no denominator, and its phase transform already
+        // removes the channels' gains: these would change nothing. (The eigenvalue weight
+        // is on by default everywhere, so SRP-PHAT ignores it rather than refuse it.)
+        let unused: Vec<&str> = [
+            (c.subspace_dim.is_some(), "--subspace-dim (subspace_dim=)"),
+            (c.coherence, "--coherence (coherence=True)"),
+            (c.denominator != Denominator::Squared, "--denominator"),
+        ]
+        .into_iter()
+        .filter_map(|(given, name)| given.then_some(name))
+        .collect();
+        if !unused.is_empty() {
+            return bad(format!(
+                "srp-phat has no signal subspace or MUSIC denominator, and its phase transform already \
+                 removes the channels' gains: {} would change nothing; drop it or name a MUSIC algorithm",
+                unused.join(", ")
+            ));
+        }
     }
     if !c.numerator.is_raw() && c.algorithm != Algorithm::Gevd {
         return bad(format!(

@@ -196,7 +196,7 @@ pub struct RunArgs {
     /// Output format.
     #[arg(long, value_enum, default_value = "jsonl")]
     pub format: FormatArg,
-    /// Write results here instead of stdout.
+    /// Write results here instead of stdout (`-o -`: stdout).
     #[arg(long, short = 'o')]
     pub output: Option<PathBuf>,
     /// Write the dB spectrum [result][direction] as .npy (plus FILE.json next to it, e.g. spec.npy.json, with times and directions).

@@ -75,10 +75,10 @@ pub struct LiveArgs {
     #[arg(long, value_name = "HOST:PORT|FILE")]
     pub odas_sst: Option<String>,
     /// Potential sources per ODAS SSL message (ODAS's nPots).
-    #[arg(long, default_value_t = odas::DEFAULT_POTS)]
+    #[arg(long, default_value_t = odas::DEFAULT_POTS, requires = "odas_ssl")]
     pub odas_pots: usize,
     /// Track slots per ODAS SST message (ODAS's nTracks).
-    #[arg(long, default_value_t = odas::DEFAULT_TRACKS)]
+    #[arg(long, default_value_t = odas::DEFAULT_TRACKS, requires = "odas_sst")]
     pub odas_tracks: usize,
 }
 
@@ -227,7 +227,7 @@ impl Sinks {
         let odas_files = [(&l.odas_ssl, "--odas-ssl"), (&l.odas_sst, "--odas-sst")];
         let mut outputs: Vec<(&Path, &str)> = Vec::new();
         for (p, what) in [
-            (a.output.as_deref(), "--output"),
+            (a.output.as_deref().filter(|p| !is_stdout(p)), "--output"),
             (a.spectrum.as_deref(), "--spectrum"),
             (sidecar.as_deref(), "--spectrum's .json"),
             (a.plot.as_deref(), "--plot"),
@@ -314,7 +314,7 @@ impl Sinks {
 
     /// Open the streaming outputs (the `-o` temporary file, the HARK stream connection).
     pub fn open(a: &RunArgs, loc: &Localizer, source: &str) -> anyhow::Result<Self> {
-        let dest = match &a.output {
+        let dest = match a.output.as_ref().filter(|p| !is_stdout(p)) {
             Some(p) => Dest::File(Lines::new(a.format, AtomicFile::create(p)?)?, p.clone()),
             None => {
                 Dest::Stdout(Lines::new(a.format, std::io::stdout()).context("writing results to stdout")?)
@@ -549,7 +549,7 @@ impl Sinks {
         let el: Vec<f64> = (0..grid.len()).map(|d| grid.elevation_deg(d)).collect();
         if let Some(table) = &self.spectrum {
             if let Some(p) = &a.spectrum {
-                write_spectrum(p, table, &az, &el, loc.config().algorithm)?;
+                write_spectrum(p, table, &az, &el, loc.config())?;
                 super::localize::note(a.quiet, &format!("spectrum written to {}", p.display()));
             }
             if let Some(p) = &a.plot {
@@ -588,18 +588,20 @@ fn write_spectrum(
     table: &SpectrumTable,
     az: &[f64],
     el: &[f64],
-    algorithm: soundloc::Algorithm,
+    config: &soundloc::LocalizeConfig,
 ) -> anyhow::Result<()> {
     let rows = table.frames.len();
     write_atomically(path, |w| write_npy_f32(w, rows, table.num_dirs, &table.db))?;
+    let algorithm = config.algorithm;
     let what = if algorithm.is_music() {
         "MUSIC spectrum"
     } else {
         "steered response power (SRP-PHAT)"
     };
     let meta = serde_json::json!({
-        "description": format!("dB {what} 10*log10(P+1), {} summed over the bins, rows = results, columns = directions", algorithm.name()),
+        "description": format!("dB {what} 10*log10(P+1), {} summed over the bins, rows = results, columns = directions", config.label()),
         "algorithm": algorithm.name(),
+        "analysis": config.label(),
         "shape": [rows, table.num_dirs],
         "frames": table.frames,
         "times_s": table.times_s,
@@ -618,4 +620,9 @@ fn spectrum_sidecar(path: &Path) -> PathBuf {
     let mut side = path.as_os_str().to_owned();
     side.push(".json");
     PathBuf::from(side)
+}
+
+/// `-o -`: the results on stdout, as without `-o`.
+pub fn is_stdout(p: &Path) -> bool {
+    p.as_os_str() == "-"
 }

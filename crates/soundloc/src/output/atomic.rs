@@ -324,6 +324,12 @@ pub fn check_output_path(path: &Path, what: &str) -> Result<()> {
     if path.as_os_str().is_empty() {
         return Err(Error::Config(format!("{what}: the file name is empty")));
     }
+    // "-" is stdin for inputs; as an output it would be a file named "-".
+    if path.as_os_str() == "-" {
+        return Err(Error::Config(format!(
+            "{what} -: \"-\" names no file here (stdout is for localize's results: -o - or no -o); name a file"
+        )));
+    }
     if path.is_dir() {
         return Err(bad(
             io::ErrorKind::InvalidInput,
