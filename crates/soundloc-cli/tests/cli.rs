@@ -438,11 +438,21 @@ fn noisy_recording_with_noise_range_and_online_segments() {
         .unwrap();
     let zip = tmp("circle8.zip");
     let o = bin()
-        .args(["tf", "make", "--builtin", "circle8", "--grid", "ring:5", "-o"])
+        .args([
+            "tf",
+            "make",
+            "--builtin",
+            "circle8",
+            "--grid",
+            "ring:5",
+            "-q",
+            "-o",
+        ])
         .arg(&zip)
         .output()
         .unwrap();
     assert!(o.status.success(), "{}", stderr(&o));
+    assert!(o.stdout.is_empty(), "-q: no summary");
     for noise in [["--noise-range", "0:1"], ["--noise-segments", "0:1"]] {
         let o = bin()
             .arg("localize")

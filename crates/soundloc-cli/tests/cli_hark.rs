@@ -272,6 +272,43 @@ fn noisecm_make_text_and_zip_load_back() {
     let cm = NoiseCm::load(&zip, Expected::default()).unwrap();
     assert_eq!((cm.num_mics, cm.nfft, cm.num_bins()), (2, 256, 129));
 
+    // --invert-channels: K of the audio with that input channel negated; -q: nothing on
+    // stdout. An inverted channel that is not kept is named.
+    let inv = d.join("Kinv");
+    let out = ok(&[
+        "noisecm",
+        "make",
+        s(&wav),
+        "-o",
+        s(&inv),
+        "--invert-channels",
+        "1",
+        "-q",
+    ]);
+    assert!(out.is_empty(), "{out}");
+    let mut negated = audio.channels.clone();
+    negated[1].iter_mut().for_each(|v| *v = -*v);
+    let (want, _) = NoiseCm::estimate(&negated, 16000, 512, 160, WindowFunction::Conj, None).unwrap();
+    assert_eq!(
+        NoiseCm::load(&d.join("Kinv_r"), Expected::default()).unwrap(),
+        want
+    );
+    let e = fails(&[
+        "noisecm",
+        "make",
+        s(&wav),
+        "-o",
+        s(&inv),
+        "--channels",
+        "0,2",
+        "--invert-channels",
+        "1",
+    ]);
+    assert!(
+        e.contains("input channel 1 is to be inverted, but it feeds no microphone"),
+        "{e}"
+    );
+
     // Inspect both.
     let text = ok(&["noisecm", "inspect", s(&re)]);
     assert_mentions(

@@ -87,6 +87,9 @@ pub struct MakeArgs {
     /// --invert-channels`: K then matches a localization with the same option.
     #[arg(long, value_delimiter = ',')]
     pub invert_channels: Vec<usize>,
+    /// No summary of what was written (warnings stay), as `localize -q`.
+    #[arg(long, short = 'q')]
+    pub quiet: bool,
 }
 
 #[derive(clap::Args, Debug)]
@@ -192,15 +195,19 @@ fn make(a: MakeArgs) -> anyhow::Result<ExitCode> {
     match format {
         CmFormat::Text => {
             cm.write_text_pair(&re, &im)?;
-            println!(
-                "wrote {} (real part) and {} (imaginary part): {shape}",
-                re.display(),
-                im.display()
-            );
+            if !a.quiet {
+                println!(
+                    "wrote {} (real part) and {} (imaginary part): {shape}",
+                    re.display(),
+                    im.display()
+                );
+            }
         }
         CmFormat::Zip => {
             cm.write_zip(&a.output)?;
-            println!("wrote {}: {shape}", a.output.display());
+            if !a.quiet {
+                println!("wrote {}: {shape}", a.output.display());
+            }
         }
     }
     let s = cm.summary();

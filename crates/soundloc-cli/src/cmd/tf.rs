@@ -85,6 +85,9 @@ pub struct MakeArgs {
     /// Output zip.
     #[arg(short, long)]
     pub output: PathBuf,
+    /// No summary of what was written, no notes (as `localize -q`).
+    #[arg(long, short = 'q')]
+    pub quiet: bool,
 }
 
 pub fn run(a: Args) -> anyhow::Result<ExitCode> {
@@ -134,7 +137,7 @@ fn make(a: MakeArgs) -> anyhow::Result<ExitCode> {
         (None, None) => bail!("give --geometry FILE or --builtin"),
     }
     .direction_frame(a.radius);
-    if let Some(n) = moved {
+    if let Some(n) = moved.filter(|_| !a.quiet) {
         eprintln!("soundloc: {n}");
     }
     let grid = a.grid.build(a.radius);
@@ -148,6 +151,9 @@ fn make(a: MakeArgs) -> anyhow::Result<ExitCode> {
         a.speed_of_sound,
     )?;
     write_tf_zip(&tf, &a.output)?;
+    if a.quiet {
+        return Ok(ExitCode::SUCCESS);
+    }
     println!(
         "wrote {}: {} mics, {} directions ({}, {} m), {} bins (nfft {}, {} Hz)",
         a.output.display(),
