@@ -233,6 +233,7 @@ fn results() -> Vec<LocalizationResult> {
                 y: 0.49,
                 z: 0.17,
                 power_db: 24.5,
+                held: false,
             }],
         })
         .collect()

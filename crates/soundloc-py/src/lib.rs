@@ -163,6 +163,7 @@ pub(crate) fn results<'py>(
     let mut pw = vec![f64::NAN; n * s];
     let mut gi = vec![-1i64; n * s];
     let mut ids = vec![-1i64; n * s];
+    let mut held = vec![false; n * s];
     for (i, x) in r.iter().enumerate() {
         for (j, src) in x.sources.iter().enumerate() {
             az[i * s + j] = src.azimuth_deg;
@@ -170,6 +171,7 @@ pub(crate) fn results<'py>(
             pw[i * s + j] = src.power_db;
             gi[i * s + j] = src.grid_index as i64;
             ids[i * s + j] = src.id.unwrap_or(-1);
+            held[i * s + j] = src.held;
         }
     }
     let shape = |v: Vec<f64>| Array2::from_shape_vec((n, s), v);
@@ -192,6 +194,12 @@ pub(crate) fn results<'py>(
     d.set_item("power_db", shape(pw).map_err(bad)?.into_pyarray(py))?;
     d.set_item("grid_index", shape_i(gi).map_err(bad)?.into_pyarray(py))?;
     d.set_item("ids", shape_i(ids).map_err(bad)?.into_pyarray(py))?;
+    d.set_item(
+        "held",
+        Array2::from_shape_vec((n, s), held)
+            .map_err(bad)?
+            .into_pyarray(py),
+    )?;
     d.set_item(
         "num_active",
         r.iter()

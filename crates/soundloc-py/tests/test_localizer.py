@@ -451,6 +451,18 @@ def test_room_default_tracks_start_only_where_sources_are_active():
         assert np.mean([min(angle(a, t) for a in row if a == a) <= 5.0 for row in gated.azimuth_deg[talk]]) >= 0.8
     hark = localizer(track_active_only=False, **kw).localize(x, FS)
     assert np.mean(~np.isnan(hark.azimuth_deg[silent][:, 0])) >= 0.5
+    # After the talkers stop, their tracks are carried through the pause (0.8 s), marked
+    # held; while they talk, the tracked sources are observed.
+    after = localizer(**kw).localize(np.concatenate([x, quiet]), FS)
+    tracked = after.ids >= 0
+    talking = (after.times >= 1.6) & (after.times < 2.5)
+    assert after.held[talking][tracked[talking]].mean() < 0.2
+    # PAST windows wholly after the talk (t − 0.49 s ≥ 3 s), within the pause.
+    pause = (after.times >= 3.55) & (after.times < 3.95)
+    assert pause.sum() >= 3 and after.held[pause][tracked[pause]].all() and tracked[pause].any()
+    recs = after.to_records()
+    assert all(s.get("held", False) == bool(after.held[i, j])
+               for i, r in enumerate(recs) for j, s in enumerate(r["sources"]))
     with pytest.raises(ValueError, match="track=True"):
         localizer(track_active_only=True)
 

@@ -22,6 +22,11 @@ pub struct Source {
     pub z: f64,
     /// MUSIC power in dB: 10·log10(P̄ + 1).
     pub power_db: f64,
+    /// A tracked source not observed in this window: carried at its last observed
+    /// direction and power while its PAUSE_LENGTH runs, as HARK's SourceTracker outputs
+    /// it (written `"held": true` in JSON; absent = false).
+    #[serde(skip_serializing_if = "std::ops::Not::not", default)]
+    pub held: bool,
 }
 
 /// The result of one correlation window.

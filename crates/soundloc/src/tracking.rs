@@ -39,7 +39,7 @@
 //! The output holds every alive source — claimed, new **and carried** — as HARK's
 //! SourceTracker outputs its whole source list each frame: a carried source appears at its
 //! last position with its last power, which bridges short pauses in speech for downstream
-//! separation. Sources are sorted strongest first (ties: lower id).
+//! separation, marked [`Source::held`]. Sources are sorted strongest first (ties: lower id).
 //!
 //! **Unit of `PAUSE_LENGTH`.** HARK runs SourceTracker once per STFT frame (LocalizeMUSIC
 //! holds its last result between PERIODs) and subtracts 10 per call, so `PAUSE_LENGTH` is in
@@ -379,7 +379,14 @@ impl SourceTracker {
             }
         }
 
-        let mut sources: Vec<Source> = self.tracks.iter().map(|t| t.source.clone()).collect();
+        let mut sources: Vec<Source> = self
+            .tracks
+            .iter()
+            .map(|t| Source {
+                held: t.last_match_frame != frame,
+                ..t.source.clone()
+            })
+            .collect();
         sort_strongest_first(&mut sources);
         LocalizationResult {
             num_active: result.num_active,
@@ -498,25 +505,27 @@ pub struct SourceSummary {
     pub id: i64,
     /// Frame of the first result holding the id.
     pub start_frame: usize,
-    /// Frame of the last result holding the id.
+    /// Frame of the last result observing the id (not [`Source::held`]: the pause a
+    /// tracker carries a source through after it falls silent is not counted).
     pub end_frame: usize,
     /// `time_s` of the first result holding the id, seconds.
     pub start_s: f64,
-    /// `time_s` of the last result holding the id, seconds.
+    /// `time_s` of the last result observing the id, seconds.
     pub end_s: f64,
-    /// Circular mean of the azimuths (the azimuth of the mean horizontal unit vector,
-    /// so 170° and −170° average to 180°), degrees.
+    /// Circular mean of the observed azimuths (the azimuth of the mean horizontal unit
+    /// vector, so 170° and −170° average to 180°), degrees.
     pub mean_azimuth_deg: f64,
     /// Mean of the elevations, degrees: always within the elevations seen (the elevation
     /// of the mean 3-D unit vector would rise toward the pole as the azimuths spread).
     pub mean_elevation_deg: f64,
     /// Largest power over the source's results, dB.
     pub max_power_db: f64,
-    /// Number of results holding the id.
+    /// Number of results observing the id (held ones not counted).
     pub num_results: usize,
 }
 
-/// One summary per id (sorted by id); sources without an id are ignored.
+/// One summary per id (sorted by id) over the results that observe it; sources without an
+/// id, and [`Source::held`] ones, are ignored.
 pub fn summarize(results: &[LocalizationResult]) -> Vec<SourceSummary> {
     struct Acc {
         s: SourceSummary,
@@ -526,7 +535,7 @@ pub fn summarize(results: &[LocalizationResult]) -> Vec<SourceSummary> {
     }
     let mut acc: BTreeMap<i64, Acc> = BTreeMap::new();
     for r in results {
-        for s in &r.sources {
+        for s in r.sources.iter().filter(|s| !s.held) {
             let Some(id) = s.id else { continue };
             let v = unit_vector(s);
             let a = acc.entry(id).or_insert_with(|| Acc {

@@ -34,6 +34,7 @@ fn src(id: Option<i64>, x: f64, y: f64, z: f64) -> Source {
         y,
         z,
         power_db: 27.5,
+        held: false,
     }
 }
 

@@ -25,6 +25,7 @@ fn results() -> Vec<LocalizationResult> {
                         y: az.sin(),
                         z: 0.0,
                         power_db: 25.0 - k as f64,
+                        held: false,
                     }
                 })
                 .collect(),

@@ -17,6 +17,7 @@ fn peak(az_deg: f64, el_deg: f64, power_db: f64) -> Source {
         y: el.cos() * az.sin(),
         z: el.sin(),
         power_db,
+        held: false,
     }
 }
 
@@ -86,14 +87,38 @@ fn source_ends_after_pause_length_without_peaks() {
     for f in 0..10 {
         t.update(&result(f, vec![peak(45.0, 0.0, 30.0 + f as f64)]));
     }
-    // Last peak at frame 9: carried at its last position and power through frame 89.
+    // Last peak at frame 9: carried at its last position and power through frame 89,
+    // marked held; the summary ends at its last observation.
+    let mut run = Vec::new();
     for f in 10..=89 {
         let out = t.update(&result(f, vec![]));
         assert_eq!(out.sources.len(), 1, "frame {f}");
         assert_eq!(out.sources[0].id, Some(0));
         assert_eq!(out.sources[0].azimuth_deg, 45.0);
         assert_eq!(out.sources[0].power_db, 39.0);
+        assert!(out.sources[0].held, "frame {f}");
+        run.push(out);
     }
+    let line = soundloc::output::jsonl::to_json_line(&run[0]);
+    assert!(line.contains("\"held\":true"), "{line}");
+    assert_eq!(soundloc::output::jsonl::from_json_line(&line).unwrap(), run[0]);
+    let mut t2 = SourceTracker::new(cfg);
+    let observed: Vec<LocalizationResult> = (0..10)
+        .map(|f| t2.update(&result(f, vec![peak(45.0, 0.0, 30.0 + f as f64)])))
+        .collect();
+    assert!(observed.iter().all(|r| !r.sources[0].held));
+    let line = soundloc::output::jsonl::to_json_line(&observed[0]);
+    assert!(!line.contains("held"), "{line}");
+    let sum = summarize(&[observed, run].concat());
+    assert_eq!(
+        (
+            sum.len(),
+            sum[0].start_frame,
+            sum[0].end_frame,
+            sum[0].num_results
+        ),
+        (1, 0, 9, 10)
+    );
     let out = t.update(&result(90, vec![]));
     assert!(out.sources.is_empty(), "ended at frame 90: {out:?}");
     assert_eq!(t.num_alive(), 0);

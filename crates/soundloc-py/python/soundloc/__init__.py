@@ -155,6 +155,10 @@ class Results:
     notes: List[str] = field(default_factory=list)
     # The estimated number of active sources per result (MDL; -1 where not estimated).
     num_active: Optional[np.ndarray] = None
+    # Tracked sources carried through their pause (PAUSE_LENGTH) without being observed in
+    # that window, at their last direction and power (as HARK's SourceTracker outputs
+    # them); shape of ids, False where not tracked or observed.
+    held: Optional[np.ndarray] = None
 
     def __len__(self) -> int:
         return len(self.times)
@@ -183,6 +187,7 @@ class Results:
             power_db=cat("power_db", np.nan, float),
             grid_index=cat("grid_index", -1, np.int64),
             ids=cat("ids", -1, np.int64),
+            held=cat("held", False, bool) if all(p.held is not None for p in parts) else None,
             spectrum_db=np.concatenate(spectra) if spectra else None,
             notes=[n for p in parts for n in p.notes],
             num_active=np.concatenate([p.num_active if p.num_active is not None else np.full(len(p), -1)
@@ -192,7 +197,7 @@ class Results:
     def to_records(self) -> list:
         """One dict per result, as ``soundloc localize`` writes JSON lines: frame, time_s,
         sources (id, grid_index, azimuth_deg, elevation_deg, x, y, z as a unit vector,
-        power_db), num_active where estimated."""
+        power_db, held where true), num_active where estimated."""
         out = []
         for i in range(len(self.times)):
             sources = []
@@ -208,6 +213,8 @@ class Results:
                     x=float(np.cos(e) * np.cos(a)), y=float(np.cos(e) * np.sin(a)), z=float(np.sin(e)),
                     power_db=float(self.power_db[i, j]),
                 ))
+                if self.held is not None and self.held[i, j]:
+                    sources[-1]["held"] = True
             rec = dict(frame=int(self.frames[i]), time_s=float(self.times[i]), sources=sources)
             if self.num_active is not None and self.num_active[i] >= 0:
                 rec["num_active"] = int(self.num_active[i])

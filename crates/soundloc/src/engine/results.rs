@@ -129,5 +129,6 @@ pub fn source(grid: &crate::array::Grid, dir: usize, power_db: f64) -> Source {
         y,
         z,
         power_db,
+        held: false,
     }
 }

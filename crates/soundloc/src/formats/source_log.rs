@@ -75,6 +75,7 @@ fn source_from_xyz(id: i64, x: f64, y: f64, z: f64) -> Source {
         y,
         z,
         power_db: f64::NAN,
+        held: false,
     }
 }
 

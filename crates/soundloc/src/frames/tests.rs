@@ -152,7 +152,7 @@ fn factor_frames_localize_as_the_snapshots() {
     ] {
         let c = LocalizeConfig {
             normalize_bins,
-            subspace_dim: Some(2),
+            subspace_dim: alg.is_music().then_some(2),
             ..config(alg)
         };
         let (factored, snapshots, worst) = both_paths::<f64>(&c, &tf, &view);

@@ -101,6 +101,7 @@ mod tests {
             y: 0.0,
             z: 0.0,
             power_db: p,
+            held: false,
         }
     }
 

@@ -28,6 +28,8 @@ struct SourceOut {
     z: Option<f64>,
     power_db: Option<f64>,
     grid_index: usize,
+    #[serde(skip_serializing_if = "std::ops::Not::not")]
+    held: bool,
 }
 
 #[derive(Serialize)]
@@ -50,6 +52,8 @@ struct SourceIn {
     z: Option<f64>,
     power_db: Option<f64>,
     grid_index: usize,
+    #[serde(default)]
+    held: bool,
 }
 
 #[derive(Deserialize)]
@@ -86,6 +90,7 @@ pub fn to_json_line(result: &LocalizationResult) -> String {
                 z: fin(s.z),
                 power_db: fin(s.power_db),
                 grid_index: s.grid_index,
+                held: s.held,
             })
             .collect(),
         num_active: result.num_active,
@@ -113,6 +118,7 @@ pub fn from_json_line(line: &str) -> std::result::Result<LocalizationResult, ser
                 y: nan(s.y),
                 z: nan(s.z),
                 power_db: nan(s.power_db),
+                held: s.held,
             })
             .collect(),
     })
@@ -202,6 +208,7 @@ mod tests {
                         y: 0.5,
                         z: 0.0,
                         power_db: 27.125,
+                        held: false,
                     },
                     Source {
                         id: None,
@@ -212,6 +219,7 @@ mod tests {
                         y: -0.2,
                         z: 0.3,
                         power_db: 12.5,
+                        held: false,
                     },
                 ],
             },

@@ -194,6 +194,7 @@ mod tests {
                 y: 1.0,
                 z: 0.0,
                 power_db: 12.5,
+                held: false,
             }],
         };
         let v: serde_json::Value = serde_json::from_str(&result(&r)).unwrap();

@@ -169,6 +169,7 @@ mod tests {
             y: 0.0,
             z: 0.0,
             power_db: db,
+            held: false,
         }
     }
 
