@@ -613,6 +613,31 @@ fn invert_channels_undoes_a_flipped_channel() {
         "the inverted channel must give the original results"
     );
     assert_ne!(plain.stdout, direct.stdout);
+    // A noise-CM file is taken as it is, and the run says so.
+    let cm = tmp("flipped-k.zip");
+    let made = bin()
+        .args(["noisecm", "make", "-q", "--invert-channels", "5", "-o"])
+        .arg(&cm)
+        .arg(&flipped)
+        .output()
+        .unwrap();
+    assert!(made.status.success(), "{}", stderr(&made));
+    let o = bin()
+        .arg("localize")
+        .arg(&flipped)
+        .arg("--tf")
+        .arg(&tf)
+        .arg("--noise-cm")
+        .arg(&cm)
+        .args(["--device", "cpu", "--period", "25", "--invert-channels", "5"])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("negated in the audio, not in"),
+        "{}",
+        stderr(&o)
+    );
     let o = run(&flipped, &["--invert-channels", "8"]);
     assert_clean_failure(
         &o,

@@ -270,8 +270,15 @@ impl ChannelMap {
     /// Negate the inverted microphones' samples in `mics` (one channel per microphone, in
     /// the order of `idx`).
     pub fn invert(&self, idx: &[usize], mics: &mut [Vec<f32>]) {
+        self.invert_last(idx, mics, usize::MAX);
+    }
+
+    /// [`invert`](Self::invert) on the last `n` samples of each channel only (those just
+    /// appended to a stream's buffers).
+    pub fn invert_last(&self, idx: &[usize], mics: &mut [Vec<f32>], n: usize) {
         for m in self.inverted_mics(idx) {
-            mics[m].iter_mut().for_each(|v| *v = -*v);
+            let from = mics[m].len().saturating_sub(n);
+            mics[m][from..].iter_mut().for_each(|v| *v = -*v);
         }
     }
 

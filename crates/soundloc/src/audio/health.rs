@@ -378,9 +378,10 @@ impl ChannelHealth {
         sorted.sort_by(f64::total_cmp);
         let median = sorted[m / 2];
         let leave_out = "leave it out with the TF channel selection (--channels, channels= in Python)";
+        let integral = self.levels.iter().all(|l| !l.fractional);
         // Integer samples under one quantisation step: rounding, not microphones, sets the
         // levels (module docs).
-        if self.levels.iter().all(|l| !l.fractional) && median < 1.0 {
+        if integral && median < 1.0 {
             if !self.said_quiet {
                 self.said_quiet = true;
                 let flat: Vec<String> = (0..m)
@@ -423,7 +424,7 @@ impl ChannelHealth {
         let clipped: Vec<usize> = (0..m)
             .filter(|&c| {
                 !self.said[c][1]
-                    && full_scale(self.levels[c].peak, self.levels.iter().any(|l| l.fractional))
+                    && full_scale(self.levels[c].peak, !integral)
                     && self.levels[c].at_peak as f64 > CLIP_FRACTION * n
                     && self.levels[c].varies
             })

@@ -376,18 +376,14 @@ impl<T: Real> Engine<T> {
     /// [`push`](Self::push) after the checks: `len` samples of `block`, channels `idx`.
     fn push_checked(&mut self, block: &Block<'_>, idx: &[usize], len: usize, out: &mut Output) -> Result<()> {
         let step = CHUNK_FRAMES * self.plan.config.hop;
-        let inverted = self.options.channels.inverted_mics(idx);
         let mut pos = 0;
         while pos < len {
             let n = step.min(len - pos);
             let first = self.stft.samples_received();
+            let map = &self.options.channels;
             self.stft.append(n, |bufs| {
                 block.extend_channels(idx, pos..pos + n, bufs);
-                for &m in &inverted {
-                    let b = &mut bufs[m];
-                    let from = b.len() - n;
-                    b[from..].iter_mut().for_each(|v| *v = -*v);
-                }
+                map.invert_last(idx, bufs, n);
             });
             let (buf_start, buf) = self.stft.buffered();
             let health = self.health.get_or_insert_with(|| {

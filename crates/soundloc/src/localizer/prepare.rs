@@ -96,14 +96,14 @@ pub(crate) fn prepare(
             InitialNoise::Given(Some(cm.to_noise_matrices(config.bin_range())?))
         }
     };
-    if let (false, Some(NoiseSource::CorrelationFile { path })) = (
-        spec.invert_channels.is_empty(),
-        algorithm.uses_noise().then_some(&spec.noise),
-    ) {
-        notes.push(format!(
-            "the inverted channels are negated in the audio, not in {}: its K must come from audio with the same channels inverted (soundloc noisecm --invert-channels)",
-            path.display()
-        ));
+    match &spec.noise {
+        NoiseSource::CorrelationFile { path } if algorithm.uses_noise() && !spec.invert_channels.is_empty() => {
+            notes.push(format!(
+                "the inverted channels are negated in the audio, not in {}: its K must come from audio with the same channels inverted (soundloc noisecm --invert-channels)",
+                path.display()
+            ))
+        }
+        _ => {}
     }
     if !algorithm.uses_noise() && spec.noise != NoiseSource::None {
         notes.push(format!("{} ignores the noise matrix", algorithm.name()));
