@@ -273,16 +273,69 @@ fn odas_ssl_and_sst_reach_a_receiver_that_restarts() {
             "--geometry",
             geo.to_str().unwrap(),
         ])
-        .args(["--grid", "ring:5", "--period", "10", "--device", "cpu", "-q"])
+        .args(["--grid", "ring:5", "--period", "10", "--device", "cpu"])
         .arg("--odas-ssl")
         .arg(&untracked)
         .output()
         .unwrap();
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
     assert!(
         std::fs::read_to_string(&untracked).unwrap() == std::fs::read_to_string(&fssl).unwrap(),
         "SSL with --track differs from SSL without it"
     );
+    // Two peaks per result in four pots: the note says the other two are zeros and how
+    // to fill them; with --max-peaks 4 they are the windows' next peaks, where the
+    // spectrum has that many local maxima.
+    assert!(
+        err.contains("the other 2 are zeros") && err.contains("--max-peaks 4"),
+        "{err}"
+    );
+    let filled = tmp("ssl-filled.json");
+    let o = bin()
+        .args([
+            "localize",
+            wav.to_str().unwrap(),
+            "--geometry",
+            geo.to_str().unwrap(),
+        ])
+        .args([
+            "--grid",
+            "ring:5",
+            "--period",
+            "10",
+            "--device",
+            "cpu",
+            "--max-peaks",
+            "4",
+        ])
+        .arg("--odas-ssl")
+        .arg(&filled)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success() && !err.contains("are zeros"), "{err}");
+    let energies = |path: &Path| -> Vec<Vec<f64>> {
+        let mut text = std::fs::read_to_string(path).unwrap();
+        let msgs = odas_messages(&mut text);
+        msgs.iter()
+            .map(|m| {
+                decode_odas(m, false, 4)
+                    .1
+                    .iter()
+                    .map(|e| e["E"].as_f64().unwrap())
+                    .collect()
+            })
+            .collect()
+    };
+    let (two, four) = (energies(&untracked), energies(&filled));
+    assert_eq!(two.len(), four.len());
+    for (a, b) in two.iter().zip(&four) {
+        assert_eq!(a[..2], b[..2], "the strongest two are the same");
+        assert!(a[2..].iter().all(|&e| e == 0.0));
+    }
+    // A window whose spectrum has only two local maxima keeps the zeros.
+    assert!(four.iter().filter(|e| e[2] > 0.0).count() >= 5, "{four:?}");
 }
 
 #[test]

@@ -463,6 +463,11 @@ def test_room_default_tracks_start_only_where_sources_are_active():
     recs = after.to_records()
     assert all(s.get("held", False) == bool(after.held[i, j])
                for i, r in enumerate(recs) for j, s in enumerate(r["sources"]))
+    df = after.to_pandas()
+    shown = ~np.isnan(after.azimuth_deg)
+    assert len(df) == shown.sum() and df.held.sum() == (after.held & shown).sum() > 0
+    assert list(df.held) == list(after.held[shown])
+    assert list(df.grid_index) == list(after.grid_index[shown])
     with pytest.raises(ValueError, match="track=True"):
         localizer(track_active_only=True)
 

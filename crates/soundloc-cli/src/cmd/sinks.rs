@@ -346,6 +346,20 @@ impl Sinks {
                 ),
             );
         }
+        let peaks = loc.config().peaks_out();
+        if ssl.is_some() && peaks < l.odas_pots {
+            let (pots, rest) = (l.odas_pots, l.odas_pots - peaks);
+            super::localize::note(
+                a.quiet,
+                &format!(
+                    "ODAS SSL messages carry {pots} potential sources (--odas-pots), each result \
+                     at most {peaks} peaks (--max-peaks, or --num-sources when not given): the \
+                     other {rest} are zeros (E 0). --max-peaks {pots} fills them with the next \
+                     peaks where a window has that many (every output then reports them); \
+                     --odas-pots {peaks} leaves them out"
+                ),
+            );
+        }
         let view = match &l.serve {
             Some(addr) => {
                 // A bare port means loopback.

@@ -222,7 +222,8 @@ class Results:
         return out
 
     def to_pandas(self):
-        """One row per (result, source): frame, time_s, rank, id, azimuth_deg, elevation_deg, power_db."""
+        """One row per (result, source): frame, time_s, rank, id, azimuth_deg, elevation_deg,
+        power_db, grid_index, held (True for a tracked source carried through its pause)."""
         import pandas as pd
 
         rows = []
@@ -239,6 +240,8 @@ class Results:
                         azimuth_deg=float(self.azimuth_deg[i, j]),
                         elevation_deg=float(self.elevation_deg[i, j]),
                         power_db=float(self.power_db[i, j]),
+                        grid_index=int(self.grid_index[i, j]),
+                        held=bool(self.held is not None and self.held[i, j]),
                     )
                 )
         return pd.DataFrame(rows)

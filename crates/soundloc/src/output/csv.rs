@@ -1,12 +1,15 @@
 //! CSV: one row per localized source.
 //!
 //! ```text
-//! frame,time_s,rank,id,azimuth_deg,elevation_deg,x,y,z,power_db,grid_index
-//! 50,0.5,0,3,30,0,0.8660254037844386,0.5,0,27.1,42
+//! frame,time_s,rank,id,azimuth_deg,elevation_deg,x,y,z,power_db,grid_index,held
+//! 50,0.5,0,3,30,0,0.8660254037844386,0.5,0,27.1,42,
+//! 60,0.6,0,3,30,0,0.8660254037844386,0.5,0,27.1,42,1
 //! ```
 //!
 //! `rank` is the 0-based position of the source in its result (0 = strongest); `id` is
-//! empty for untracked sources. Angles in degrees, `time_s` in seconds, `power_db` =
+//! empty for untracked sources; `held` is `1` for a tracked source carried through its
+//! pause (PAUSE_LENGTH) without being observed in that window, at its last direction and
+//! power, and empty otherwise. Angles in degrees, `time_s` in seconds, `power_db` =
 //! 10·log10(P̄ + 1). A result with no sources produces no row. Numbers use Rust's
 //! shortest round-trip formatting; non-finite values are written as `NaN`, `inf`, `-inf`.
 
@@ -16,7 +19,7 @@ use std::io::{self, Write};
 use std::path::Path;
 
 /// The header line (without newline).
-pub const CSV_HEADER: &str = "frame,time_s,rank,id,azimuth_deg,elevation_deg,x,y,z,power_db,grid_index";
+pub const CSV_HEADER: &str = "frame,time_s,rank,id,azimuth_deg,elevation_deg,x,y,z,power_db,grid_index,held";
 
 /// Writes results as CSV to any [`Write`]: the header on creation, then one row per source.
 #[derive(Debug)]
@@ -45,7 +48,7 @@ impl<W: Write> CsvWriter<W> {
             // Writing to a String cannot fail.
             let _ = writeln!(
                 self.buf,
-                "{},{},{},{},{},{},{},{},{},{},{}",
+                "{},{},{},{},{},{},{},{},{},{},{},{}",
                 result.frame,
                 result.time_s,
                 rank,
@@ -56,7 +59,8 @@ impl<W: Write> CsvWriter<W> {
                 s.y,
                 s.z,
                 s.power_db,
-                s.grid_index
+                s.grid_index,
+                if s.held { "1" } else { "" }
             );
         }
         if self.buf.is_empty() {
@@ -120,6 +124,15 @@ mod tests {
                 time_s: 0.5,
                 sources: vec![src(Some(7), 30.0, 27.5, 6), src(None, -90.5, 12.25, 54)],
             },
+            LocalizationResult {
+                num_active: None,
+                frame: 60,
+                time_s: 0.6,
+                sources: vec![Source {
+                    held: true,
+                    ..src(Some(7), 30.0, 27.5, 6)
+                }],
+            },
         ];
         let mut w = CsvWriter::new(Vec::new()).unwrap();
         w.write_all(&results).unwrap();
@@ -129,8 +142,9 @@ mod tests {
             lines,
             vec![
                 CSV_HEADER,
-                "50,0.5,0,7,30,0,1,0,0,27.5,6",
-                "50,0.5,1,,-90.5,0,1,0,0,12.25,54",
+                "50,0.5,0,7,30,0,1,0,0,27.5,6,",
+                "50,0.5,1,,-90.5,0,1,0,0,12.25,54,",
+                "60,0.6,0,7,30,0,1,0,0,27.5,6,1",
             ]
         );
     }

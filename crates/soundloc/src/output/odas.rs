@@ -3,7 +3,8 @@
 //!
 //! - **SSL** (potential sources, ODAS sink "pots"): one message per result with exactly
 //!   `pots` entries (ODAS's `nPots`, default 4), strongest first; when a result has fewer
-//!   peaks the rest are zeros (`x = y = z = E = 0`).
+//!   peaks the rest are zeros (`x = y = z = E = 0`). A result has at most `--max-peaks`
+//!   peaks (`num_sources` by default), fewer where its spectrum has fewer local maxima.
 //! - **SST** (tracked sources, sink "tracks"): `tracks` slots (`nTracks`, default 4). A
 //!   track keeps its slot while it lives; a new track takes the first free slot; an empty
 //!   slot is `id 0, tag "", zeros`. Tracks beyond the slots (the weakest) are left out.

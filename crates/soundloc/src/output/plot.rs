@@ -171,6 +171,31 @@ fn colour(v: f32, lo: f32, hi: f32) -> RGBColor {
     RGBColor(r, g, b)
 }
 
+/// The peak groups (track ids, `None` = untracked) that get a legend entry: all of them
+/// when there are at most [`LEGEND_ENTRIES`]; otherwise the untracked peaks and the ids
+/// with the most peaks (ties: the lower id), one entry fewer to leave room for "+N
+/// shorter sources". `groups` is sorted; so is the answer.
+fn legend_groups(marks: &[(Option<i64>, (f64, f64))], groups: &[Option<i64>]) -> Vec<Option<i64>> {
+    if groups.len() <= LEGEND_ENTRIES {
+        return groups.to_vec();
+    }
+    let count = |g: &Option<i64>| marks.iter().filter(|m| m.0 == *g).count();
+    let mut ranked: Vec<(usize, Option<i64>)> = groups
+        .iter()
+        .filter(|g| g.is_some())
+        .map(|g| (count(g), *g))
+        .collect();
+    ranked.sort_by(|a, b| b.0.cmp(&a.0).then(a.1.cmp(&b.1)));
+    let mut out: Vec<Option<i64>> = groups.iter().filter(|g| g.is_none()).copied().collect();
+    let room = LEGEND_ENTRIES - 1 - out.len();
+    out.extend(ranked.into_iter().take(room).map(|r| r.1));
+    out.sort_unstable();
+    out
+}
+
+/// Legend entries for peak groups, at most (with "+N shorter sources" as the last).
+const LEGEND_ENTRIES: usize = 8;
+
 fn register_font() -> Result<()> {
     static DONE: OnceLock<bool> = OnceLock::new();
     let ok = *DONE.get_or_init(|| plotters::style::register_font(FAMILY, FontStyle::Normal, FONT).is_ok());
@@ -297,19 +322,29 @@ fn draw<DB: DrawingBackend>(
     let mut groups: Vec<Option<i64>> = marks.iter().map(|m| m.0).collect();
     groups.sort_unstable();
     groups.dedup();
-    for (n, g) in groups.iter().enumerate() {
+    let listed = legend_groups(&marks, &groups);
+    for g in &groups {
         let [r, gr, b] = g.map_or(style::PEAK_RGB, style::track_rgb);
         let c = RGBColor(r, gr, b);
         let pts: Vec<(f64, f64)> = marks.iter().filter(|m| m.0 == *g).map(|m| m.1).collect();
         let s = chart.draw_series(pts.iter().map(|&q| Circle::new(q, 3, c.filled())))?;
-        // A legend entry per id (the first 8), or one for untracked peaks.
-        if n < 8 {
+        if listed.contains(g) {
             let label = g.map_or("detected peak".to_string(), |id| format!("source {id}"));
             s.label(label)
                 .legend(move |(x, y)| Circle::new((x + 10, y), 3, c.filled()));
         }
         let ring = if g.is_some() { BLACK } else { WHITE };
         chart.draw_series(pts.iter().map(|&q| Circle::new(q, 3, ring.stroke_width(1))))?;
+    }
+    if groups.len() > listed.len() {
+        let more = groups.len() - listed.len();
+        chart
+            .draw_series(std::iter::empty::<Circle<(f64, f64), i32>>())?
+            .label(format!(
+                "+{more} shorter source{}",
+                if more == 1 { "" } else { "s" }
+            ))
+            .legend(|(x, y)| EmptyElement::at((x, y)));
     }
     if !marks.is_empty() || !p.truth_azimuths_deg.is_empty() {
         chart
@@ -446,6 +481,24 @@ mod tests {
     }
 
     #[test]
+    fn the_legend_lists_the_longest_tracks() {
+        // Ids 0..=9 with 10 − id peaks each except id 9 with 20, and untracked peaks.
+        let mut marks = vec![(None, (0.0, 0.0))];
+        for id in 0..10i64 {
+            let n = if id == 9 { 20 } else { 10 - id as usize };
+            marks.extend(std::iter::repeat_n((Some(id), (0.0, 0.0)), n));
+        }
+        let mut groups: Vec<Option<i64>> = marks.iter().map(|m| m.0).collect();
+        groups.sort_unstable();
+        groups.dedup();
+        let listed = legend_groups(&marks, &groups);
+        let want = [None, Some(0), Some(1), Some(2), Some(3), Some(4), Some(9)];
+        assert_eq!(listed, want);
+        // Few groups: every one.
+        assert_eq!(legend_groups(&marks[..12], &groups[..3]), groups[..3].to_vec());
+    }
+
+    #[test]
     fn heat_map_bins_max_over_elevation_and_fills_gaps() {
         let p = synthetic(&[0.0, 30.0]);
         let hm = heat_map(&p, 1000);
@@ -507,6 +560,17 @@ mod tests {
         ] {
             assert!(text.contains(label), "missing {label}");
         }
+        // Twelve short tracks of five results each, and untracked peaks: the legend names
+        // the untracked peaks, six ids and the six left out.
+        let mut p = synthetic(&[0.0]);
+        p.peak_ids = (0..p.peaks.len()).map(|i| vec![Some(i as i64 / 5), None]).collect();
+        plot_spectrum(&path, &p).unwrap();
+        let text = std::fs::read_to_string(&path).unwrap();
+        let has = |label: &str| text.lines().any(|l| l.trim() == label);
+        for label in ["detected peak", "source 0", "source 5", "+6 shorter sources"] {
+            assert!(has(label), "missing {label}");
+        }
+        assert!(!has("source 6"));
         std::fs::remove_dir_all(&d).unwrap();
     }
 
