@@ -113,6 +113,39 @@ fn geometry_frames_keep_harks_durations_at_48_khz() {
     let (hark, err) = run(&wav48, &["--fft-length", "512", "--hop", "160"]);
     assert!(!err.contains("the frames are"), "{err}");
     assert!((times(&hark)[1] - 8000.0 / 48000.0).abs() < 1e-9);
+    // A TF zip made for 1536-point frames at 48 kHz: its FFT length and a hop of 160/512
+    // of it, with no --fft-length (it was an error naming --fft-length 1536): the same
+    // results as the free-field run.
+    let tf48 = tmp("ring8-48k-frames.zip");
+    let o = bin()
+        .args([
+            "tf",
+            "make",
+            "--grid",
+            "ring:5",
+            "--sample-rate",
+            "48000",
+            "--fft-length",
+            "1536",
+            "-q",
+        ])
+        .arg("--geometry")
+        .arg(&geo)
+        .arg("-o")
+        .arg(&tf48)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let o = bin()
+        .arg("localize")
+        .arg(&wav48)
+        .arg("--tf")
+        .arg(&tf48)
+        .args(["--device", "cpu", "-q", "--no-cache"])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert_eq!(String::from_utf8(o.stdout).unwrap(), out48);
 }
 
 #[test]

@@ -37,16 +37,11 @@ pub(crate) struct PySpec {
     square_note: Option<String>,
 }
 
-/// `nfft=`, `hop=` where given, else HARK's (512, 160), or with free-field transfer
-/// functions (`geometry=`) their durations at `fs` (the CLI's rule,
-/// [`soundloc::config::frame_sizes_for_rate`]).
-fn frame_sizes(given: (Option<usize>, Option<usize>), fs: u32, free_field: bool) -> (usize, usize) {
-    let (nfft, hop) = if free_field {
-        soundloc::config::frame_sizes_for_rate(fs)
-    } else {
-        let d = soundloc::LocalizeConfig::default();
-        (d.nfft, d.hop)
-    };
+/// `nfft=`, `hop=` where given, else the array's (the CLI's rule,
+/// [`soundloc::ArraySpec::default_frame_sizes`]: HARK's durations at `fs` for free-field
+/// TFs, a TF zip's own FFT length).
+fn frame_sizes(given: (Option<usize>, Option<usize>), fs: u32, array: &ArraySpec) -> (usize, usize) {
+    let (nfft, hop) = array.default_frame_sizes(fs);
     (given.0.unwrap_or(nfft), given.1.unwrap_or(hop))
 }
 
@@ -213,7 +208,7 @@ pub(crate) fn spec(
     (a.lower_freq_hz, a.upper_freq_hz) = freq_range;
     a.sample_rate_hz = fs;
     let frames_given = (nfft, hop);
-    (a.nfft, a.hop) = frame_sizes(frames_given, fs, geometry.is_some());
+    (a.nfft, a.hop) = frame_sizes(frames_given, fs, &spec.array);
     a.diagonal_loading = diagonal_loading;
     spec.channels = channels.unwrap_or_default();
     spec.input_channels = input_channels.unwrap_or_default();
@@ -424,7 +419,7 @@ impl PySpec {
         self.rate_open().then(|| {
             let mut s = self.clone();
             s.spec.analysis.sample_rate_hz = fs;
-            (s.spec.analysis.nfft, s.spec.analysis.hop) = frame_sizes(self.frames_given, fs, true);
+            (s.spec.analysis.nfft, s.spec.analysis.hop) = frame_sizes(self.frames_given, fs, &s.spec.array);
             s
         })
     }

@@ -24,7 +24,9 @@ pub struct Source {
     pub power_db: f64,
     /// A tracked source not observed in this window: carried at its last observed
     /// direction and power while its PAUSE_LENGTH runs, as HARK's SourceTracker outputs
-    /// it (written `"held": true` in JSON; absent = false).
+    /// it, or copied at its first direction and power into the windows before its first
+    /// observation by the interval extender (PREROLL_LENGTH) (written `"held": true` in
+    /// JSON; absent = false).
     #[serde(skip_serializing_if = "std::ops::Not::not", default)]
     pub held: bool,
 }

@@ -67,7 +67,9 @@
 //! `PREROLL_LENGTH` ([`IntervalExtenderConfig::preroll_length`], default 50, in STFT
 //! frames): a source first seen at frame f is also emitted — at its first position and
 //! power — in every earlier result with frame in [f − PREROLL_LENGTH, f), so that downstream
-//! separation does not miss its onset. Only a source's first appearance is extended.
+//! separation does not miss its onset; these copies are marked `held` (not observed in
+//! that window), so [`summarize`] starts the source at its first observation. Only a
+//! source's first appearance is extended.
 //! [`extend`] does this on a whole run; [`IntervalExtender`] streams with a delay of
 //! PREROLL_LENGTH frames.
 //!
@@ -455,7 +457,11 @@ impl IntervalExtender {
                     && r.frame.saturating_add(p) >= f
                     && !r.sources.iter().any(|x| x.id == Some(id))
                 {
-                    r.sources.push(s.clone());
+                    // Not observed there: marked held, as a carried source is.
+                    r.sources.push(Source {
+                        held: true,
+                        ..s.clone()
+                    });
                     sort_strongest_first(&mut r.sources);
                 }
             }
@@ -503,12 +509,13 @@ pub fn extend(results: &[LocalizationResult], cfg: IntervalExtenderConfig) -> Ve
 pub struct SourceSummary {
     /// Track id.
     pub id: i64,
-    /// Frame of the first result holding the id.
+    /// Frame of the first result observing the id (not [`Source::held`]: `--preroll`'s
+    /// copies before the first observation are not counted).
     pub start_frame: usize,
     /// Frame of the last result observing the id (not [`Source::held`]: the pause a
     /// tracker carries a source through after it falls silent is not counted).
     pub end_frame: usize,
-    /// `time_s` of the first result holding the id, seconds.
+    /// `time_s` of the first result observing the id, seconds.
     pub start_s: f64,
     /// `time_s` of the last result observing the id, seconds.
     pub end_s: f64,

@@ -194,3 +194,40 @@ fn sevd_rejects_online_updates_and_bad_rules_are_errors() {
         run.notes
     );
 }
+
+/// Online updates with no K to start from: the windows before the first update are not
+/// whitened, and the localizer says until when; with a K to start from it says nothing.
+#[test]
+fn online_updates_without_a_starting_k_say_which_windows_are_unwhitened() {
+    let scene = changing_drone(0.0, 1);
+    let mut spec = spec_for(&scene, &LocalizeConfig::default());
+    spec.algorithm = Some(Algorithm::Gevd);
+    let unwhitened = |spec: &soundloc::LocalizerSpec| -> Vec<String> {
+        let loc = Localizer::new(spec).unwrap();
+        loc.notes()
+            .iter()
+            .filter(|n| n.contains("K = I"))
+            .cloned()
+            .collect()
+    };
+    spec.noise_update = NoiseUpdate::Segments(vec![(1.2, 1.5), (0.1, 0.5)]);
+    let n = unwhitened(&spec);
+    assert!(
+        n.len() == 1 && n[0].contains("until the first noise segment ends (0.5 s)"),
+        "{n:?}"
+    );
+    spec.noise_update = NoiseUpdate::Preceding { frames: 20, gap: 5 };
+    let n = unwhitened(&spec);
+    assert!(
+        n.len() == 1 && n[0].contains("in the first 0.25 s (windows with fewer than 25 frames"),
+        "{n:?}"
+    );
+    spec.noise = NoiseSource::Range {
+        start_s: 0.0,
+        end_s: 1.0,
+    };
+    assert!(unwhitened(&spec).is_empty());
+    spec.noise = NoiseSource::None;
+    spec.noise_update = NoiseUpdate::Fixed;
+    assert!(unwhitened(&spec).is_empty());
+}

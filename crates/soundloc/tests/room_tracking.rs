@@ -139,4 +139,32 @@ fn the_room_default_tracks_one_talker_as_one_source() {
     });
     let all = tracks(&spec);
     assert!(all.len() > 1, "{all:?}");
+    // The approximate mode estimates no source count: the gate cannot work, so asking
+    // for it is an error and the room default says it is off (the tracker sees every peak).
+    spec.analysis.subspace_tracking = true;
+    spec.tracking = Some(TrackingSpec {
+        active_only: Some(true),
+        ..TrackingSpec::default()
+    });
+    let e = Localizer::new(&spec).err().unwrap().to_string();
+    assert!(e.contains("subspace-tracking") && e.contains("num_active"), "{e}");
+    spec.tracking = Some(TrackingSpec::default());
+    let mut l = Localizer::new(&spec).unwrap();
+    assert!(
+        l.notes()
+            .iter()
+            .any(|n| n.contains("the tracker sees every peak")),
+        "{:?}",
+        l.notes()
+    );
+    let approx = summarize(&l.localize(&audio.channels).unwrap().results);
+    assert!(approx.len() > 1, "{approx:?}");
+    spec.analysis.subspace_tracking = false;
+    spec.algorithm = Some(soundloc::Algorithm::SrpPhat);
+    spec.tracking = Some(TrackingSpec {
+        active_only: Some(true),
+        ..TrackingSpec::default()
+    });
+    let e = Localizer::new(&spec).err().unwrap().to_string();
+    assert!(e.contains("srp-phat estimates no source count"), "{e}");
 }

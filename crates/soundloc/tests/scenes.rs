@@ -353,8 +353,9 @@ fn an_array_away_from_the_origin_reports_its_own_directions() {
 
 /// A linear array (Kinect-like, 4 microphones along x) can tell only a direction's angle to
 /// its line: on the full ring a source at −60° and its mirror image at +60° give the same
-/// spectrum, and the localizer says so; with peaks kept to azimuths 0…180° (one
-/// half-plane through the line) every angle is reported once, at +60°, with no note.
+/// spectrum, and the localizer says so; with peaks kept to azimuths −0.5…180° (one
+/// half-plane through the line, as the note says) every angle is reported once, at +60°,
+/// with no note, and a source at the line's end (0°) at 0°.
 #[test]
 fn a_linear_array_is_noted_and_reports_the_angle_to_its_line() {
     use soundloc::array::grid::GridSpec;
@@ -394,13 +395,37 @@ fn a_linear_array_is_noted_and_reports_the_angle_to_its_line() {
         let az = res.sources[0].azimuth_deg;
         assert!((az.abs() - 60.0).abs() <= 3.0, "frame {}: {az}°", res.frame);
     }
-    spec.analysis.min_deg = 0.0;
+    // The note's range: MIN_DEG half a degree below the line's direction, so that the
+    // endfire direction 0° (HARK's range leaves MIN_DEG itself out) stays in.
+    assert!(
+        full.notes()
+            .iter()
+            .any(|n| n.contains("--min-deg -0.5 --max-deg 180")),
+        "{:?}",
+        full.notes()
+    );
+    spec.analysis.min_deg = -0.5;
     spec.analysis.max_deg = 180.0;
     let mut half = Localizer::new(&spec).unwrap();
     assert!(!cone(&half), "{:?}", half.notes());
     for res in &half.localize(&audio.channels).unwrap().results {
         let az = res.sources[0].azimuth_deg;
         assert!((az - 60.0).abs() <= 3.0, "frame {}: {az}°", res.frame);
+    }
+    let endfire = Scene {
+        sensor_noise_std: 0.02,
+        ..Scene::new()
+    }
+    .with_source(SceneSource::new(
+        position_from_az_el(0.0, 0.0, 3.0),
+        Signal::Speech,
+    ));
+    let audio = render(&endfire, &line, 16000, 2.0, 5);
+    let r = Localizer::new(&spec).unwrap().localize(&audio.channels).unwrap();
+    assert!(r.results.len() >= 3);
+    for res in &r.results {
+        let az = res.sources[0].azimuth_deg;
+        assert!(az.abs() <= 3.0, "frame {}: {az}°", res.frame);
     }
 }
 

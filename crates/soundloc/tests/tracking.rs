@@ -348,9 +348,12 @@ fn interval_extender_shifts_onset_by_preroll() {
         if r.frame >= 50 {
             let s = has1.unwrap_or_else(|| panic!("frame {}: {r:?}", r.frame));
             if r.frame < 100 {
-                // Emitted at its first position and power.
+                // Emitted at its first position and power, marked held (not observed).
                 assert_eq!(s.power_db, 30.0);
                 assert_eq!(s.azimuth_deg, 90.0);
+                assert!(s.held);
+            } else {
+                assert!(!s.held);
             }
         } else {
             assert!(has1.is_none(), "frame {}", r.frame);
@@ -360,6 +363,9 @@ fn interval_extender_shifts_onset_by_preroll() {
     }
     // Source 0 exists from the start: nothing to extend before frame 0.
     assert_eq!(out[0].sources.len(), 1);
+    // The summary starts source 1 where it was observed, as without the extender.
+    let (with, without) = (summarize(&out), summarize(&run));
+    assert_eq!(with, without);
 }
 
 #[test]

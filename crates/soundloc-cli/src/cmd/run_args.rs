@@ -274,15 +274,14 @@ pub struct RunArgs {
 
 impl AnalysisArgs {
     /// The typed config (the algorithm resolved by the caller); frame sizes not given are
-    /// HARK's (512, 160), or with free-field transfer functions (`free_field`) their
-    /// durations at the input's rate ([`soundloc::config::frame_sizes_for_rate`]).
-    pub fn config(&self, algorithm: Algorithm, sample_rate_hz: u32, free_field: bool) -> LocalizeConfig {
-        let (nfft, hop) = if free_field {
-            soundloc::config::frame_sizes_for_rate(sample_rate_hz)
-        } else {
-            let d = LocalizeConfig::default();
-            (d.nfft, d.hop)
-        };
+    /// `frames`, the array's ([`soundloc::ArraySpec::default_frame_sizes`]).
+    pub fn config(
+        &self,
+        algorithm: Algorithm,
+        sample_rate_hz: u32,
+        frames: (usize, usize),
+    ) -> LocalizeConfig {
+        let (nfft, hop) = frames;
         LocalizeConfig {
             algorithm,
             nfft: self.fft_length.unwrap_or(nfft),
@@ -428,11 +427,11 @@ impl RunArgs {
             }
             None
         };
-        let free_field = matches!(array, ArraySpec::FreeField { .. });
+        let frames = array.default_frame_sizes(rate_hz);
         Ok(LocalizerSpec {
-            array,
             algorithm: self.analysis.algorithm.map(Into::into),
-            analysis: self.analysis.config(Algorithm::Sevd, rate_hz, free_field),
+            analysis: self.analysis.config(Algorithm::Sevd, rate_hz, frames),
+            array,
             channels: self.channels.clone(),
             input_channels: self.input_channels.clone(),
             invert_channels: self.invert_channels.clone(),

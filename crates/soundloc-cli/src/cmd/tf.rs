@@ -73,9 +73,10 @@ pub struct MakeArgs {
     /// array), metres.
     #[arg(long = "grid-radius", default_value_t = 1.0, alias = "radius")]
     pub radius: f64,
-    /// FFT length N (the zip holds N/2+1 bins).
-    #[arg(long, default_value_t = 512)]
-    pub fft_length: usize,
+    /// FFT length N (the zip holds N/2+1 bins). Default: 32 ms at the sampling rate, as
+    /// `localize --geometry` uses (HARK's 512 at 16 kHz, 1536 at 48 kHz).
+    #[arg(long)]
+    pub fft_length: Option<usize>,
     /// Sampling rate, Hz.
     #[arg(long, default_value_t = 16000)]
     pub sample_rate: u32,
@@ -141,15 +142,11 @@ fn make(a: MakeArgs) -> anyhow::Result<ExitCode> {
         eprintln!("soundloc: {n}");
     }
     let grid = a.grid.build(a.radius);
-    let bins = 0..a.fft_length / 2 + 1;
-    let tf = free_field(
-        &geometry,
-        &grid,
-        a.fft_length,
-        a.sample_rate,
-        bins,
-        a.speed_of_sound,
-    )?;
+    let nfft = a
+        .fft_length
+        .unwrap_or(soundloc::config::frame_sizes_for_rate(a.sample_rate).0);
+    let bins = 0..nfft / 2 + 1;
+    let tf = free_field(&geometry, &grid, nfft, a.sample_rate, bins, a.speed_of_sound)?;
     write_tf_zip(&tf, &a.output)?;
     if a.quiet {
         return Ok(ExitCode::SUCCESS);

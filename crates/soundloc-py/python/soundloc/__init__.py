@@ -157,7 +157,8 @@ class Results:
     num_active: Optional[np.ndarray] = None
     # Tracked sources carried through their pause (PAUSE_LENGTH) without being observed in
     # that window, at their last direction and power (as HARK's SourceTracker outputs
-    # them); shape of ids, False where not tracked or observed.
+    # them), or copied before their first observation by preroll=; shape of ids, False
+    # where not tracked or observed.
     held: Optional[np.ndarray] = None
 
     def __len__(self) -> int:

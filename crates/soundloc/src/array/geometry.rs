@@ -468,13 +468,14 @@ pub fn mirror_note(positions: &[[f64; 3]], points: &[[f64; 3]]) -> Option<String
             }
         }
         return cone.then(|| {
-            "the microphones lie on one line: in free field only a direction's angle to that line \
-             can be told apart (every direction on a cone around the line gives the same spectrum; on \
-             a ring through the line, a direction and its mirror image across it), so a source may be \
-             reported anywhere on its cone; use a grid of one half-plane through the line (on a ring: \
-             --min-deg/--max-deg spanning 180° from the line's direction), or an array that is not \
-             linear"
-                .to_string()
+            format!(
+                "the microphones lie on one line: in free field only a direction's angle to that line \
+                 can be told apart (every direction on a cone around the line gives the same spectrum; \
+                 on a ring through the line, a direction and its mirror image across it), so a source \
+                 may be reported anywhere on its cone; use a grid of one half-plane through the line \
+                 ({}), or an array that is not linear",
+                half_plane_range(axis)
+            )
         });
     }
     let n = plane_normal(positions)?;
@@ -491,6 +492,30 @@ pub fn mirror_note(positions: &[[f64; 3]], points: &[[f64; 3]]) -> Option<String
          on one side of the plane, or a non-planar array"
             .to_string()
     })
+}
+
+/// The azimuth range of one half-plane through a line along `axis`, as the user would
+/// give it. HARK's range is MIN_DEG < azimuth ≤ MAX_DEG, so MIN_DEG sits half a degree
+/// below the line's direction: both ends of the line (its endfire directions, which have
+/// no mirror image) stay in.
+fn half_plane_range(axis: [f64; 3]) -> String {
+    let horizontal = (axis[0] * axis[0] + axis[1] * axis[1]).sqrt();
+    if horizontal < 0.9 {
+        return "on a ring: --min-deg/--max-deg spanning 180° from the line's direction".into();
+    }
+    // The line's azimuth, taken in (−90°, 90°] (either end of the line would do).
+    let mut phi = axis[1].atan2(axis[0]).to_degrees();
+    if phi <= -90.0 {
+        phi += 180.0;
+    } else if phi > 90.0 {
+        phi -= 180.0;
+    }
+    let phi = (phi * 10.0).round() / 10.0;
+    format!(
+        "on a ring: --min-deg {} --max-deg {}; the range leaves MIN_DEG itself out",
+        phi - 0.5,
+        phi + 180.0
+    )
 }
 
 /// Unit vectors of an `n`-point Fibonacci lattice on the sphere:

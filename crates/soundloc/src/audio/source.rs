@@ -272,7 +272,7 @@ impl<R: Read> PcmReader<R> {
         self.carry = have - used;
         if self.ended && frames == 0 && self.carry > 0 {
             self.notes.push(format!(
-                "{}: the input ended inside a frame: the last {} of {fb} bytes ignored",
+                "{}: the input ended inside a sample frame (one sample of every channel): the last {} of {fb} bytes ignored",
                 name.display(),
                 self.carry
             ));

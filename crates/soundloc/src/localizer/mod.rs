@@ -81,6 +81,34 @@ pub enum ArraySpec {
     },
 }
 
+impl ArraySpec {
+    /// The frame sizes (FFT length N, hop in samples) an analysis uses when none are given,
+    /// for audio at `sample_rate_hz`:
+    /// - free-field TFs: HARK's durations at that rate
+    ///   ([`crate::config::frame_sizes_for_rate`]: 512 and 160 at 16 kHz, 1536 and 480 at
+    ///   48 kHz);
+    /// - a TF zip: the FFT length it was made for, with HARK's hop of 160/512 of it (512
+    ///   and 160; 1536 and 480), so that a 48 kHz harktool zip needs no `--fft-length`;
+    /// - otherwise (an old HGTF file, or a zip whose settings cannot be read: loading it
+    ///   says why): HARK's 512 and 160.
+    pub fn default_frame_sizes(&self, sample_rate_hz: u32) -> (usize, usize) {
+        let hark = LocalizeConfig::default();
+        match self {
+            ArraySpec::FreeField { .. } => crate::config::frame_sizes_for_rate(sample_rate_hz),
+            ArraySpec::TransferFunctions { path } if crate::formats::hark_zip::file_looks_like_zip(path) => {
+                match crate::formats::tf_zip_read::read_tf_zip_config(path) {
+                    Ok(c) if c.nfft >= 4 => {
+                        let hop = ((c.nfft * hark.hop) as f64 / hark.nfft as f64).round() as usize;
+                        (c.nfft, hop.max(1))
+                    }
+                    _ => (hark.nfft, hark.hop),
+                }
+            }
+            ArraySpec::TransferFunctions { .. } => (hark.nfft, hark.hop),
+        }
+    }
+}
+
 /// Where the noise correlation matrix K comes from.
 #[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case", tag = "kind", deny_unknown_fields)]

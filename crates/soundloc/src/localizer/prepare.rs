@@ -105,6 +105,29 @@ pub(crate) fn prepare(
         }
         _ => {}
     }
+    // Online updates without a K to start from: the first windows are not whitened.
+    if algorithm.uses_noise() && matches!(initial_noise, InitialNoise::Given(None)) {
+        let before = match &spec.noise_update {
+            crate::noise::policy::NoiseUpdate::Segments(s) => s
+                .iter()
+                .map(|&(_, end)| end)
+                .min_by(f64::total_cmp)
+                .map(|end| format!("until the first noise segment ends ({end} s)")),
+            crate::noise::policy::NoiseUpdate::Preceding { frames, gap } => Some(format!(
+                "in the first {:.2} s (windows with fewer than {} frames before them)",
+                ((frames + gap) * config.hop) as f64 / config.sample_rate_hz as f64,
+                frames + gap
+            )),
+            crate::noise::policy::NoiseUpdate::Fixed => None,
+        };
+        if let Some(before) = before {
+            notes.push(format!(
+                "{before} windows are localized with K = I (no whitening), so their powers are on \
+                 another scale than later windows' and loud noise shows as peaks there; a noise \
+                 source to start from (--noise-range, --noise, --noise-cm) whitens them too"
+            ));
+        }
+    }
     if !algorithm.uses_noise() && spec.noise != NoiseSource::None {
         notes.push(format!("{} ignores the noise matrix", algorithm.name()));
     }
@@ -167,8 +190,30 @@ pub(crate) fn prepare(
         }
     }
     let room_default = spec.algorithm.is_none() && !spec.noise_given();
+    // The tracker gate needs each window's source count; SRP-PHAT and the approximate
+    // mode estimate none, so a gate asked for would pass every peak without a word.
+    let uncounted = if config.subspace_tracking {
+        "the approximate mode (--subspace-tracking, subspace_tracking=True)"
+    } else {
+        config.algorithm.name()
+    };
+    let active_only = spec.tracking.as_ref().map(|t| t.active_only);
+    if active_only == Some(Some(true)) && !config.counts_sources() {
+        return Err(Error::Config(format!(
+            "the tracker's active-only gate feeds each window's num_active strongest peaks, \
+             but {uncounted} estimates no source count (num_active): leave the gate off and \
+             set the tracker threshold above the noise-only windows' power"
+        )));
+    }
+    if active_only == Some(None) && room_default && !config.counts_sources() {
+        notes.push(format!(
+            "the tracker sees every peak: {uncounted} estimates no source count (num_active), \
+             so the room default's gate (silence starts no tracks) is off and noise peaks can \
+             start tracks"
+        ));
+    }
     let tracking = spec.tracking.map(|t| TrackingSpec {
-        active_only: Some(t.active_only.unwrap_or(room_default)),
+        active_only: Some(t.active_only.unwrap_or(room_default && config.counts_sources())),
         ..t
     });
     let options = StreamOptions {

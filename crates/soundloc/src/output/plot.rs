@@ -563,7 +563,9 @@ mod tests {
         // Twelve short tracks of five results each, and untracked peaks: the legend names
         // the untracked peaks, six ids and the six left out.
         let mut p = synthetic(&[0.0]);
-        p.peak_ids = (0..p.peaks.len()).map(|i| vec![Some(i as i64 / 5), None]).collect();
+        p.peak_ids = (0..p.peaks.len())
+            .map(|i| vec![Some(i as i64 / 5), None])
+            .collect();
         plot_spectrum(&path, &p).unwrap();
         let text = std::fs::read_to_string(&path).unwrap();
         let has = |label: &str| text.lines().any(|l| l.trim() == label);
