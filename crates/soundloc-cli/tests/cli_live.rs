@@ -30,7 +30,7 @@ struct Served {
 
 impl Served {
     fn start(args: &[&str]) -> Served {
-        let mut child = bin()
+        let mut child = common::bin_for_ctrl_c()
             .args(args)
             .args(["--serve", "127.0.0.1:0"])
             .stdout(Stdio::null())

@@ -557,7 +557,7 @@ fn ctrl_c_ends_a_live_session_cleanly() {
     let dir = tmp_dir("ctrlc");
     let out = dir.join("live.jsonl");
     let mut child = spawn_piped(
-        bin()
+        common::bin_for_ctrl_c()
             .args(["localize", "-"])
             .args(RAW_S16_RING)
             .arg("--geometry")

@@ -54,6 +54,8 @@ def test_same_peaks_as_pyroomacoustics(name):
             got = soundloc.doa.algorithms[name](L, FS, NFFT, c=C, num_src=2, azimuth=azimuth, precision="f64")
             got.locate_sources(Xw, freq_range=[500.0, 4000.0])
             total += 1
+            # num_src becomes the number of peaks found, as in pyroomacoustics.
+            assert got.num_src == ref.num_src == len(got.azimuth_recon)
             # In pyroomacoustics' order too (its find_peaks: the k strongest, weakest first).
             same += list(np.round(np.degrees(ref.azimuth_recon), 6)) == list(np.round(np.degrees(got.azimuth_recon), 6))
             worst_corr = min(worst_corr, np.corrcoef(ref.grid.values, got.grid.values)[0, 1])

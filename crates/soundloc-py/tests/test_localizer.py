@@ -678,3 +678,16 @@ def test_positions_in_millimetres_get_a_units_note():
     notes = soundloc.Localizer(geometry=MICS * 1000, grid="ring:5", device="cpu").notes
     assert any("span 73.0 m: positions are in metres" in n and "divide them by 1000" in n for n in notes), notes
     assert not any("positions are in metres" in n for n in localizer().notes)
+
+
+def test_copy_is_refused_cleanly():
+    """A Localizer holds a native stream: copy.copy shares it (it recursed without end in
+    __getattr__), deepcopy and pickle are a TypeError."""
+    import copy
+    import pickle
+    loc = localizer()
+    shallow = copy.copy(loc)
+    assert shallow.fs == loc.fs and shallow._n is loc._n
+    for f in (copy.deepcopy, pickle.dumps):
+        with pytest.raises(TypeError):
+            f(loc)

@@ -16,6 +16,26 @@ pub fn bin() -> Command {
     Command::new(env!("CARGO_BIN_EXE_soundloc"))
 }
 
+/// The `soundloc` binary with SIGINT at its default disposition, for tests that stop it
+/// with Ctrl-C. A test runner started in the background of a non-interactive shell (a CI
+/// script, `nohup … &`) inherits SIGINT ignored, and soundloc keeps an ignored signal
+/// ignored (nohup's contract), so without this such a test would wait for ever.
+pub fn bin_for_ctrl_c() -> Command {
+    let mut c = bin();
+    #[cfg(unix)]
+    {
+        use std::os::unix::process::CommandExt;
+        // SAFETY: signal() is async-signal-safe, as pre_exec requires.
+        unsafe {
+            c.pre_exec(|| {
+                libc::signal(libc::SIGINT, libc::SIG_DFL);
+                Ok(())
+            });
+        }
+    }
+    c
+}
+
 /// `name` in a folder of this test process (`tag` keeps test files apart).
 pub fn tmp(tag: &str, name: &str) -> PathBuf {
     let d = std::env::temp_dir().join(format!("soundloc-{tag}-{}", std::process::id()));

@@ -309,7 +309,11 @@ class Localizer:
         return self._spec_json
 
     def __getattr__(self, name):
-        # latency_frames, samples_needed_next, device, algorithm, fs, num_mics, notes
+        # latency_frames, samples_needed_next, device, algorithm, fs, num_mics, notes.
+        # Only called for names not found; _n itself missing (an object made without
+        # __init__, e.g. by copy.copy) is an AttributeError, not a recursion.
+        if name == "_n" or (name.startswith("__") and name.endswith("__")):
+            raise AttributeError(name)
         return getattr(self._n, name)
 
 
@@ -369,5 +373,9 @@ class StreamGroup:
         return self._n.directions()
 
     def __getattr__(self, name):
-        # latency_frames, samples_needed_next(i), device, algorithm, fs, num_mics, notes
+        # latency_frames, samples_needed_next(i), device, algorithm, fs, num_mics, notes.
+        # Only called for names not found; _n itself missing (an object made without
+        # __init__, e.g. by copy.copy) is an AttributeError, not a recursion.
+        if name == "_n" or (name.startswith("__") and name.endswith("__")):
+            raise AttributeError(name)
         return getattr(self._n, name)

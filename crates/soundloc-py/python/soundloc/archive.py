@@ -69,7 +69,9 @@ def localize_files(paths, out_dir, *, fmt="jsonl", overwrite=False, ray=False, c
     paths = [os.fspath(paths)] if isinstance(paths, (str, bytes, os.PathLike)) else [os.fspath(p) for p in paths]
     paths = [os.fsdecode(p) for p in paths]
     outs = [result_path(p, out_dir, fmt) for p in paths]
-    dup = {o for o in outs if outs.count(o) > 1}
+    seen, dup = set(), set()
+    for o in outs:
+        (dup if o in seen else seen).add(o)
     if dup:
         raise ValueError(f"several recordings would write {sorted(dup)[0]}: rename them or use separate folders")
     os.makedirs(out_dir, exist_ok=True)

@@ -142,6 +142,9 @@ class _DOA:
         self.grid.values = self._scale(10.0 ** (db.astype(np.float64) / 10.0) - 1.0)
         # soundloc gives them strongest first; pyroomacoustics ascending.
         self.src_idx = np.asarray(peaks[::-1], dtype=np.int64)
+        # As pyroomacoustics: num_src becomes the number of peaks found (fewer where the
+        # spectrum has fewer local maxima), so loops over range(num_src) stay in bounds.
+        self.num_src = len(self.src_idx)
         self.azimuth_recon = self.grid.azimuth[self.src_idx]
         if self.dim == 3:
             self.colatitude_recon = self.grid.colatitude[self.src_idx]

@@ -250,7 +250,12 @@ impl<R: Read> PcmReader<R> {
             Some(l) if self.ended && truncated_is_error => {
                 return Err(Error::format(
                     name,
-                    format!("truncated WAV file: {l} bytes of audio data missing"),
+                    format!(
+                        "truncated WAV file: {l} bytes ({} samples per channel) of the audio data \
+                         its header declares are missing: the file was cut short (an interrupted \
+                         copy or download)",
+                        l / fb as u64
+                    ),
                 ))
             }
             _ => {}
