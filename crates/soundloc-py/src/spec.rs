@@ -41,8 +41,13 @@ pub(crate) struct PySpec {
 /// [`soundloc::ArraySpec::default_frame_sizes`]: HARK's durations at `fs` for free-field
 /// TFs, a TF zip's own FFT length).
 fn frame_sizes(given: (Option<usize>, Option<usize>), fs: u32, array: &ArraySpec) -> (usize, usize) {
-    let (nfft, hop) = array.default_frame_sizes(fs);
-    (given.0.unwrap_or(nfft), given.1.unwrap_or(hop))
+    match given {
+        (Some(n), Some(h)) => (n, h),
+        (n, h) => {
+            let (nfft, hop) = array.default_frame_sizes(fs);
+            (n.unwrap_or(nfft), h.unwrap_or(hop))
+        }
+    }
 }
 
 #[pymethods]

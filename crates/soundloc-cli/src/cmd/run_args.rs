@@ -274,18 +274,20 @@ pub struct RunArgs {
 
 impl AnalysisArgs {
     /// The typed config (the algorithm resolved by the caller); frame sizes not given are
-    /// `frames`, the array's ([`soundloc::ArraySpec::default_frame_sizes`]).
-    pub fn config(
-        &self,
-        algorithm: Algorithm,
-        sample_rate_hz: u32,
-        frames: (usize, usize),
-    ) -> LocalizeConfig {
-        let (nfft, hop) = frames;
+    /// the array's ([`soundloc::ArraySpec::default_frame_sizes`], asked only then: for a TF
+    /// zip it reads the zip's settings).
+    pub fn config(&self, algorithm: Algorithm, sample_rate_hz: u32, array: &ArraySpec) -> LocalizeConfig {
+        let (nfft, hop) = match (self.fft_length, self.hop) {
+            (Some(n), Some(h)) => (n, h),
+            (n, h) => {
+                let d = array.default_frame_sizes(sample_rate_hz);
+                (n.unwrap_or(d.0), h.unwrap_or(d.1))
+            }
+        };
         LocalizeConfig {
             algorithm,
-            nfft: self.fft_length.unwrap_or(nfft),
-            hop: self.hop.unwrap_or(hop),
+            nfft,
+            hop,
             sample_rate_hz,
             window_function: match self.window_function {
                 WindowFnArg::Conj => WindowFunction::Conj,
@@ -427,10 +429,9 @@ impl RunArgs {
             }
             None
         };
-        let frames = array.default_frame_sizes(rate_hz);
         Ok(LocalizerSpec {
             algorithm: self.analysis.algorithm.map(Into::into),
-            analysis: self.analysis.config(Algorithm::Sevd, rate_hz, frames),
+            analysis: self.analysis.config(Algorithm::Sevd, rate_hz, &array),
             array,
             channels: self.channels.clone(),
             input_channels: self.input_channels.clone(),
