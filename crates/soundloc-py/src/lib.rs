@@ -100,6 +100,22 @@ pub(crate) fn samples<'py>(x: &Bound<'py, PyAny>) -> PyResult<Samples<'py>> {
         return Ok(Samples::Owned(v, s));
     }
     let ndim = x.getattr("ndim").and_then(|n| n.extract::<usize>()).ok();
+    // An array of a supported type in the other byte order (big-endian data read from a
+    // file, `dtype=">i2"`): converted to the native order once, then read as above.
+    if ndim == Some(2) {
+        if let Ok(dt) = x.getattr("dtype") {
+            let native = dt
+                .getattr("isnative")
+                .and_then(|v| v.extract::<bool>())
+                .unwrap_or(true);
+            if !native {
+                let conv = x.call_method1("astype", (dt.call_method1("newbyteorder", ("=",))?,))?;
+                if conv.getattr("dtype")?.getattr("isnative")?.extract::<bool>()? {
+                    return samples(&conv);
+                }
+            }
+        }
+    }
     match ndim {
         Some(2) => Err(PyTypeError::new_err(format!(
             "audio must be int16, int32, float32 or float64; got dtype {}",
@@ -220,8 +236,8 @@ pub(crate) fn results<'py>(
 }
 
 /// The channel count of a (rows, cols) block — cols, or rows with `channels_first` —
-/// after `check` accepts it; the error names the shape and, when the other axis would
-/// fit, says so.
+/// after `check` accepts it; the error names the shape and, when the other, shorter
+/// axis would fit, says so.
 pub(crate) fn channel_count(
     [rows, cols]: [usize; 2],
     channels_first: bool,
@@ -230,7 +246,10 @@ pub(crate) fn channel_count(
     let n_ch = if channels_first { rows } else { cols };
     if let Err(e) = check(n_ch) {
         let other = if channels_first { cols } else { rows };
-        let hint = if check(other).is_ok() {
+        // The other axis is offered only where it is the shorter one: an array of
+        // channels is much shorter than it is long, and a block of a few samples or an
+        // option's index out of range otherwise "fits" the long axis.
+        let hint = if other < n_ch && check(other).is_ok() {
             if channels_first {
                 " (the array looks like (samples, channels): drop channels_first=True)"
             } else {

@@ -9,6 +9,7 @@ use pyo3::types::PyDict;
 use soundloc::audio::resample::Resampler;
 use soundloc::{Block, Localizer, Output};
 use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, Ordering};
 
 /// A stateful localizer (see `soundloc.Localizer` in Python for the arguments).
 #[pyclass(module = "soundloc._native", name = "Localizer")]
@@ -24,6 +25,10 @@ pub(crate) struct PyLocalizer {
     /// [`PySpec::rate_open`]): `localize(x, fs)` and `localize_file` rebuild the
     /// localizer for the audio's rate.
     open_rate: Option<PySpec>,
+    /// With an open rate: whether a call has named the audio's rate yet (`localize(x,
+    /// fs)`, `localize_file`'s header, `push(x, fs)`). Until then a call without `fs` is
+    /// refused instead of analysing at a guessed rate.
+    rate_named: AtomicBool,
 }
 
 #[pymethods]
@@ -46,6 +51,7 @@ impl PyLocalizer {
             channels_first: spec.channels_first,
             files,
             open_rate: spec.rate_open().then(|| spec.clone()),
+            rate_named: AtomicBool::new(false),
         })
     }
 
@@ -65,8 +71,9 @@ impl PyLocalizer {
         // One lock throughout: another thread's call cannot come between the reset and
         // the recording.
         let mut guard = self.lock(py)?;
-        if let Some(f) = fs {
-            self.adopt_rate(py, &mut guard, f)?;
+        match fs {
+            Some(f) => self.adopt_rate(py, &mut guard, f)?,
+            None => self.rate_known("localize(x)", "localize(x, fs)")?,
         }
         let loc = &mut *guard;
         let mut out = match converter(loc, &s, fs, channels_first)? {
@@ -134,27 +141,39 @@ impl PyLocalizer {
         .map_err(err)
     }
 
-    /// Push a block of any length; returns the results its samples completed.
-    #[pyo3(signature = (x, channels_first=None))]
+    /// Push a block of any length at `fs` Hz; returns the results its samples completed.
+    /// `fs` is checked against the analysis rate; with an open rate
+    /// ([`PySpec::rate_open`]) the first push of a stream must name it and the stream
+    /// runs at that rate.
+    #[pyo3(signature = (x, fs=None, channels_first=None))]
     fn push<'py>(
         &self,
         py: Python<'py>,
         x: &Bound<'py, PyAny>,
+        fs: Option<&Bound<'py, PyAny>>,
         channels_first: Option<bool>,
     ) -> PyResult<Bound<'py, PyDict>> {
+        let fs = fs.map(crate::spec::rate).transpose()?;
         let s = samples(x)?;
         let mut guard = self.lock(py)?;
+        self.stream_rate(py, &mut guard, fs)?;
         let loc = &mut *guard;
         let mut out = run(py, loc, &s, channels_first.unwrap_or(self.channels_first), false)?;
         results(py, &mut out, loc.grid().len(), loc.config())
     }
 
-    /// End of input: results still held (a noise range, the tracker's delay).
+    /// End of input: results still held (a noise range, the tracker's delay). A stream
+    /// that ended before its first window gives no results and says so in a note (a
+    /// live capture stopped early is not an error; `localize` of too short a recording
+    /// is).
     fn flush<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         let mut out = Output::default();
         let mut inner = self.lock(py)?;
         let loc = &mut *inner;
-        py.allow_threads(|| loc.flush(&mut out)).map_err(err)?;
+        match py.allow_threads(|| loc.flush(&mut out)) {
+            Err(soundloc::Error::TooShort(m)) => out.notes.push(format!("no results: {m}")),
+            r => r.map_err(err)?,
+        }
         results(py, &mut out, inner.grid().len(), inner.config())
     }
 
@@ -216,6 +235,34 @@ impl PyLocalizer {
         self.inner.lock(py)
     }
 
+    /// The rate a pushed block is at (`fs`, where `push` names it) against the stream's:
+    /// with an open rate ([`PySpec::rate_open`]) a stream's first push may name another
+    /// rate and the localizer is rebuilt for it; otherwise (and after the first push)
+    /// another rate is refused, naming both. Without `fs` the rate last named stays, and
+    /// none named is an error ([`Self::rate_known`]): a 48 kHz block analysed as 16 kHz
+    /// audio would give wrong directions without one.
+    fn stream_rate(&self, py: Python<'_>, loc: &mut Localizer, fs: Option<u32>) -> PyResult<()> {
+        let first = loc.samples_received() == 0;
+        let open = self.open_rate.is_some();
+        let have = loc.config().sample_rate_hz;
+        match fs {
+            None => self.rate_known("push(x)", "push(x, fs)"),
+            Some(f) if open && first => self.adopt_rate(py, loc, f),
+            Some(f) if f != have => Err(PyValueError::new_err(if open {
+                format!(
+                    "push(fs={f}): this stream runs at {have} Hz, its first block's rate; call reset() \
+                     to start a stream at another rate"
+                )
+            } else {
+                format!(
+                    "push(fs={f}): the localizer analyses {have} Hz audio; push audio at that rate \
+                     (localize(x, fs) converts whole recordings with resample=True)"
+                )
+            })),
+            _ => Ok(()),
+        }
+    }
+
     /// With an open rate ([`PySpec::rate_open`]), the localizer rebuilt for audio at
     /// `fs` Hz when it analyses another rate (the stream starts anew, as `localize` and
     /// `localize_file` start it anyway).
@@ -224,8 +271,23 @@ impl PyLocalizer {
             if loc.config().sample_rate_hz != fs {
                 *loc = spec.localizer(py)?;
             }
+            self.rate_named.store(true, Ordering::Relaxed);
         }
         Ok(())
+    }
+
+    /// A call (`what`) without the audio's rate: refused while the rate is open and no
+    /// call has named it yet (`with` is the call that does). Free-field transfer
+    /// functions are made for the rate, so a guess gives wrong directions silently.
+    fn rate_known(&self, what: &str, with: &str) -> PyResult<()> {
+        if self.open_rate.is_none() || self.rate_named.load(Ordering::Relaxed) {
+            return Ok(());
+        }
+        Err(PyValueError::new_err(format!(
+            "{what}: the audio's sampling rate is not known (geometry= without fs=): pass fs= to \
+             Localizer(), or call {with} (free-field transfer functions are made for that rate; \
+             a guess would give wrong directions for audio at another)"
+        )))
     }
 }
 

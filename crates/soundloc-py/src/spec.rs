@@ -442,8 +442,8 @@ impl PySpec {
         self.rate_open().then(|| {
             format!(
                 "no fs= given: the free-field transfer functions are made for {} Hz audio; \
-                 localize(x, fs) and localize_file take the audio's rate instead, push() assumes this \
-                 one (pass fs= for audio at another rate)",
+                 localize(x, fs) and localize_file take the audio's rate instead, and a stream's first \
+                 push(x, fs=...) names it",
                 self.spec.analysis.sample_rate_hz
             )
         })
@@ -478,6 +478,12 @@ impl PySpec {
 
     /// A group of `streams` streams sharing the plan.
     pub fn group(&self, py: Python<'_>, streams: usize) -> PyResult<LocalizerGroup> {
+        if self.rate_open() {
+            return Err(PyValueError::new_err(
+                "StreamGroup(geometry=...) needs fs=, the streams' sampling rate in Hz: free-field \
+                 transfer functions are made for it, and a group has no recording to take it from",
+            ));
+        }
         self.check_fs_early()?;
         let g = py
             .allow_threads(|| match self.arrays()? {

@@ -10,7 +10,7 @@ from test_localizer import FS, MICS, TALKERS, angle, scene
 
 
 def kwargs(noise):
-    return dict(geometry=MICS, grid="ring:5", device="cpu", noise=noise, track=True, period=10)
+    return dict(geometry=MICS, grid="ring:5", fs=FS, device="cpu", noise=noise, track=True, period=10)
 
 
 def test_each_stream_equals_its_own_localizer():
@@ -49,8 +49,8 @@ def test_each_stream_equals_its_own_localizer():
 
 def test_group_refuses_what_it_cannot_share():
     with pytest.raises(ValueError, match="one fixed noise matrix"):
-        soundloc.StreamGroup(2, geometry=MICS, grid="ring:5", device="cpu", noise_range=(0.0, 0.5))
-    g = soundloc.StreamGroup(2, geometry=MICS, grid="ring:5", device="cpu")
+        soundloc.StreamGroup(2, geometry=MICS, grid="ring:5", fs=FS, device="cpu", noise_range=(0.0, 0.5))
+    g = soundloc.StreamGroup(2, geometry=MICS, grid="ring:5", fs=FS, device="cpu")
     with pytest.raises(ValueError, match="2 blocks|blocks for 2 streams"):
         g.push_all([scene(seconds=0.1)])
     with pytest.raises(ValueError, match="no stream 5"):
@@ -69,7 +69,7 @@ def test_two_threads_on_one_group_never_deadlock():
     return or raise at once — they never wait on the group with the GIL held."""
     import threading
 
-    g = soundloc.StreamGroup(2, geometry=MICS, grid="ring:5", device="cpu", period=1)
+    g = soundloc.StreamGroup(2, geometry=MICS, grid="ring:5", fs=FS, device="cpu", period=1)
     xs = [scene(seconds=1.0, seed=40 + i) for i in range(2)]
     errors = []
 

@@ -61,7 +61,7 @@ def test_tracker_options_equal_the_cli(tmp_path):
         assert [s["id"] for s in l["sources"]] == [int(v) for v in r.ids[i][: len(l["sources"])]]
     # Pushed in 20 ms blocks: each push's spectrum rows are those of the results it
     # returns (the preroll holds results back; their rows wait with them).
-    loc = localizer(period=10, track=True, tracker_thresh_db=3.0, tracker_pause_length=300.0,
+    loc = localizer(fs=FS, period=10, track=True, tracker_thresh_db=3.0, tracker_pause_length=300.0,
                     tracker_min_src_interval_deg=15.0, tracker_min_id=7, preroll=20)
     row = {f: i for i, f in enumerate(r.frames)}
     parts = [loc.push(x[i : i + 320]) for i in range(0, len(x), 320)] + [loc.flush()]
@@ -318,7 +318,7 @@ def test_bad_input_raises_the_right_exception(tmp_path):
     with pytest.raises(ValueError, match="^nfft: must be a non-negative integer"):
         localizer(nfft=2 ** 64)
     with pytest.raises(ValueError, match="streams must be at least 1"):
-        soundloc.StreamGroup(0, geometry=MICS, grid="ring:5", device="cpu")
+        soundloc.StreamGroup(0, geometry=MICS, grid="ring:5", fs=FS, device="cpu")
 
 
 def test_fortran_order_and_strided_arrays_read_in_logical_order():
@@ -417,6 +417,94 @@ def test_geometry_without_fs_takes_the_audios_rate(tmp_path):
     assert not any("no fs= given" in n for n in localizer(fs=FS).notes)
 
 
+def test_push_needs_the_rate_where_it_is_open():
+    """geometry= without fs=: push() and localize(x) refuse audio whose rate no call has
+    named (until 2026-12-02 push() analysed it as 16 kHz audio: 48 kHz talkers found
+    5-15 degrees off, no error); a stream's first push(x, fs) names it, and the results
+    equal those with fs= given. A rate other than the stream's is refused, naming both."""
+    x48 = scene(fs=48000)
+    loc = localizer()
+    with pytest.raises(ValueError, match="sampling rate is not known"):
+        loc.push(x48[:4800])
+    with pytest.raises(ValueError, match="sampling rate is not known"):
+        loc.localize(x48)
+    step = 4800
+    got = [loc.push(x48[:step], fs=48000)] + [loc.push(x48[i : i + step]) for i in range(step, len(x48), step)]
+    got = soundloc.Results.concatenate(got + [loc.flush()])
+    assert loc.fs == 48000
+    want = localizer(fs=48000).localize(x48, 48000)
+    assert len(got) == len(want) >= 3
+    np.testing.assert_array_equal(got.azimuth_deg, want.azimuth_deg)
+    np.testing.assert_array_equal(got.times, want.times)
+    for row in got.azimuth_deg:
+        for t in TALKERS:
+            assert min(angle(a, t) for a in row) <= 5.0, (row, t)
+    # Within a stream the rate stays; a new stream's first push may name another.
+    loc.reset()
+    loc.push(x48[:step], fs=48000)
+    with pytest.raises(ValueError, match="this stream runs at 48000 Hz"):
+        loc.push(scene()[:1600], fs=FS)
+    loc.reset()
+    x = scene()
+    r16 = soundloc.Results.concatenate([loc.push(x, fs=FS), loc.flush()])
+    assert loc.fs == FS
+    np.testing.assert_array_equal(r16.azimuth_deg, localizer(fs=FS).localize(x, FS).azimuth_deg)
+    # A fixed rate (fs= given): a block named at another rate is refused.
+    with pytest.raises(ValueError, match=r"push\(fs=48000\): the localizer analyses 16000 Hz"):
+        localizer(fs=FS).push(x48, fs=48000)
+    # A group has no recording to take a rate from.
+    with pytest.raises(ValueError, match="StreamGroup.*needs fs="):
+        soundloc.StreamGroup(2, geometry=MICS, grid="ring:5", device="cpu")
+
+
+def test_flush_of_a_stream_shorter_than_one_window():
+    """A stream that ends before its first window (a live capture stopped at once) flushes
+    to no results and a note; it raised the engine's too-short error until 2026-12-02.
+    localize() of so short a recording stays an error."""
+    x = scene()
+    loc = localizer(fs=FS)
+    assert len(loc.push(x[:1000])) == 0
+    r = loc.flush()
+    assert len(r) == 0 and r.azimuth_deg.shape[0] == 0
+    assert any(n.startswith("no results: the audio has 1000 samples") for n in r.notes), r.notes
+    with pytest.raises(ValueError, match=r"push after the end of the stream \(flush, or localize"):
+        loc.push(x[:100])
+    loc.reset()
+    np.testing.assert_array_equal(soundloc.Results.concatenate([loc.push(x), loc.flush()]).azimuth_deg,
+                                  localizer(fs=FS).localize(x, FS).azimuth_deg)
+    with pytest.raises(ValueError, match="the audio has 1000 samples"):
+        localizer(fs=FS).localize(x[:1000], FS)
+
+
+def test_num_sources_bounds_a_subspace_only():
+    """SRP-PHAT has no subspace: num_sources (the peaks reported) may reach M; the MUSIC
+    family refuses it, naming the bound."""
+    x = scene()
+    r = localizer(fs=FS, algorithm="srp-phat", num_sources=8).localize(x, FS)
+    two = localizer(fs=FS, algorithm="srp-phat").localize(x, FS)
+    assert r.azimuth_deg.shape[1] == 8
+    np.testing.assert_array_equal(r.azimuth_deg[:, :2], two.azimuth_deg)
+    with pytest.raises(ValueError, match="between 1 and M-1 = 7 for 8 microphones with sevd"):
+        localizer(fs=FS, algorithm="sevd", num_sources=8)
+
+
+def test_big_endian_and_shape_hints():
+    """Big-endian arrays (read from files as ">i2") are converted, not refused as the
+    wrong dtype; the channels_first hint is given only where the other axis is the
+    shorter one (not for an input_channels index out of range)."""
+    x = scene()
+    loc = localizer(fs=FS)
+    want = loc.localize(x, FS)
+    for dt in (">i2", ">f4", ">f8", ">i4"):
+        np.testing.assert_array_equal(loc.localize(x.astype(dt), FS).azimuth_deg, want.azimuth_deg)
+    with pytest.raises(ValueError, match=r"pass channels_first=True"):
+        loc.localize(np.ascontiguousarray(x.T), FS)
+    sel = localizer(fs=FS, input_channels=list(range(1, 9)))
+    with pytest.raises(ValueError) as e:
+        sel.localize(x, FS)
+    assert "channels_first" not in str(e.value), str(e.value)
+
+
 def test_geometry_by_columns_and_a_hop_past_the_frame_are_named():
     """pyroomacoustics' L (one microphone per column) is refused with the transpose to
     pass, a 3 × 3 array (rows or columns alike) is read by rows with a note, and a hop
@@ -496,7 +584,7 @@ def test_arguments_as_pyroomacoustics_users_write_them():
         for t in TALKERS:
             assert min(angle(a, t) for a in row) <= 5.0, (row, t)
     # One NaN in a pushed block: the block is refused whole, the stream goes on unchanged.
-    loc, whole = localizer(period=10), localizer(period=10)
+    loc, whole = localizer(fs=FS, period=10), localizer(fs=FS, period=10)
     want = whole.push(x)
     bad = x[12000:16000].astype(np.float32)
     bad[3900, 5] = np.nan
@@ -574,7 +662,7 @@ def test_a_thread_in_a_tight_loop_does_not_starve_another():
     import time
 
     x = scene(seconds=1.0)
-    loc = localizer(period=1)
+    loc = localizer(fs=FS, period=1)
     done = threading.Event()
     calls = []
 

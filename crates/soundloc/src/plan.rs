@@ -135,13 +135,26 @@ impl<T: Real> Plan<T> {
         validate_config(config)?;
         let m = tf.num_mics;
         let d = tf.num_dirs();
-        if config.num_sources == 0 || config.num_sources >= m {
-            return Err(Error::Config(format!(
-                "num-sources must be between 1 and M-1 = {} for {} microphones, got {}",
-                m.saturating_sub(1),
-                m,
-                config.num_sources
-            )));
+        // MUSIC resolves fewer sources than microphones (HARK ties its signal subspace to
+        // NUM_SOURCE); SRP-PHAT has no subspace, its num_sources is only a peak count.
+        let subspace = config.algorithm.is_music();
+        if config.num_sources == 0 || (subspace && config.num_sources >= m) {
+            return Err(Error::Config(if subspace {
+                format!(
+                    "num-sources (num_sources= in Python) must be between 1 and M-1 = {} for {} \
+                     microphones with {}, got {} (MUSIC resolves fewer sources than \
+                     microphones; srp-phat reports any number of peaks)",
+                    m.saturating_sub(1),
+                    m,
+                    config.algorithm.name(),
+                    config.num_sources
+                )
+            } else {
+                format!(
+                    "num-sources (num_sources= in Python) must be at least 1, got {}",
+                    config.num_sources
+                )
+            }));
         }
         if let Some(ns) = config.subspace_dim {
             if ns == 0 || ns >= m {

@@ -43,6 +43,60 @@ fn srp_phat_and_normmusic_find_free_field_talkers() {
     }
 }
 
+/// NUM_SOURCE is bounded by M - 1 for MUSIC (fewer sources than microphones), not for
+/// SRP-PHAT (no subspace): it reports as many peaks as asked, also M or more, the
+/// strongest ones those of a smaller count; MUSIC refuses M, naming the bound.
+#[test]
+fn num_sources_bounds_only_a_subspace() {
+    let sc = ring8_incoherent(&[30.0, -120.0], 10.0, 11).unwrap();
+    let audio = sc.render();
+    {
+        let algorithm = Algorithm::SrpPhat;
+        let cfg = LocalizeConfig {
+            algorithm,
+            num_sources: 10,
+            period: 25,
+            ..Default::default()
+        };
+        let run = localize_scene::<f32>(&sc, &audio, &cfg, DeviceChoice::Cpu).unwrap();
+        assert!(run.results.len() >= 6);
+        assert!(
+            run.results.iter().any(|r| r.sources.len() > 2),
+            "never more than two peaks"
+        );
+        let two = LocalizeConfig {
+            num_sources: 2,
+            ..cfg.clone()
+        };
+        let want = localize_scene::<f32>(&sc, &audio, &two, DeviceChoice::Cpu).unwrap();
+        assert!(sc.score(&want.results, 5.0).hit_rate >= 0.9, "{algorithm:?}");
+        assert_eq!(run.results.len(), want.results.len());
+        for (r, w) in run.results.iter().zip(&want.results) {
+            // The same spectrum: its two strongest peaks are the two-source run's, and
+            // more of its local maxima follow.
+            assert!(r.sources.len() <= 10);
+            let az = |s: &[soundloc::Source]| s.iter().map(|s| s.azimuth_deg).collect::<Vec<_>>();
+            assert_eq!(
+                az(&r.sources[..w.sources.len()]),
+                az(&w.sources),
+                "{algorithm:?} frame {}",
+                r.frame
+            );
+        }
+    }
+    let cfg = LocalizeConfig {
+        algorithm: Algorithm::Sevd,
+        num_sources: 8,
+        ..Default::default()
+    };
+    let e = localize_scene::<f32>(&sc, &audio, &cfg, DeviceChoice::Cpu).unwrap_err();
+    assert!(
+        e.to_string()
+            .contains("between 1 and M-1 = 7 for 8 microphones with sevd, got 8"),
+        "{e}"
+    );
+}
+
 /// One white-noise talker in free field at an off-grid direction, high SNR.
 fn off_grid(geometry: Geometry, grid: Grid, step: f64, az: f64, el: f64) -> DemoScene {
     let mut scene = Scene::new().with_source(

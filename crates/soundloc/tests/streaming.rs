@@ -161,7 +161,7 @@ fn one_sample_pushes_and_f64_equal_batch() {
     assert!(matches!(e, soundloc::Error::State(_)), "{e:?}");
     assert_eq!(
         e.to_string(),
-        "push after flush: call reset to start a new stream"
+        "push after the end of the stream (flush, or localize of a whole recording): call reset to start a new stream"
     );
     assert_same(&out, &batch, "after a refused push");
     let e = loc.skip(160, &mut out).unwrap_err();

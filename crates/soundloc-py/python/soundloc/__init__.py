@@ -7,8 +7,10 @@
     res.azimuth_deg        # (results, sources), NaN where a window has fewer sources
     res.spectrum_db        # (results, directions); loc.directions()["azimuth_deg"]
 
-Streaming: ``loc.push(block)`` returns the results that block completed; ``loc.flush()``
-at the end; ``loc.reset()`` starts a new stream. Many arrays on one device:
+Streaming: ``loc.push(block, fs)`` returns the results that block completed (``fs`` is
+checked against the analysis rate; with geometry= and no fs= to Localizer the stream's
+first push must name it); ``loc.flush()`` at the end (no results and a note when the
+stream ended before its first window); ``loc.reset()`` starts a new stream. Many arrays on one device:
 ``soundloc.StreamGroup(n, **same arguments)`` and ``g.push_all([block_0, ..., block_n-1])``.
 
 HARK files as numpy: read_tf / write_tf (transfer-function zips), read_noise_cm /
@@ -22,8 +24,8 @@ Arguments (HARK LocalizeMUSIC name / pyroomacoustics name):
         raw.nChannels channels) with grid: "ring:STEP_DEG[:ELEV]", "sphere:N" or
         a (D, 3) array of unit directions, grid_radius (metres, default 1) and
         speed_of_sound (m/s, default 343); fs (SAMPLING_RATE, for geometry=; without it
-        the rate localize(x, fs) or localize_file's header names, 16000 for push() until
-        then; with tf= the file's rate, and another one is an error). Directions are seen from the origin of
+        the rate localize(x, fs) or localize_file's header names, or the first
+        push(x, fs) of a stream; StreamGroup needs it; with tf= the file's rate, and another one is an error). Directions are seen from the origin of
         the positions' frame, or from the microphones' centroid when that origin lies
         outside the array (room coordinates, as pyroomacoustics' ``L``).
     algorithm: "sevd" | "gevd" | "gevd-hark" | "gsvd" | "srp-phat" (MUSIC_ALGORITHM); default
@@ -288,9 +290,10 @@ class Localizer:
         (``format`` "jsonl" or "csv", whole or not at all); returns the number of results."""
         return self._n.localize_file(str(input), str(output), format)
 
-    def push(self, block, channels_first=None) -> Results:
-        """Push a block of any length; returns the results it completed."""
-        return Results(**self._n.push(block, channels_first=channels_first))
+    def push(self, block, fs=None, channels_first=None) -> Results:
+        """Push a block of any length (at ``fs`` Hz: checked, and named on a stream's
+        first push where the rate is open); returns the results it completed."""
+        return Results(**self._n.push(block, fs=fs, channels_first=channels_first))
 
     def flush(self) -> Results:
         """End of input: the results still held."""

@@ -332,7 +332,7 @@ impl<T: Real> Engine<T> {
     pub(crate) fn check(&self, block: &Block<'_>) -> Result<(Arc<[usize]>, usize)> {
         if self.finished {
             return Err(Error::State(
-                "push after flush: call reset to start a new stream".into(),
+                "push after the end of the stream (flush, or localize of a whole recording): call reset to start a new stream".into(),
             ));
         }
         let len = block.samples()?;

@@ -523,6 +523,11 @@ impl Localizer {
         dispatch!(self, e => e.samples_needed_next())
     }
 
+    /// See [`Engine::samples_received`].
+    pub fn samples_received(&self) -> usize {
+        dispatch!(self, e => e.samples_received())
+    }
+
     /// Batch: push planar channels whole, then flush.
     pub fn localize(&mut self, channels: &[Vec<f32>]) -> Result<Localization> {
         dispatch!(mut self, e => e.localize(channels))
