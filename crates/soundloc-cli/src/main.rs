@@ -16,15 +16,9 @@ fn main() -> ExitCode {
     let cli = cmd::Cli::parse();
     match cmd::run(cli) {
         Ok(code) => code,
-        // A closed pipe on stdout (`soundloc … | head`) is the reader's choice, not an error.
-        Err(e)
-            if e.chain().any(|c| {
-                c.downcast_ref::<std::io::Error>()
-                    .is_some_and(|io| io.kind() == std::io::ErrorKind::BrokenPipe)
-            }) =>
-        {
-            ExitCode::SUCCESS
-        }
+        // A closed pipe on stdout (`soundloc … | head`) is the reader's choice, not an
+        // error; a closed FIFO given as an output file is one.
+        Err(e) if e.chain().any(|c| c.is::<cmd::sinks::StdoutClosed>()) => ExitCode::SUCCESS,
         Err(e) => {
             eprintln!("soundloc: error: {e:#}");
             ExitCode::from(2)

@@ -595,3 +595,46 @@ fn ctrl_c_ends_a_live_session_cleanly() {
     assert_eq!(left.len(), 1, "no temporary file left: {left:?}");
     drop(stdin);
 }
+
+/// Ctrl-C before the first window was complete (a live session stopped at once) ends
+/// cleanly: no results, a note saying why, an empty `-o` file, exit 0. It was the error a
+/// too-short recording gets (exit 2, no `-o`) until 2026-12-02.
+#[test]
+fn ctrl_c_before_the_first_window_gives_no_results_and_no_error() {
+    let (audio, geo, _) = scene();
+    let dir = tmp_dir("ctrlc-early");
+    let out = dir.join("early.jsonl");
+    let mut child = spawn_piped(
+        common::bin_for_ctrl_c()
+            .args(["localize", "-"])
+            .args(RAW_S16_RING)
+            .arg("--geometry")
+            .arg(&geo)
+            .args(&OPTS[..8])
+            .arg("-o")
+            .arg(&out),
+    );
+    let mut stdin = child.stdin.take().unwrap();
+    let mut err = BufReader::new(child.stderr.take().unwrap());
+    let mut line = String::new();
+    while !line.contains("streaming from") {
+        line.clear();
+        assert!(err.read_line(&mut line).unwrap() > 0, "soundloc exited early");
+    }
+    // 0.1 s: less than one window of 50 frames.
+    stdin.write_all(&s16le(&audio, 0..1600)).unwrap();
+    stdin.flush().unwrap();
+    std::thread::sleep(Duration::from_millis(800));
+    let ok = Command::new("kill")
+        .args(["-INT", &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(ok.success());
+    let status = child.wait().unwrap();
+    let mut rest = String::new();
+    err.read_to_string(&mut rest).unwrap();
+    assert!(status.success(), "{rest}");
+    assert!(rest.contains("no results: the audio has 1600 samples"), "{rest}");
+    assert_eq!(std::fs::read_to_string(&out).unwrap(), "");
+    drop(stdin);
+}

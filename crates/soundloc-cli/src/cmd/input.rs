@@ -17,8 +17,9 @@ use clap::ValueEnum;
 use soundloc::audio::{open_source, open_stream, AudioFormat, AudioSource, RawEncoding, RawSource};
 use std::io::Write;
 use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::mpsc::{sync_channel, Receiver, SyncSender, TrySendError};
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::sync::mpsc::{channel, Receiver, RecvError, Sender, TryRecvError};
+use std::sync::Arc;
 
 #[derive(ValueEnum, Clone, Copy, Debug)]
 pub enum RawArg {
@@ -67,8 +68,8 @@ pub struct InputArgs {
     pub rate: Option<u32>,
     /// Live input: audio buffered while the localizer is behind, seconds; beyond it whole
     /// blocks are dropped (and counted). A pipe or socket more than a quarter of this (and
-    /// at least 1 s) ahead of real time (a file being piped) is read like a file instead:
-    /// nothing dropped.
+    /// at least 1 s, or half of it under 2 s) ahead of real time (a file being piped) is
+    /// read like a file instead: nothing dropped.
     #[arg(long, default_value_t = 10.0)]
     pub max_buffer: f64,
     /// Read a file at real-time speed (as if it were being recorded), e.g. to review it
@@ -186,7 +187,7 @@ pub enum Msg {
 /// more), so their windows run as one batch — fewer passes over the steering vectors. The
 /// first message that is not a plain block (a gap, a note, the end, a failure) is put in
 /// `held`, to be handled next, in order.
-pub fn catch_up(rx: &Receiver<Msg>, data: &mut Vec<f32>, max: usize, held: &mut Option<Msg>) {
+pub fn catch_up(rx: &Queue, data: &mut Vec<f32>, max: usize, held: &mut Option<Msg>) {
     while data.len() < max {
         match rx.try_recv() {
             Ok(Msg::Block { data: more, gap: 0 }) => data.extend_from_slice(&more),
@@ -202,9 +203,79 @@ pub fn catch_up(rx: &Receiver<Msg>, data: &mut Vec<f32>, max: usize, held: &mut 
 /// Frames per block read from a file.
 const FILE_BLOCK: usize = 1 << 15;
 
-/// Longest `--max-buffer` accepted, seconds. The queue's slots are reserved up front:
-/// for an hour, one per ~20 ms block here is a few MB, one per 320 frames in `listen` some
-/// tens of MB at 48 kHz; the audio itself takes memory only while it waits.
+/// The reader's queue, bounded in samples of audio (`--max-buffer` seconds for a live
+/// input, four file blocks otherwise), not in reads: a socket or pipe read returns what
+/// has arrived, one packet of a few milliseconds or a whole block, so a bound in reads
+/// would hold anything from a fraction of `--max-buffer` to all of it.
+pub struct Queue {
+    rx: Receiver<Msg>,
+    /// None for a channel bounded by its sender (`listen`'s).
+    queued: Option<Arc<AtomicUsize>>,
+}
+
+impl Queue {
+    /// A channel whose sender bounds it itself (`listen`: blocks of a fixed size).
+    pub fn bounded_by_sender(rx: Receiver<Msg>) -> Self {
+        Queue { rx, queued: None }
+    }
+
+    /// The next message, waiting for it.
+    pub fn recv(&self) -> Result<Msg, RecvError> {
+        self.rx.recv().map(|m| self.taken(m))
+    }
+
+    /// The next message if one is waiting.
+    pub fn try_recv(&self) -> Result<Msg, TryRecvError> {
+        self.rx.try_recv().map(|m| self.taken(m))
+    }
+
+    fn taken(&self, m: Msg) -> Msg {
+        if let (Msg::Block { data, .. }, Some(q)) = (&m, &self.queued) {
+            q.fetch_sub(data.len(), Ordering::AcqRel);
+        }
+        m
+    }
+}
+
+/// The reader's end of a [`Queue`], holding at most `cap` samples.
+struct QueueTx {
+    tx: Sender<Msg>,
+    queued: Arc<AtomicUsize>,
+    cap: usize,
+}
+
+impl QueueTx {
+    /// A block of `data.len()` samples if it fits (or the queue is empty), else it back.
+    fn try_block(&self, data: Vec<f32>, gap: u64) -> Result<Result<(), Vec<f32>>, ()> {
+        let n = data.len();
+        let before = self.queued.fetch_add(n, Ordering::AcqRel);
+        if before > 0 && before + n > self.cap {
+            self.queued.fetch_sub(n, Ordering::AcqRel);
+            return Ok(Err(data));
+        }
+        self.tx.send(Msg::Block { data, gap }).map(Ok).map_err(|_| ())
+    }
+
+    /// A block, waiting while the queue is full (back-pressure). Err: the receiver is gone.
+    fn block(&self, mut data: Vec<f32>, gap: u64) -> Result<(), ()> {
+        loop {
+            match self.try_block(data, gap)? {
+                Ok(()) => return Ok(()),
+                Err(d) => data = d,
+            }
+            std::thread::sleep(std::time::Duration::from_millis(1));
+        }
+    }
+
+    /// Anything but a block (notes, the end, a failure): never waits.
+    fn send(&self, m: Msg) -> Result<(), ()> {
+        self.tx.send(m).map_err(|_| ())
+    }
+}
+
+/// Longest `--max-buffer` accepted, seconds. The queue holds messages in a list, so only
+/// the audio waiting in it takes memory (an hour of 8 channels at 48 kHz is 5.5 GB: a
+/// bound a user chooses, not one reserved up front).
 pub const MAX_BUFFER_S: f64 = 3600.0;
 
 /// `--max-buffer` above 0 and at most [`MAX_BUFFER_S`].
@@ -225,7 +296,7 @@ pub fn spawn_reader(
     max_buffer_s: f64,
     realtime: bool,
     serving: bool,
-) -> (AudioFormat, Receiver<Msg>) {
+) -> (AudioFormat, Queue) {
     let fmt = source.format();
     let block = if live || realtime {
         // ~20 ms blocks: results as soon as their window is complete.
@@ -233,42 +304,60 @@ pub fn spawn_reader(
     } else {
         FILE_BLOCK
     };
-    let slots = if live {
-        ((max_buffer_s * fmt.sample_rate_hz as f64) / block as f64)
-            .ceil()
-            .max(2.0) as usize
+    let cap = if live {
+        (max_buffer_s * fmt.sample_rate_hz as f64).ceil() as usize * fmt.channels
     } else {
-        4
+        4 * block * fmt.channels
     };
-    let (tx, rx) = sync_channel(slots);
+    let (tx, rx) = channel();
     if live || realtime || serving {
-        stop_on_ctrl_c(tx.clone());
+        stop_on_ctrl_c(EndInput::Queue(tx.clone()));
     }
+    let queued = Arc::new(AtomicUsize::new(0));
+    let tx = QueueTx {
+        tx,
+        queued: queued.clone(),
+        cap: cap.max(1),
+    };
     let pace = (realtime && !live).then_some(fmt.sample_rate_hz as f64);
     let live = live.then_some(max_buffer_s);
     std::thread::spawn(move || reader_loop(&mut *source, &tx, block, live, pace));
-    (fmt, rx)
+    (
+        fmt,
+        Queue {
+            rx,
+            queued: Some(queued),
+        },
+    )
 }
 
 /// Whether a live input that has delivered `frames` frames at `rate_hz` in `elapsed` is
-/// ahead of real time by more than [`AHEAD_S`] or a quarter of the queue (`max_buffer_s`),
-/// whichever is more: a capture is ahead only by what sat in its pipe or socket when the
-/// run began (a fraction of a second), so the producer is delivering faster than real time
-/// (a file being piped), and waiting for the localizer loses nothing. (With a queue under
-/// 4 s such a producer may be dropped from before it gets that far ahead.)
+/// ahead of real time by more than a quarter of the queue (`max_buffer_s`), and by at
+/// least [`AHEAD_S`] or half the queue, whichever is less: a capture is ahead only by what
+/// sat in its pipe or socket when the run began (a fraction of a second), so the producer
+/// is delivering faster than real time (a file being piped), and waiting for the localizer
+/// loses nothing. (Half the queue for queues under 2 s: the queue is full, and this is
+/// asked, before a piped file gets further ahead than the queue holds; with a second
+/// required a piped file lost most of its audio at `--max-buffer 1`.)
 pub fn faster_than_real_time(
     frames: u64,
     rate_hz: u32,
     elapsed: std::time::Duration,
     max_buffer_s: f64,
 ) -> bool {
-    frames as f64 / rate_hz.max(1) as f64 - elapsed.as_secs_f64() > (0.25 * max_buffer_s).max(AHEAD_S)
+    let lead = frames as f64 / rate_hz.max(1) as f64 - elapsed.as_secs_f64();
+    lead > (0.25 * max_buffer_s).max(AHEAD_S.min(0.5 * max_buffer_s))
 }
 
 /// The least lead over real time that marks a live input as a file in disguise, seconds.
 pub const AHEAD_S: f64 = 1.0;
 
 static INTERRUPTED: AtomicBool = AtomicBool::new(false);
+
+/// Whether a Ctrl-C (or SIGTERM, SIGHUP) ended a live session's input.
+pub fn interrupted() -> bool {
+    INTERRUPTED.load(Ordering::Relaxed)
+}
 
 /// Block until Ctrl-C (after [`stop_on_ctrl_c`] was installed).
 pub fn wait_for_ctrl_c() {
@@ -278,7 +367,15 @@ pub fn wait_for_ctrl_c() {
 }
 
 /// Where the first Ctrl-C (or SIGTERM, SIGHUP) of a live session sends the end of input.
-static STOP: std::sync::Mutex<Option<SyncSender<Msg>>> = std::sync::Mutex::new(None);
+static STOP: std::sync::Mutex<Option<EndInput>> = std::sync::Mutex::new(None);
+
+/// A live input's queue, to end it with [`Msg::End`].
+pub enum EndInput {
+    /// [`spawn_reader`]'s queue (bounded in audio, not in messages: sending never blocks).
+    Queue(Sender<Msg>),
+    /// A bounded channel (`listen`'s), which may be full.
+    Bounded(std::sync::mpsc::SyncSender<Msg>),
+}
 
 /// The first interrupt of a live session: end its input. False when none is running.
 fn stop_live_session() -> bool {
@@ -286,10 +383,17 @@ fn stop_live_session() -> bool {
         return false;
     };
     INTERRUPTED.store(true, Ordering::Relaxed);
-    // Never block here: the queue may be full, or nobody reads it any more.
-    std::thread::spawn(move || {
-        let _ = tx.send(Msg::End { gap: 0 });
-    });
+    match tx {
+        EndInput::Queue(tx) => {
+            let _ = tx.send(Msg::End { gap: 0 });
+        }
+        // Never block here: the queue may be full, or nobody reads it any more.
+        EndInput::Bounded(tx) => {
+            std::thread::spawn(move || {
+                let _ = tx.send(Msg::End { gap: 0 });
+            });
+        }
+    }
     // stderr may be a closed terminal (SIGHUP): never fail on it.
     let _ = writeln!(
         std::io::stderr(),
@@ -347,14 +451,14 @@ pub fn install_signal_handler() {
 }
 
 /// A live session ends with Ctrl-C (see [`install_signal_handler`]).
-pub fn stop_on_ctrl_c(tx: SyncSender<Msg>) {
+pub fn stop_on_ctrl_c(tx: EndInput) {
     *STOP.lock().unwrap_or_else(|e| e.into_inner()) = Some(tx);
 }
 
 /// `live`: the input's `--max-buffer` (seconds) where it is live.
 fn reader_loop(
     source: &mut dyn AudioSource,
-    tx: &SyncSender<Msg>,
+    tx: &QueueTx,
     block: usize,
     live: Option<f64>,
     pace_hz: Option<f64>,
@@ -389,14 +493,14 @@ fn reader_loop(
             }
             Ok(n) => {
                 frames += n as u64;
-                let mut msg = Msg::Block { data: buf, gap };
+                let mut buf = buf;
                 if let Some(max_buffer_s) = live {
-                    match tx.try_send(msg) {
-                        Ok(()) => {
+                    match tx.try_block(buf, gap) {
+                        Ok(Ok(())) => {
                             gap = 0;
                             continue;
                         }
-                        Err(TrySendError::Full(m))
+                        Ok(Err(b))
                             if gap == 0
                                 && faster_than_real_time(frames, rate, start.elapsed(), max_buffer_s) =>
                         {
@@ -409,18 +513,19 @@ fn reader_loop(
                                 return;
                             }
                             live = None;
-                            msg = m;
+                            buf = b;
                         }
-                        Err(TrySendError::Full(_)) => {
+                        Ok(Err(_)) => {
                             gap += n as u64;
                             continue;
                         }
-                        Err(TrySendError::Disconnected(_)) => return,
+                        Err(()) => return,
                     }
                 }
-                if tx.send(msg).is_err() {
+                if tx.block(buf, gap).is_err() {
                     return;
                 }
+                gap = 0;
             }
             // A sender that goes away abruptly (a reset connection, a crashed writer) ends a
             // stream as a close would: what arrived is localized and every output completed.
@@ -495,11 +600,19 @@ mod tests {
             Duration::from_secs(10),
             8.0
         ));
-        // A small queue: still a second at least (a capture's start-up backlog of 0.1 s
-        // with --max-buffer 0.25 stays live).
+        // A small queue: half of it (a capture's start-up backlog of 0.1 s with
+        // --max-buffer 0.25 stays live; a file piped into it is read as one, also at
+        // --max-buffer 1 and 1.5, where a second was required and the queue was full
+        // before the input got that far ahead).
         let ms = Duration::from_millis;
         assert!(!faster_than_real_time(s(0.35), 16000, ms(250), 0.25));
-        assert!(!faster_than_real_time(s(1.0), 16000, ms(1), 0.25));
-        assert!(faster_than_real_time(s(1.1), 16000, ms(50), 0.25));
+        assert!(faster_than_real_time(s(0.40), 16000, ms(250), 0.25));
+        assert!(faster_than_real_time(s(1.0), 16000, ms(1), 0.25));
+        assert!(!faster_than_real_time(s(0.45), 16000, ms(1), 1.0));
+        assert!(faster_than_real_time(s(0.55), 16000, ms(1), 1.0));
+        assert!(faster_than_real_time(s(0.8), 16000, ms(1), 1.5));
+        // From 2 s on, a second at least; from 4 s on, a quarter of the queue.
+        assert!(!faster_than_real_time(s(0.95), 16000, ms(1), 3.0));
+        assert!(faster_than_real_time(s(1.05), 16000, ms(1), 3.0));
     }
 }

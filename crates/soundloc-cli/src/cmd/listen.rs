@@ -205,7 +205,7 @@ mod capture {
             channels,
             left: a.seconds.map(|s| (s * rate as f64) as u64),
         }));
-        super::super::input::stop_on_ctrl_c(tx.clone());
+        super::super::input::stop_on_ctrl_c(super::super::input::EndInput::Bounded(tx.clone()));
         let err_tx = tx.clone();
         let on_err = move |e: cpal::StreamError| {
             let _ = err_tx.send(Msg::Failed(soundloc::Error::Device(format!("capture: {e}"))));
@@ -232,6 +232,7 @@ mod capture {
             channels,
             total_frames: None,
         };
+        let rx = super::super::input::Queue::bounded_by_sender(rx);
         let code = drive(&a.run, std::path::Path::new(&dname), true, fmt, rx, None);
         drop(stream);
         code

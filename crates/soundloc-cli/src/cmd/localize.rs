@@ -9,7 +9,6 @@ use soundloc::audio::AudioFormat;
 use soundloc::{Block, Localizer, LocalizerSpec, Output};
 use std::path::Path;
 use std::process::ExitCode;
-use std::sync::mpsc::Receiver;
 use std::time::Instant;
 
 /// `soundloc localize`: an input, and what to do with it.
@@ -21,8 +20,10 @@ pub struct Args {
     pub run: RunArgs,
 }
 
+/// A note on stderr; with `--quiet` only warnings (lost audio, a silent input, a dead
+/// channel: what makes the results wrong or incomplete).
 pub fn note(quiet: bool, msg: &str) {
-    if !quiet {
+    if !quiet || msg.starts_with("warning:") {
         eprintln!("soundloc: {msg}");
     }
 }
@@ -64,7 +65,7 @@ pub fn drive(
     name: &Path,
     live: bool,
     fmt: AudioFormat,
-    rx: Receiver<Msg>,
+    rx: super::input::Queue,
     ready: Option<(LocalizerSpec, Localizer)>,
 ) -> anyhow::Result<ExitCode> {
     let spec = a.spec(fmt.sample_rate_hz)?;
@@ -194,7 +195,14 @@ pub fn drive(
             gaps += 1;
         }
         if end {
-            loc.flush(&mut out).map_err(ctx)?;
+            match loc.flush(&mut out) {
+                // A live session stopped before its first window: no results, no error
+                // (a recording that short stays one).
+                Err(soundloc::Error::TooShort(m)) if super::input::interrupted() => {
+                    note(a.quiet, &format!("no results: {m}"))
+                }
+                r => r.map_err(ctx)?,
+            }
         } else {
             loc.push(
                 Block::Interleaved {

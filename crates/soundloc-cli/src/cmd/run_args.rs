@@ -267,7 +267,8 @@ pub struct RunArgs {
     /// $SOUNDLOC_CACHE_DIR, else $XDG_CACHE_HOME/soundloc, else ~/.cache/soundloc).
     #[arg(long, conflicts_with = "no_cache")]
     pub cache_dir: Option<PathBuf>,
-    /// No progress bar or notes on stderr.
+    /// No progress bar or notes on stderr; warnings (lost audio, a silent input, a dead or
+    /// inverted channel) are still printed.
     #[arg(long, short = 'q')]
     pub quiet: bool,
 }

@@ -181,6 +181,31 @@ pub struct Progress {
 enum Dest {
     Stdout(Lines<std::io::Stdout>),
     File(Lines<AtomicFile>, PathBuf),
+    /// Stdout, after its reader closed it while other outputs were still being written.
+    Closed,
+}
+
+/// Stdout's reader closed it (`soundloc … | head -1`): the reader's choice, so the run
+/// ends with success ([`crate::main`] looks for this in an error's chain). A closed pipe
+/// or FIFO given as a file (`-o`, `--odas-ssl`, …) is an error like any other.
+#[derive(Debug)]
+pub struct StdoutClosed;
+
+impl std::fmt::Display for StdoutClosed {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str("stdout was closed by its reader")
+    }
+}
+
+impl std::error::Error for StdoutClosed {}
+
+/// An error writing results to stdout: [`StdoutClosed`] for a closed pipe.
+fn stdout_error(e: std::io::Error) -> anyhow::Error {
+    if e.kind() == std::io::ErrorKind::BrokenPipe {
+        anyhow::Error::new(StdoutClosed)
+    } else {
+        anyhow::Error::new(e).context("writing results to stdout")
+    }
 }
 
 /// The run's outputs.
@@ -316,9 +341,7 @@ impl Sinks {
     pub fn open(a: &RunArgs, loc: &Localizer, source: &str) -> anyhow::Result<Self> {
         let dest = match a.output.as_ref().filter(|p| !is_stdout(p)) {
             Some(p) => Dest::File(Lines::new(a.format, AtomicFile::create(p)?)?, p.clone()),
-            None => {
-                Dest::Stdout(Lines::new(a.format, std::io::stdout()).context("writing results to stdout")?)
-            }
+            None => Dest::Stdout(Lines::new(a.format, std::io::stdout()).map_err(stdout_error)?),
         };
         let hark = match &a.hark_stream {
             Some(addr) => Some(HarkStreamSender::connect(addr, loc.config().hop as i32)?),
@@ -406,6 +429,17 @@ impl Sinks {
         })
     }
 
+    /// Whether anything but the result lines is being written (files at the end, ODAS,
+    /// the HARK stream, the live view).
+    fn other_outputs(&self) -> bool {
+        self.keep.is_some()
+            || self.keep_spectrum
+            || self.ssl.is_some()
+            || self.sst.is_some()
+            || self.hark.is_some()
+            || self.view.is_some()
+    }
+
     /// Results written so far.
     pub fn count(&self) -> usize {
         self.count
@@ -474,11 +508,24 @@ impl Sinks {
         }
         match &mut self.dest {
             Dest::Stdout(l) => {
-                for r in &results {
-                    l.write(r).context("writing results to stdout")?;
+                let written = results
+                    .iter()
+                    .try_for_each(|r| l.write(r))
+                    .and_then(|_| l.flush());
+                match written.map_err(stdout_error) {
+                    // With other outputs the run goes on for them.
+                    Err(e) if e.is::<StdoutClosed>() && self.other_outputs() => {
+                        note(
+                            self.quiet,
+                            "stdout was closed by its reader: results are no longer printed; the other \
+                             outputs are still written",
+                        );
+                        self.dest = Dest::Closed;
+                    }
+                    r => r?,
                 }
-                l.flush().context("writing results to stdout")?;
             }
+            Dest::Closed => {}
             Dest::File(l, p) => {
                 for r in &results {
                     l.write(r)
