@@ -370,6 +370,12 @@ fn live_output_options_are_checked_before_any_work() {
         assert!(e.contains("neither HOST:PORT nor a file name"), "{bad:?}: {e}");
         assert!(!Path::new(bad).exists(), "{bad:?} written");
     }
+    // Half an address too (it wrote a file named 9001 until 2026-12-02).
+    for bad in ["9001", "localhost", "127.0.0.1"] {
+        let e = run(&["--odas-ssl", bad]);
+        assert!(e.contains("half an address, not HOST:PORT"), "{bad:?}: {e}");
+        assert!(!Path::new(bad).exists(), "{bad:?} written");
+    }
     let busy = TcpListener::bind("127.0.0.1:0").unwrap();
     let e = run(&["--serve", &busy.local_addr().unwrap().to_string()]);
     assert!(e.contains("--serve") && e.contains("cannot listen"), "{e}");

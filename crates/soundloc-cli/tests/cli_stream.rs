@@ -8,7 +8,7 @@ use soundloc::audio::Audio;
 use std::io::{BufRead, BufReader, Read, Write};
 use std::net::{TcpListener, TcpStream};
 use std::path::{Path, PathBuf};
-use std::process::{Command, Stdio};
+use std::process::{Command, ExitStatus, Stdio};
 use std::sync::mpsc;
 use std::time::{Duration, Instant};
 
@@ -551,10 +551,12 @@ fn negative_numbers_parse_and_bad_values_fail_before_any_work() {
     }
 }
 
-#[test]
-fn ctrl_c_ends_a_live_session_cleanly() {
+/// A live session on stdin (raw s16le, the ring scene's first `samples`) stopped with
+/// Ctrl-C after `wait`: its exit status, its stderr after "streaming from", its `-o` file
+/// and the directory that holds it.
+fn stopped_live_session(tag: &str, samples: usize, wait: Duration) -> (ExitStatus, String, PathBuf, PathBuf) {
     let (audio, geo, _) = scene();
-    let dir = tmp_dir("ctrlc");
+    let dir = tmp_dir(tag);
     let out = dir.join("live.jsonl");
     let mut child = spawn_piped(
         common::bin_for_ctrl_c()
@@ -573,9 +575,9 @@ fn ctrl_c_ends_a_live_session_cleanly() {
         line.clear();
         assert!(err.read_line(&mut line).unwrap() > 0, "soundloc exited early");
     }
-    stdin.write_all(&s16le(&audio, 0..24000)).unwrap();
+    stdin.write_all(&s16le(&audio, 0..samples)).unwrap();
     stdin.flush().unwrap();
-    std::thread::sleep(Duration::from_millis(1500));
+    std::thread::sleep(wait);
     let ok = Command::new("kill")
         .args(["-INT", &child.id().to_string()])
         .status()
@@ -584,6 +586,13 @@ fn ctrl_c_ends_a_live_session_cleanly() {
     let status = child.wait().unwrap();
     let mut rest = String::new();
     err.read_to_string(&mut rest).unwrap();
+    drop(stdin);
+    (status, rest, out, dir)
+}
+
+#[test]
+fn ctrl_c_ends_a_live_session_cleanly() {
+    let (status, rest, out, dir) = stopped_live_session("ctrlc", 24000, Duration::from_millis(1500));
     assert!(status.success(), "{rest}");
     assert!(rest.contains("stopping"), "{rest}");
     let text = std::fs::read_to_string(&out).unwrap();
@@ -593,7 +602,6 @@ fn ctrl_c_ends_a_live_session_cleanly() {
         .map(|e| e.unwrap().file_name())
         .collect();
     assert_eq!(left.len(), 1, "no temporary file left: {left:?}");
-    drop(stdin);
 }
 
 /// Ctrl-C before the first window was complete (a live session stopped at once) ends
@@ -601,40 +609,9 @@ fn ctrl_c_ends_a_live_session_cleanly() {
 /// too-short recording gets (exit 2, no `-o`) until 2026-12-02.
 #[test]
 fn ctrl_c_before_the_first_window_gives_no_results_and_no_error() {
-    let (audio, geo, _) = scene();
-    let dir = tmp_dir("ctrlc-early");
-    let out = dir.join("early.jsonl");
-    let mut child = spawn_piped(
-        common::bin_for_ctrl_c()
-            .args(["localize", "-"])
-            .args(RAW_S16_RING)
-            .arg("--geometry")
-            .arg(&geo)
-            .args(&OPTS[..8])
-            .arg("-o")
-            .arg(&out),
-    );
-    let mut stdin = child.stdin.take().unwrap();
-    let mut err = BufReader::new(child.stderr.take().unwrap());
-    let mut line = String::new();
-    while !line.contains("streaming from") {
-        line.clear();
-        assert!(err.read_line(&mut line).unwrap() > 0, "soundloc exited early");
-    }
     // 0.1 s: less than one window of 50 frames.
-    stdin.write_all(&s16le(&audio, 0..1600)).unwrap();
-    stdin.flush().unwrap();
-    std::thread::sleep(Duration::from_millis(800));
-    let ok = Command::new("kill")
-        .args(["-INT", &child.id().to_string()])
-        .status()
-        .unwrap();
-    assert!(ok.success());
-    let status = child.wait().unwrap();
-    let mut rest = String::new();
-    err.read_to_string(&mut rest).unwrap();
+    let (status, rest, out, _) = stopped_live_session("ctrlc-early", 1600, Duration::from_millis(800));
     assert!(status.success(), "{rest}");
     assert!(rest.contains("no results: the audio has 1600 samples"), "{rest}");
     assert_eq!(std::fs::read_to_string(&out).unwrap(), "");
-    drop(stdin);
 }

@@ -90,8 +90,9 @@ enum OdasOut {
 }
 
 /// `Some(address)` for a TCP server, `None` for a file. A name with no `/` that has a `:`
-/// but is not `HOST:PORT` (`localhost:9000x`, a trailing space, `127.0.0.1:`) is refused:
-/// a mistyped address would silently become a file.
+/// but is not `HOST:PORT` (`localhost:9000x`, a trailing space, `127.0.0.1:`) is refused,
+/// and so is half an address (a bare port `9001`, `localhost`, an IP address): a
+/// mistyped address would silently become a file (`--serve 9001` means a port).
 fn odas_target<'a>(v: &'a str, what: &str) -> anyhow::Result<Option<&'a str>> {
     if let Some(a) = v.strip_prefix("tcp:") {
         return Ok(Some(a));
@@ -102,6 +103,14 @@ fn odas_target<'a>(v: &'a str, what: &str) -> anyhow::Result<Option<&'a str>> {
         Some(_) => bail!(
             "{what} {v:?}: neither HOST:PORT nor a file name (write tcp:HOST:PORT for a server, ./{v} for a file)"
         ),
+        None if v.bytes().all(|b| b.is_ascii_digit())
+            || v.eq_ignore_ascii_case("localhost")
+            || v.parse::<std::net::IpAddr>().is_ok() =>
+        {
+            bail!(
+                "{what} {v:?}: half an address, not HOST:PORT (write 127.0.0.1:9001 for a server, ./{v} for a file)"
+            )
+        }
         None => Ok(None),
     }
 }
