@@ -171,7 +171,7 @@ impl PyLocalizer {
         let mut inner = self.lock(py)?;
         let loc = &mut *inner;
         match py.allow_threads(|| loc.flush(&mut out)) {
-            Err(soundloc::Error::TooShort(m)) => out.notes.push(format!("no results: {m}")),
+            Err(soundloc::Error::NoWindow(m)) => out.notes.push(format!("no results: {m}")),
             r => r.map_err(err)?,
         }
         results(py, &mut out, inner.grid().len(), inner.config())

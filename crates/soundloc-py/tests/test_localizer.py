@@ -474,6 +474,12 @@ def test_flush_of_a_stream_shorter_than_one_window():
                                   localizer(fs=FS).localize(x, FS).azimuth_deg)
     with pytest.raises(ValueError, match="the audio has 1000 samples"):
         localizer(fs=FS).localize(x[:1000], FS)
+    # Only the stream's lack of a window is a note: a noise range the stream never
+    # reached stays an error.
+    late = localizer(fs=FS, noise_range=(5.0, 6.0))
+    late.push(x)
+    with pytest.raises(ValueError, match="noise range 5:6 s starts after the end"):
+        late.flush()
 
 
 def test_num_sources_bounds_a_subspace_only():

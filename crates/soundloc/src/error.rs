@@ -37,6 +37,11 @@ pub enum Error {
     /// The input is too short or empty for the requested analysis.
     #[error("{0}")]
     TooShort(String),
+    /// A stream ended before its first correlation window was complete: no results. An
+    /// error for a recording; a live session stopped early treats it as "no results"
+    /// (the CLI on Ctrl-C, Python's `flush`).
+    #[error("{0}")]
+    NoWindow(String),
     /// A numerical failure (non-finite data, a matrix that is not positive definite...).
     #[error("{stage}: {message}")]
     Numerical {

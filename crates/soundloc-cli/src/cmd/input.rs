@@ -215,6 +215,7 @@ pub struct Queue {
 
 impl Queue {
     /// A channel whose sender bounds it itself (`listen`: blocks of a fixed size).
+    #[cfg(feature = "capture")]
     pub fn bounded_by_sender(rx: Receiver<Msg>) -> Self {
         Queue { rx, queued: None }
     }
@@ -374,6 +375,7 @@ pub enum EndInput {
     /// [`spawn_reader`]'s queue (bounded in audio, not in messages: sending never blocks).
     Queue(Sender<Msg>),
     /// A bounded channel (`listen`'s), which may be full.
+    #[cfg(feature = "capture")]
     Bounded(std::sync::mpsc::SyncSender<Msg>),
 }
 
@@ -388,6 +390,7 @@ fn stop_live_session() -> bool {
             let _ = tx.send(Msg::End { gap: 0 });
         }
         // Never block here: the queue may be full, or nobody reads it any more.
+        #[cfg(feature = "capture")]
         EndInput::Bounded(tx) => {
             std::thread::spawn(move || {
                 let _ = tx.send(Msg::End { gap: 0 });

@@ -198,7 +198,7 @@ pub fn drive(
             match loc.flush(&mut out) {
                 // A live session stopped before its first window: no results, no error
                 // (a recording that short stays one).
-                Err(soundloc::Error::TooShort(m)) if super::input::interrupted() => {
+                Err(soundloc::Error::NoWindow(m)) if super::input::interrupted() => {
                     note(a.quiet, &format!("no results: {m}"))
                 }
                 r => r.map_err(ctx)?,

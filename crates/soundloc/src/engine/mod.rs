@@ -445,7 +445,7 @@ impl<T: Real> Engine<T> {
             let len = self.stft.samples_received();
             let need = c.nfft + (c.window.max(1) - 1) * c.hop;
             let fs = c.sample_rate_hz as f64;
-            return Err(Error::TooShort(format!(
+            return Err(Error::NoWindow(format!(
                 "the audio has {len} samples ({:.3} s); one correlation window of {} frames needs at least {need} ({:.3} s)",
                 len as f64 / fs,
                 c.window,
