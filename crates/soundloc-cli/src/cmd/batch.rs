@@ -69,6 +69,27 @@ fn inputs(a: &Args) -> anyhow::Result<Vec<PathBuf>> {
     Ok(v)
 }
 
+/// The shared run options that name one output file or endpoint per run: batch refuses
+/// them (each recording's results go to `--out-dir`), so its `--help` does not list them.
+const PER_INPUT_ONLY: [&str; 10] = [
+    "output",
+    "spectrum",
+    "plot",
+    "summary",
+    "log_text",
+    "log_xml",
+    "hark_stream",
+    "serve",
+    "odas_ssl",
+    "odas_sst",
+];
+
+/// For `mut_args` on the batch command: hide [`PER_INPUT_ONLY`] from its help.
+pub fn hide_per_input_options(a: clap::Arg) -> clap::Arg {
+    let hide = PER_INPUT_ONLY.contains(&a.get_id().as_str());
+    a.hide(hide)
+}
+
 pub fn run(mut a: Args) -> anyhow::Result<ExitCode> {
     let r = &a.run;
     let per_input_only = [
@@ -239,6 +260,55 @@ mod tests {
         assert_eq!(parse_shard(" 3 / 4 ").unwrap(), (3, 4));
         for bad in ["4/4", "1/0", "x/2", "2", "-1/3"] {
             assert!(parse_shard(bad).is_err(), "{bad}");
+        }
+    }
+
+    #[test]
+    fn per_input_options_are_hidden_from_batch_and_refused() {
+        use clap::CommandFactory;
+        let cli = super::super::Cli::command();
+        let batch = cli.find_subcommand("batch").unwrap();
+        let localize = cli.find_subcommand("localize").unwrap();
+        for id in PER_INPUT_ONLY {
+            let arg = |c: &clap::Command| c.get_arguments().find(|a| a.get_id() == id).cloned();
+            assert!(
+                arg(batch)
+                    .unwrap_or_else(|| panic!("no option {id}"))
+                    .is_hide_set(),
+                "{id}"
+            );
+            assert!(!arg(localize).unwrap().is_hide_set(), "{id}");
+        }
+        let help = batch.clone().render_long_help().to_string();
+        assert!(
+            !help.contains("--output") && !help.contains("--odas-ssl"),
+            "{help}"
+        );
+        assert!(
+            help.contains("--out-dir") && help.contains("--spectrum-weight"),
+            "{help}"
+        );
+        // Hidden, still parsed, and refused with the reason.
+        for (flag, value) in [
+            ("-o", "x.jsonl"),
+            ("--odas-ssl", "ssl.json"),
+            ("--summary", "s.json"),
+        ] {
+            let cli = <super::super::Cli as clap::Parser>::try_parse_from([
+                "soundloc",
+                "batch",
+                "--out-dir",
+                "/nonexistent/out",
+                flag,
+                value,
+                "a.wav",
+            ])
+            .unwrap();
+            let super::super::Command::Batch(a) = cli.command else {
+                panic!()
+            };
+            let e = run(*a).unwrap_err().to_string();
+            assert!(e.contains("is not available with batch"), "{flag}: {e}");
         }
     }
 }

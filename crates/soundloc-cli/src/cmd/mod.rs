@@ -31,7 +31,7 @@ pub enum Command {
     Localize(Box<localize::Args>),
     /// Localize many recordings, one result file each (a list or --manifest; --shard K/N;
     /// a rerun skips what is done).
-    #[command(allow_negative_numbers = true)]
+    #[command(allow_negative_numbers = true, mut_args(batch::hide_per_input_options))]
     Batch(Box<batch::Args>),
     /// Localize a live microphone array (built with the `capture` feature).
     #[command(allow_negative_numbers = true)]
