@@ -12,7 +12,8 @@
 //! ends at its declared size, and a file that ends earlier is an error ("truncated"). An
 //! incomplete trailing frame is dropped.
 //!
-//! **FLAC**: 16- and 24-bit, decoded frame by frame.
+//! **FLAC**: 16- and 24-bit, decoded frame by frame; a stream that ends before the total
+//! its STREAMINFO declares is an error ("truncated"), as is one cut inside a frame.
 //!
 //! **Raw**: interleaved `u8`, little-endian `s16le`, `s24le`, `s32le`, `f32le` or
 //! `f64le` frames; a trailing partial frame at the end of the input is dropped.

@@ -271,6 +271,25 @@ fn errors_name_the_file() {
     std::fs::write(&p, f).unwrap();
     let e = read_audio(&p).unwrap_err().to_string();
     assert!(e.contains("bad.flac"), "{e}");
+    // FLAC cut at a frame boundary: the header of a 2048-sample stream (STREAMINFO ends at
+    // byte 42) with only its first frame, or none; it was read as a shorter stream.
+    let p = d.join("cut.flac");
+    let long = encode_flac(16000, 16, &[(0..2048).collect()]);
+    let short = encode_flac(16000, 16, &[(0..1024).collect()]);
+    for (frames, kept) in [(&short[42..], 1024), (&short[short.len()..], 0)] {
+        std::fs::write(&p, [&long[..42], frames].concat()).unwrap();
+        let e = read_audio(&p).unwrap_err().to_string();
+        assert!(
+            e.contains("cut.flac")
+                && e.contains(&format!(
+                    "declares 2048 samples per channel, the frames hold {kept}"
+                )),
+            "{e}"
+        );
+    }
+    // The whole stream reads as before.
+    std::fs::write(&p, &long).unwrap();
+    assert_eq!(read_audio(&p).unwrap().num_samples(), 2048);
     std::fs::remove_dir_all(&d).unwrap();
 }
 

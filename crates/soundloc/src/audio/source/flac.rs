@@ -81,6 +81,17 @@ impl<R: Read + Send> AudioSource for FlacSource<R> {
             };
             let Some(block) = frame else {
                 self.ended = true;
+                // STREAMINFO's total (0 = unknown, which claxon reports as None): a stream
+                // that ends at a frame boundary before it was cut short, not a short file.
+                let decoded = self.frames_read + ((self.pending.len() - self.at) / nch) as u64;
+                if let Some(total) = self.info.samples.filter(|&t| t > decoded) {
+                    return Err(Error::format(
+                        &self.name,
+                        format!(
+                            "truncated FLAC file: its header declares {total} samples per channel, the frames hold {decoded}: the file was cut short (an interrupted copy or download)"
+                        ),
+                    ));
+                }
                 break;
             };
             if block.channels() as usize != nch {
