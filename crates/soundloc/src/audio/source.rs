@@ -213,6 +213,9 @@ struct PcmReader<R> {
     /// Fill whole blocks (files) rather than return what has arrived (pipes, sockets).
     greedy: bool,
     notes: Vec<String>,
+    /// The truncation found with whole frames still to deliver: returned by the next read,
+    /// so a cut file yields the same frames, then the same error, whatever its block size.
+    cut: Option<Error>,
 }
 
 impl<R: Read> PcmReader<R> {
@@ -224,6 +227,9 @@ impl<R: Read> PcmReader<R> {
         truncated_is_error: bool,
     ) -> Result<usize> {
         buf.clear();
+        if let Some(e) = self.cut.take() {
+            return Err(e);
+        }
         let fb = self.enc.bytes() * self.channels;
         let target = max_frames.max(1) * fb;
         let limit = match self.left {
@@ -249,7 +255,7 @@ impl<R: Read> PcmReader<R> {
         match self.left {
             Some(0) => self.ended = true,
             Some(l) if self.ended && truncated_is_error => {
-                return Err(Error::format(
+                let e = Error::format(
                     name,
                     format!(
                         "truncated WAV file: {l} bytes ({} samples per channel) of the audio data \
@@ -257,7 +263,11 @@ impl<R: Read> PcmReader<R> {
                          copy or download)",
                         l / fb as u64
                     ),
-                ))
+                );
+                if have < fb {
+                    return Err(e);
+                }
+                self.cut = Some(e);
             }
             _ => {}
         }
@@ -380,6 +390,7 @@ impl<R: Read + Send> RawSource<R> {
                 ended: false,
                 greedy: false,
                 notes: Vec::new(),
+                cut: None,
             },
             rate: sample_rate_hz,
             name: name.to_path_buf(),
@@ -541,6 +552,7 @@ impl<R: Read + Send> WavSource<R> {
                             ended: false,
                             greedy,
                             notes: header_notes,
+                            cut: None,
                         },
                         rate,
                         name: name.to_path_buf(),

@@ -569,3 +569,59 @@ fn extensible_headers_read_and_contradicting_headers_are_noted_or_refused() {
         "{e}"
     );
 }
+
+/// The frames a source delivers in blocks of `block` before its error, and the error.
+fn frames_before_error(mut s: Box<dyn AudioSource>, block: usize) -> (Vec<f32>, String) {
+    let mut all = Vec::new();
+    let mut buf = Vec::new();
+    loop {
+        match s.read_interleaved(block, &mut buf) {
+            Ok(0) => return (all, String::new()),
+            Ok(_) => all.extend_from_slice(&buf),
+            Err(e) => return (all, e.to_string()),
+        }
+    }
+}
+
+#[test]
+fn a_cut_file_yields_its_whole_frames_then_the_error_at_any_block_size() {
+    let d = temp_dir("cut");
+    // WAV: 2 channels, 3000 frames declared, the file cut after 1234.5 frames.
+    let p = d.join("cut.wav");
+    let frames: Vec<Vec<i32>> = (0..3000).map(|i| vec![i % 1000, -(i % 700)]).collect();
+    write_int_wav(&p, 16, &frames);
+    let bytes = std::fs::read(&p).unwrap();
+    let header = bytes.len() - 3000 * 4;
+    std::fs::write(&p, &bytes[..header + 1234 * 4 + 2]).unwrap();
+    let want: Vec<f32> = frames[..1234].iter().flatten().map(|&v| v as f32).collect();
+    // FLAC: 3 frames of 1024 declared, 2 present, then a third cut inside.
+    let q = d.join("cut.flac");
+    let ch: Vec<i32> = (0..3072).map(|i| (i * 7) % 5000 - 2500).collect();
+    let long = encode_flac(16000, 16, &[ch.clone()]);
+    let two = encode_flac(16000, 16, &[ch[..2048].to_vec()]);
+    std::fs::write(
+        &q,
+        [&long[..42], &two[42..], &long[two.len()..two.len() + 40]].concat(),
+    )
+    .unwrap();
+    let want_flac: Vec<f32> = ch[..2048].iter().map(|&v| v as f32).collect();
+    for (path, want, needle) in [
+        (&p, &want, "truncated WAV file"),
+        (&q, &want_flac, "truncated FLAC file"),
+    ] {
+        for block in [1, 100, 1 << 20] {
+            for from_file in [true, false] {
+                let s = if from_file {
+                    open_source(path).unwrap()
+                } else {
+                    let r = std::io::Cursor::new(std::fs::read(path).unwrap());
+                    open_stream(r, path).unwrap()
+                };
+                let (got, e) = frames_before_error(s, block);
+                assert_eq!(&got, want, "{} block {block} file {from_file}", path.display());
+                assert!(e.contains(needle) && e.contains(&*path.to_string_lossy()), "{e}");
+            }
+        }
+    }
+    std::fs::remove_dir_all(&d).unwrap();
+}

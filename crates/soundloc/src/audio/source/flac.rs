@@ -16,6 +16,8 @@ pub struct FlacSource<R: Read> {
     block: Vec<i32>,
     frames_read: u64,
     ended: bool,
+    /// The truncation found at the end, returned once the frames before it are delivered.
+    cut: Option<Error>,
 }
 
 impl<R: Read + Send> FlacSource<R> {
@@ -44,6 +46,7 @@ impl<R: Read + Send> FlacSource<R> {
             block: Vec::new(),
             frames_read: 0,
             ended: false,
+            cut: None,
         })
     }
 }
@@ -73,11 +76,17 @@ impl<R: Read + Send> AudioSource for FlacSource<R> {
         buf.clear();
         let nch = self.info.channels as usize;
         while self.pending.len() - self.at < max_frames.max(1) * nch && !self.ended {
-            let frame = {
+            let read = {
                 let mut blocks = self.reader.blocks();
-                blocks
-                    .read_next_or_eof(std::mem::take(&mut self.block))
-                    .map_err(|e| flac_err(&self.name, e))?
+                blocks.read_next_or_eof(std::mem::take(&mut self.block))
+            };
+            let frame = match read {
+                Ok(frame) => frame,
+                Err(e) => {
+                    self.ended = true;
+                    self.cut = Some(flac_err(&self.name, e));
+                    break;
+                }
             };
             let Some(block) = frame else {
                 self.ended = true;
@@ -85,7 +94,7 @@ impl<R: Read + Send> AudioSource for FlacSource<R> {
                 // that ends at a frame boundary before it was cut short, not a short file.
                 let decoded = self.frames_read + ((self.pending.len() - self.at) / nch) as u64;
                 if let Some(total) = self.info.samples.filter(|&t| t > decoded) {
-                    return Err(Error::format(
+                    self.cut = Some(Error::format(
                         &self.name,
                         format!(
                             "truncated FLAC file: its header declares {total} samples per channel, the frames hold {decoded}: the file was cut short (an interrupted copy or download)"
@@ -113,6 +122,12 @@ impl<R: Read + Send> AudioSource for FlacSource<R> {
             self.block = block.into_buffer();
         }
         let n = ((self.pending.len() - self.at) / nch).min(max_frames.max(1));
+        // The frames before a cut first, then the error (as WAV).
+        if n == 0 {
+            if let Some(e) = self.cut.take() {
+                return Err(e);
+            }
+        }
         buf.extend_from_slice(&self.pending[self.at..self.at + n * nch]);
         self.at += n * nch;
         check_finite(&self.name, buf, nch, self.frames_read, None)?;
