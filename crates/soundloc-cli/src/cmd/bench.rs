@@ -185,9 +185,9 @@ fn run_stream(a: &Args, algs: &[AlgorithmArg]) -> anyhow::Result<ExitCode> {
             };
             let r = run(&cfg)?;
             if a.json {
-                println!("{}", serde_json::to_string(&r)?);
+                outln!("{}", serde_json::to_string(&r)?);
             } else {
-                println!(
+                outln!(
                     "stream {:?} {} on {}: M={} D={} PERIOD {} ({:.0} results/s of audio), 10 ms pushes, {:.1} s, {} stream(s)",
                     cfg.array,
                     cfg.algorithm.name(),
@@ -199,7 +199,7 @@ fn run_stream(a: &Args, algs: &[AlgorithmArg]) -> anyhow::Result<ExitCode> {
                     cfg.seconds,
                     cfg.streams
                 );
-                println!(
+                outln!(
                     "  real-time factor {:.4} ({:.1}x real time); latency last sample -> result: median {:.2} ms, p99 {:.2} ms, max {:.2} ms",
                     r.rtf,
                     1.0 / r.rtf,
@@ -208,13 +208,13 @@ fn run_stream(a: &Args, algs: &[AlgorithmArg]) -> anyhow::Result<ExitCode> {
                     r.latency_ms_max
                 );
                 if let (Some(b), Some(q)) = (r.blocks_per_push, r.max_backlog_ms) {
-                    println!(
+                    outln!(
                         "  paced at real time: {b:.2} blocks (10 ms each) per push on average, largest backlog {q:.0} ms of audio{}",
                         if r.rtf < 1.0 { "" } else { " (it did not keep up)" }
                     );
                 }
                 let s = &r.stages_per_result;
-                println!(
+                outln!(
                     "  per result (ms): correlation {:.3}, decomposition {:.3}, spectrum {:.3}, peaks {:.3}; rest {:.3}",
                     s.correlation_ms,
                     s.decomposition_ms,
@@ -234,9 +234,9 @@ fn run_stream(a: &Args, algs: &[AlgorithmArg]) -> anyhow::Result<ExitCode> {
             for &alg in algs {
                 let g = soundloc::bench::tracking::agreement(study, alg.into(), a.period, 2_000_000, 2)?;
                 if a.json {
-                    println!("{}", serde_json::to_string(&g)?);
+                    outln!("{}", serde_json::to_string(&g)?);
                 } else {
-                    println!(
+                    outln!(
                         "tracking vs exact, {:?} {} PERIOD {}: {} scenes (2 talkers, rotor noise, SNR 0 dB, RT60 0-0.6 s), {} windows",
                         g.array,
                         g.algorithm.name(),
@@ -244,14 +244,14 @@ fn run_stream(a: &Args, algs: &[AlgorithmArg]) -> anyhow::Result<ExitCode> {
                         g.scenes,
                         g.windows
                     );
-                    println!(
+                    outln!(
                         "  spectrum difference: RMS {:.4} dB, p99 {:.4} dB, max {:.3} dB; same top peak {:.1}% of windows",
                         g.rms_db,
                         g.p99_db,
                         g.max_db,
                         100.0 * g.same_top_peak
                     );
-                    println!(
+                    outln!(
                         "  talker-windows within 5 deg: exact {:.1}%, tracked {:.1}%; decomposition {:.3} -> {:.3} ms per window; whole runs (TF, K, plan, engine) {:.2} -> {:.2} s",
                         100.0 * g.hits_exact,
                         100.0 * g.hits_tracked,
@@ -292,11 +292,11 @@ fn run_e2e(a: &Args, alg: AlgorithmArg) -> anyhow::Result<ExitCode> {
     ] {
         let r = soundloc::bench::e2e::run(&spec, input, cache)?;
         if a.json {
-            println!("{}", serde_json::to_string(&r)?);
+            outln!("{}", serde_json::to_string(&r)?);
             continue;
         }
         let s = &r.stages;
-        println!(
+        outln!(
             "e2e {} PERIOD {} on {}, TF {label}: {:.2} s of audio, {} results: total {:.0} ms",
             soundloc::Algorithm::from(alg).name(),
             a.period,
@@ -305,7 +305,7 @@ fn run_e2e(a: &Args, alg: AlgorithmArg) -> anyhow::Result<ExitCode> {
             r.results,
             r.total_ms
         );
-        println!(
+        outln!(
             "  TF load {:.0} ms, plan {:.0} ms, read {:.0} ms, engine {:.0} ms (stages: correlation {:.0}, decomposition {:.0}, spectrum {:.0}, peaks {:.0}), write {:.1} ms",
             r.tf_load_ms,
             r.plan_ms,
@@ -318,7 +318,7 @@ fn run_e2e(a: &Args, alg: AlgorithmArg) -> anyhow::Result<ExitCode> {
             r.write_ms
         );
         if let Some(n) = &r.cache_note {
-            println!("  {n}");
+            outln!("  {n}");
         }
     }
     Ok(ExitCode::SUCCESS)
@@ -373,7 +373,7 @@ fn run_accuracy(a: &Args) -> anyhow::Result<ExitCode> {
         eprint!("\rscenes {n}/{total}");
     })?;
     eprintln!();
-    println!(
+    outln!(
         "accuracy study: {array:?}, {noise:?} noise{}, {:?} split, {} scene(s) per condition, PERIOD {period}, {} results per variant, hit = a reported peak within 5° (as many peaks as talkers), {:.0} s",
         if a.position_error_mm > 0.0 || a.gain_error_db > 0.0 {
             format!(", array errors {} mm / {} dB", a.position_error_mm, a.gain_error_db)
@@ -386,9 +386,9 @@ fn run_accuracy(a: &Args) -> anyhow::Result<ExitCode> {
         t.elapsed().as_secs_f64()
     );
     if a.json {
-        println!("{}", serde_json::to_string(&study)?);
+        outln!("{}", serde_json::to_string(&study)?);
     } else {
-        print!("{}", study.markdown());
+        out!("{}", study.markdown());
     }
     Ok(ExitCode::SUCCESS)
 }
@@ -480,18 +480,18 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
             PrecisionArg::F64 => run_bench::<f64>(&cfg)?,
         };
         if a.json {
-            println!("{}", serde_json::to_string(&r)?);
+            outln!("{}", serde_json::to_string(&r)?);
         } else {
-            print_report(&r);
+            print_report(&r)?;
         }
     }
     Ok(ExitCode::SUCCESS)
 }
 
-fn print_report(r: &BenchReport) {
+fn print_report(r: &BenchReport) -> anyhow::Result<()> {
     let c = &r.config;
     let s = &r.stages_per_localization;
-    println!(
+    outln!(
         "{} on {} ({}): M={} bins={} D={} W={} Ns={}",
         c.algorithm.name(),
         r.device,
@@ -502,24 +502,28 @@ fn print_report(r: &BenchReport) {
         c.window,
         c.num_sources
     );
-    println!(
+    outln!(
         "  ms per localization (one window, median)  {:>10.3}",
         r.ms_per_localization
     );
-    println!(
+    outln!(
         "  localizations per second (batch of {:>3})  {:>10.1}",
-        c.batch, r.localizations_per_s
+        c.batch,
+        r.localizations_per_s
     );
-    println!(
+    outln!(
         "  ms compute per s of audio, PERIOD 50     {:>10.3}   (real-time factor {:.4})",
-        r.ms_per_audio_s_period50, r.rtf_period50
+        r.ms_per_audio_s_period50,
+        r.rtf_period50
     );
-    println!(
+    outln!(
         "  ms compute per s of audio, PERIOD 1      {:>10.3}   (real-time factor {:.4})",
-        r.ms_per_audio_s_period1, r.rtf_period1
+        r.ms_per_audio_s_period1,
+        r.rtf_period1
     );
-    println!(
+    outln!(
         "  stage split per localization (ms): correlation {:.3}, decomposition {:.3}, spectrum {:.3}, peaks {:.3}",
         s.correlation_ms, s.decomposition_ms, s.spectrum_ms, s.peaks_ms
     );
+    Ok(())
 }

@@ -58,13 +58,13 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         scenes.push(sphere60_drone(a.snr, 2522, a.seed)?);
     }
     std::fs::create_dir_all(&a.out_dir).with_context(|| format!("creating {}", a.out_dir.display()))?;
-    println!("soundloc demo: simulated scenes, K from the first second (noise only), talkers from 1 s on.");
-    println!("Azimuth/elevation in degrees (azimuth from +x toward +y); a hit is within one grid step.\n");
+    outln!("soundloc demo: simulated scenes, K from the first second (noise only), talkers from 1 s on.");
+    outln!("Azimuth/elevation in degrees (azimuth from +x toward +y); a hit is within one grid step.\n");
     for s in &scenes {
         let audio = s.render();
         let truth: Vec<String> = s.talkers.iter().map(|(az, el)| fmt_dir(*az, *el)).collect();
-        println!("== {}: {}", s.name, s.description);
-        println!("   true talkers: {}", truth.join("  "));
+        outln!("== {}: {}", s.name, s.description);
+        outln!("   true talkers: {}", truth.join("  "));
         let mut plots = Vec::new();
         for alg in Algorithm::ALL {
             let config = LocalizeConfig {
@@ -90,7 +90,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
                     format!("[{}]", d.join(" "))
                 })
                 .collect();
-            println!(
+            outln!(
                 "   {:<10} found {:>3.0}% of talker-windows | detected per window: {}",
                 alg.name(),
                 100.0 * score.hit_rate,
@@ -117,11 +117,11 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
             }
         }
         for p in plots {
-            println!("   plot: {}", p.display());
+            outln!("   plot: {}", p.display());
         }
-        println!();
+        outln!();
     }
-    println!(
+    outln!(
         "With loud rotors close to the array, the textbook GEVD (R e = λ K e) keeps the talkers;\n\
          SEVD locks onto the rotors, and HARK's GSVD and GEVD (orthogonal to K⁻¹a / K^-½a, not a) lose them."
     );

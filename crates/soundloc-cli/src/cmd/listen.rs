@@ -122,13 +122,13 @@ mod capture {
             for d in devices {
                 let name = d.name().unwrap_or_else(|_| "?".into());
                 match d.default_input_config() {
-                    Ok(c) => println!(
+                    Ok(c) => outln!(
                         "{name}\t{} channels\t{} Hz\t{:?}",
                         c.channels(),
                         c.sample_rate().0,
                         c.sample_format()
                     ),
-                    Err(e) => println!("{name}\t(no default input configuration: {e})"),
+                    Err(e) => outln!("{name}\t(no default input configuration: {e})"),
                 }
                 n += 1;
             }

@@ -1,5 +1,25 @@
 //! Subcommands.
 
+/// `print!` to stdout that returns the error instead of panicking: a closed pipe
+/// (`soundloc tf inspect … | head -1`) becomes [`sinks::StdoutClosed`] (a quiet success),
+/// anything else (`> /dev/full`) an error naming stdout. Use inside a function returning
+/// `anyhow::Result`.
+macro_rules! out {
+    ($($arg:tt)*) => {{
+        use std::io::Write as _;
+        write!(std::io::stdout().lock(), $($arg)*).map_err($crate::cmd::sinks::stdout_error)?;
+    }};
+}
+
+/// `println!` as [`out!`] does `print!`.
+macro_rules! outln {
+    () => { out!("\n") };
+    ($($arg:tt)*) => {{
+        use std::io::Write as _;
+        writeln!(std::io::stdout().lock(), $($arg)*).map_err($crate::cmd::sinks::stdout_error)?;
+    }};
+}
+
 pub mod batch;
 pub mod bench;
 pub mod demo;

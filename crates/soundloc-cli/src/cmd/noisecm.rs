@@ -196,7 +196,7 @@ fn make(a: MakeArgs) -> anyhow::Result<ExitCode> {
         CmFormat::Text => {
             cm.write_text_pair(&re, &im)?;
             if !a.quiet {
-                println!(
+                outln!(
                     "wrote {} (real part) and {} (imaginary part): {shape}",
                     re.display(),
                     im.display()
@@ -206,7 +206,7 @@ fn make(a: MakeArgs) -> anyhow::Result<ExitCode> {
         CmFormat::Zip => {
             cm.write_zip(&a.output)?;
             if !a.quiet {
-                println!("wrote {}: {shape}", a.output.display());
+                outln!("wrote {}: {shape}", a.output.display());
             }
         }
     }
@@ -229,20 +229,27 @@ fn inspect(a: InspectArgs) -> anyhow::Result<ExitCode> {
         if let Some(o) = v.as_object_mut() {
             o.insert("file".into(), a.file.display().to_string().into());
         }
-        println!("{v}");
+        outln!("{v}");
         return Ok(ExitCode::SUCCESS);
     }
-    println!("file             {}", a.file.display());
-    print!("{s}");
+    outln!("file             {}", a.file.display());
+    out!("{s}");
     if a.bins {
-        println!(
+        outln!(
             "{:>5} {:>12} {:>12} {:>12} {:>12}",
-            "bin", "trace", "min eig", "max eig", "condition"
+            "bin",
+            "trace",
+            "min eig",
+            "max eig",
+            "condition"
         );
         for (k, b) in s.bins.iter().enumerate() {
-            println!(
+            outln!(
                 "{k:>5} {:>12.4e} {:>12.4e} {:>12.4e} {:>12.4e}",
-                b.trace, b.min_eigenvalue, b.max_eigenvalue, b.condition
+                b.trace,
+                b.min_eigenvalue,
+                b.max_eigenvalue,
+                b.condition
             );
         }
     }

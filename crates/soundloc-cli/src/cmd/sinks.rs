@@ -209,7 +209,7 @@ impl std::fmt::Display for StdoutClosed {
 impl std::error::Error for StdoutClosed {}
 
 /// An error writing results to stdout: [`StdoutClosed`] for a closed pipe.
-fn stdout_error(e: std::io::Error) -> anyhow::Error {
+pub fn stdout_error(e: std::io::Error) -> anyhow::Error {
     if e.kind() == std::io::ErrorKind::BrokenPipe {
         anyhow::Error::new(StdoutClosed)
     } else {

@@ -116,10 +116,10 @@ fn inspect(a: InspectArgs) -> anyhow::Result<ExitCode> {
         if let Some(o) = v.as_object_mut() {
             o.insert("file".into(), a.file.display().to_string().into());
         }
-        println!("{v}");
+        outln!("{v}");
     } else {
-        println!("file             {}", a.file.display());
-        print!("{summary}");
+        outln!("file             {}", a.file.display());
+        out!("{summary}");
     }
     Ok(ExitCode::SUCCESS)
 }
@@ -151,7 +151,7 @@ fn make(a: MakeArgs) -> anyhow::Result<ExitCode> {
     if a.quiet {
         return Ok(ExitCode::SUCCESS);
     }
-    println!(
+    outln!(
         "wrote {}: {} mics, {} directions ({}, {} m), {} bins (nfft {}, {} Hz)",
         a.output.display(),
         tf.num_mics,

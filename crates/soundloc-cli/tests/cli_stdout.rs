@@ -1,0 +1,161 @@
+//! Where stdout or an output goes away: a closed stdout pipe (`| head -1`) ends any
+//! subcommand quietly (the other outputs still written), a full one (`> /dev/full`) and a
+//! FIFO whose reader left are errors naming them, and nothing panics.
+
+mod common;
+
+use common::bin;
+use std::io::{BufRead, BufReader};
+use std::path::PathBuf;
+use std::process::Stdio;
+
+fn tmp(name: &str) -> PathBuf {
+    common::tmp("cli-stdout", name)
+}
+
+/// An 8-mic ring recording (two talkers) and its geometry, in files of the test's own.
+fn scene(test: &str) -> (PathBuf, PathBuf) {
+    let (_, geo, wav) = common::ring_scene("cli-stdout", &format!("{test}-"), 1);
+    (wav, geo)
+}
+
+#[test]
+fn a_closed_stdout_pipe_ends_the_run_quietly() {
+    let (wav, geo) = scene("a_closed_stdout_pipe_ends_the_run_quietly");
+    let mut child = bin()
+        .args([
+            "localize",
+            wav.to_str().unwrap(),
+            "--geometry",
+            geo.to_str().unwrap(),
+            "--grid",
+            "ring:5",
+            "--period",
+            "1",
+            "-q",
+        ])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut first = String::new();
+    BufReader::new(child.stdout.take().unwrap())
+        .read_line(&mut first)
+        .unwrap();
+    // The reader is gone (like `| head -1`).
+    let status = child.wait().unwrap();
+    let mut err = String::new();
+    std::io::Read::read_to_string(&mut child.stderr.take().unwrap(), &mut err).unwrap();
+    assert!(first.starts_with("{\"frame\""), "{first}");
+    assert!(status.success() && err.is_empty(), "{status:?}: {err}");
+}
+
+/// Stdout closed early with other outputs asked for: the run goes on for them (the
+/// summary is written, a note says so), exit 0. Until 2026-12-02 it stopped at once with
+/// exit 0 and the summary was never written.
+#[test]
+fn a_closed_stdout_leaves_the_other_outputs_written() {
+    let (wav, geo) = scene("closed_stdout_other_outputs");
+    let summary = tmp("closed_stdout_summary.json");
+    let _ = std::fs::remove_file(&summary);
+    let mut child = bin()
+        .args([
+            "localize",
+            wav.to_str().unwrap(),
+            "--geometry",
+            geo.to_str().unwrap(),
+        ])
+        .args(["--grid", "ring:5", "--period", "1", "--track", "--summary"])
+        .arg(&summary)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut first = String::new();
+    BufReader::new(child.stdout.take().unwrap())
+        .read_line(&mut first)
+        .unwrap();
+    let status = child.wait().unwrap();
+    let mut err = String::new();
+    std::io::Read::read_to_string(&mut child.stderr.take().unwrap(), &mut err).unwrap();
+    assert!(status.success(), "{status:?}: {err}");
+    assert!(err.contains("stdout was closed by its reader"), "{err}");
+    let s: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&summary).unwrap()).unwrap();
+    assert!(s.as_array().is_some_and(|a| !a.is_empty()), "{s}");
+}
+
+/// A FIFO given as an output whose reader goes away is an error naming it (exit 2), not
+/// the quiet success of a closed stdout; nothing else is written.
+#[cfg(unix)]
+#[test]
+fn a_closed_fifo_output_is_an_error_naming_it() {
+    let (wav, geo) = scene("closed_fifo");
+    let fifo = tmp("closed_fifo.jsonl");
+    let summary = tmp("closed_fifo_summary.json");
+    let _ = std::fs::remove_file(&fifo);
+    let _ = std::fs::remove_file(&summary);
+    assert!(std::process::Command::new("mkfifo")
+        .arg(&fifo)
+        .status()
+        .unwrap()
+        .success());
+    let reader = {
+        let fifo = fifo.clone();
+        // Reads 100 bytes, then closes its end.
+        std::thread::spawn(move || {
+            let mut f = std::fs::File::open(&fifo).unwrap();
+            let mut b = [0u8; 100];
+            std::io::Read::read_exact(&mut f, &mut b).unwrap();
+        })
+    };
+    let o = bin()
+        .args([
+            "localize",
+            wav.to_str().unwrap(),
+            "--geometry",
+            geo.to_str().unwrap(),
+        ])
+        .args(["--grid", "ring:5", "--period", "1", "--track", "-q", "--odas-ssl"])
+        .arg(&fifo)
+        .arg("--summary")
+        .arg(&summary)
+        .output()
+        .unwrap();
+    reader.join().unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains(&format!("{}: writing ODAS messages", fifo.display())),
+        "{err}"
+    );
+    assert!(!summary.exists());
+}
+
+/// The utility subcommands print through the same checked writer: a closed stdout pipe
+/// was a panic (exit 101, a backtrace) in `tf make`, `tf inspect`, `noisecm inspect`,
+/// `demo` and `bench` until 2026-12-02, and `> /dev/full` one too.
+#[test]
+fn utility_commands_end_quietly_on_a_closed_stdout_and_fail_on_a_full_one() {
+    let zip = tmp("closed_tf.zip");
+    let _ = std::fs::remove_file(&zip);
+    let make = ["tf", "make", "--builtin", "circle8", "--grid", "ring:5", "-o"];
+    let inspect = ["tf", "inspect"];
+    for args in [&make[..], &inspect[..]] {
+        // A pipe whose reader is already gone: every write fails with EPIPE.
+        let (reader, writer) = std::io::pipe().unwrap();
+        drop(reader);
+        let o = bin().args(args).arg(&zip).stdout(writer).output().unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(o.status.success(), "{args:?}: {:?} {err}", o.status);
+        assert!(!err.contains("panicked"), "{args:?}: {err}");
+        assert!(zip.exists());
+    }
+    let full = std::fs::OpenOptions::new().write(true).open("/dev/full").unwrap();
+    let o = bin().args(inspect).arg(&zip).stdout(full).output().unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("writing results to stdout: No space left on device"),
+        "{err}"
+    );
+}
