@@ -101,6 +101,9 @@ pub struct Plan<T: Real> {
     /// ([`crate::audio::health::close_pairs`] at the lowest used bin), formed on the first
     /// stream's first push and shared by every stream of the plan.
     pub(crate) close_pairs: Arc<std::sync::OnceLock<Option<ClosePairs>>>,
+    /// The gains check's expected relative channel powers ([`Plan::expected_levels`]),
+    /// formed on first use and shared like `close_pairs`.
+    pub(crate) expected_levels: Arc<std::sync::OnceLock<Vec<f64>>>,
     /// The source count's floor relative to each bin's largest value
     /// ([`crate::subspace::count::model_floor`], from the TFs' microphone positions).
     pub count_floor: f64,
@@ -124,6 +127,32 @@ impl<T: Real> Plan<T> {
                     })
             })
             .clone()
+    }
+
+    /// E_m = Σ over the used bins and directions of |a_{d,k,m}|² per microphone (any
+    /// common scale): the channel powers a far sound field gives relative to each other,
+    /// for the input checks' gains check ([`crate::audio::health::gains`]). Formed once.
+    pub fn expected_levels(&self) -> Vec<f64> {
+        self.expected_levels
+            .get_or_init(|| {
+                let m = self.num_mics;
+                let mut e = vec![0.0f64; m];
+                for a in self.steering.chunks_exact(m) {
+                    for (s, z) in e.iter_mut().zip(a) {
+                        let (re, im) = (z.re.to_f64(), z.im.to_f64());
+                        *s += re * re + im * im;
+                    }
+                }
+                e
+            })
+            .clone()
+    }
+
+    /// Whether the input checks look at the channels' gains: the textbook GEVD (the
+    /// robust default) without coherence normalisation, whose whitened steering is the
+    /// most sensitive to gains the transfer functions do not have.
+    pub fn gains_matter(&self) -> bool {
+        self.config.algorithm == Algorithm::Gevd && !self.config.coherence
     }
 
     /// Validate and precompute. `noise` is K (None = identity) and is ignored by SEVD.
@@ -281,6 +310,7 @@ impl<T: Real> Plan<T> {
             planar: None,
             steering_sums: Default::default(),
             close_pairs: Default::default(),
+            expected_levels: Default::default(),
             // Positions that are not an array (HARK's sample zips hold placeholders, several
             // microphones at one point) are not used.
             count_floor: crate::subspace::count::model_floor(

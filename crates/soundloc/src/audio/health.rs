@@ -28,6 +28,10 @@
 //!   τ, the pairs with τ_ij ≤ 2τ_c and φ_ij ≤ π/3 are compared in the used bins up to
 //!   1/(4 τ_max) (phases ≤ π/2; at most 16 bins), on the first [`DECIDE_SECONDS`] to
 //!   [`BAND_SECONDS`] of frames.
+//! - **Gains** (where the caller asks: [`ChannelHealth::with_gain_check`]). Channels whose
+//!   level departs from the transfer functions' by [`gains::GAIN_DB`] or more ([`gains`]).
+
+pub mod gains;
 
 use crate::real::{Real, C};
 
@@ -83,6 +87,10 @@ pub struct ChannelHealth {
     said: Vec<[bool; 3]>,
     said_silent: bool,
     said_quiet: bool,
+    /// The gains check's expected relative powers per microphone (None: no check), and
+    /// whether it has spoken.
+    expected: Option<Vec<f64>>,
+    said_gains: bool,
 }
 
 /// One channel's running level, peak and constancy.
@@ -278,8 +286,17 @@ impl ChannelHealth {
             said: vec![[false; 3]; m],
             said_silent: false,
             said_quiet: false,
+            expected: None,
+            said_gains: false,
             inputs,
         }
+    }
+
+    /// Also check the channels' gains against `expected` relative powers per microphone
+    /// ([`gains`]; from [`crate::plan::Plan::expected_levels`]); once per stream.
+    pub fn with_gain_check(mut self, expected: Vec<f64>) -> Self {
+        self.expected = (expected.len() == self.inputs.len()).then_some(expected);
+        self
     }
 
     /// Take the next samples of every microphone (`chans[mic]`, equal lengths).
@@ -419,6 +436,12 @@ impl ChannelHealth {
                         self.inputs[c]
                     ));
                 }
+            }
+            if let Some(expected) = self.expected.as_ref().filter(|_| !self.said_gains) {
+                self.said_gains = true;
+                let power: Vec<f64> = rms.iter().map(|r| r * r).collect();
+                let skip: Vec<bool> = (0..m).map(|c| self.said[c][0]).collect();
+                notes.extend(gains::gain_note(&power, expected, &self.inputs, &skip));
             }
         }
         let clipped: Vec<usize> = (0..m)

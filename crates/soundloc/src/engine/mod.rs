@@ -387,12 +387,17 @@ impl<T: Real> Engine<T> {
             });
             let (buf_start, buf) = self.stft.buffered();
             let health = self.health.get_or_insert_with(|| {
-                ChannelHealth::new(
+                let h = ChannelHealth::new(
                     idx.to_vec(),
                     self.plan.config.sample_rate_hz as f64,
                     self.plan.config.hop,
                     self.plan.close_pairs(),
-                )
+                );
+                if self.plan.gains_matter() {
+                    h.with_gain_check(self.plan.expected_levels())
+                } else {
+                    h
+                }
             });
             let tails: Vec<&[f32]> = buf.iter().map(|ch| &ch[first - buf_start..]).collect();
             health.observe(&tails);
