@@ -143,7 +143,7 @@ pub struct RunArgs {
     /// device's raw.nChannels channels.
     #[arg(long)]
     pub geometry: Option<PathBuf>,
-    /// Direction grid for --geometry: ring:STEP_DEG[:ELEV_DEG] or sphere:N (with --tf the
+    /// Direction grid for --geometry: ring:STEP_DEG[:ELEV_DEG], sphere:N or hemisphere:N (the N directions above the horizontal plane, for planar arrays lying flat; with --tf the
     /// directions are the TF file's: an error).
     #[arg(long, default_value = "ring:5", conflicts_with = "tf")]
     pub grid: String,

@@ -65,7 +65,7 @@ pub struct MakeArgs {
     /// A built-in array instead of a geometry file.
     #[arg(long, value_enum)]
     pub builtin: Option<BuiltinArray>,
-    /// Directions: ring:STEP_DEG[:ELEV_DEG] or sphere:N (e.g. ring:5, ring:5:16.7, sphere:2522).
+    /// Directions: ring:STEP_DEG[:ELEV_DEG], sphere:N or hemisphere:N (the upper half; e.g. ring:5, ring:5:16.7, sphere:2522, hemisphere:1261).
     #[arg(long)]
     pub grid: GridSpec,
     /// Distance of the grid points (the modelled sources) from the origin of the

@@ -21,7 +21,7 @@ Arguments (HARK LocalizeMUSIC name / pyroomacoustics name):
     tf: HARK transfer-function zip or HGTF file; or geometry: (M, 3) mic positions in metres
         (pyroomacoustics' ``L`` transposed), or a geometry file (TOML, or an ODAS
         configuration ``*.cfg``, whose mapping.map picks the microphones among the device's
-        raw.nChannels channels) with grid: "ring:STEP_DEG[:ELEV]", "sphere:N" or
+        raw.nChannels channels) with grid: "ring:STEP_DEG[:ELEV]", "sphere:N", "hemisphere:N" (the N directions above the horizontal plane) or
         a (D, 3) array of unit directions, grid_radius (metres, default 1) and
         speed_of_sound (m/s, default 343); fs (SAMPLING_RATE, for geometry=; without it
         the rate localize(x, fs) or localize_file's header names, or the first

@@ -489,7 +489,8 @@ pub fn mirror_note(positions: &[[f64; 3]], points: &[[f64; 3]]) -> Option<String
         "the microphones lie in one plane and the grid has directions on both sides of it: in free \
          field a direction and its mirror image through the plane give the same spectrum, so a source \
          may be reported on the wrong side (e.g. below a horizontal array instead of above); use a grid \
-         on one side of the plane, or a non-planar array"
+         on one side of the plane (for an array lying horizontally: hemisphere:N, e.g. hemisphere:1261, \
+         the directions above it), or a non-planar array"
             .to_string()
     })
 }

@@ -146,6 +146,25 @@ impl Grid {
         }
     }
 
+    /// The upper half (z > 0, elevation above 0°) of a Fibonacci lattice of 2·`n_points`
+    /// directions: `n_points` directions for an array lying in the horizontal plane, whose
+    /// mirror images below it give the same spectrum in free field.
+    pub fn hemisphere(n_points: usize, radius_m: f64) -> Grid {
+        let units: Vec<[f64; 3]> = super::geometry::fibonacci_sphere(2 * n_points)
+            .into_iter()
+            .filter(|u| u[2] > 0.0)
+            .collect();
+        let neighbors = nearest_neighbors(&units, SPHERE_NEIGHBORS);
+        Grid {
+            points: units
+                .into_iter()
+                .map(|u| [u[0] * radius_m, u[1] * radius_m, u[2] * radius_m])
+                .collect(),
+            kind: GridKind::Sphere,
+            neighbors,
+        }
+    }
+
     /// A grid with an explicit neighbour table. Checks that there is one list per point,
     /// that every index is in range and that every point is finite and not at the origin;
     /// a point listed as its own neighbour and repeated entries are dropped (HARK's tables
@@ -290,7 +309,7 @@ impl Grid {
 }
 
 /// A grid as written on the command line: `ring:STEP_DEG[:ELEV_DEG]` (elevation default
-/// 0) or `sphere:N`. [`GridSpec::build`] makes the [`Grid`].
+/// 0), `sphere:N` or `hemisphere:N`. [`GridSpec::build`] makes the [`Grid`].
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "kebab-case", tag = "kind")]
 pub enum GridSpec {
@@ -303,6 +322,12 @@ pub enum GridSpec {
     },
     /// A full-sphere Fibonacci lattice of `n` points (n ≥ 2).
     Sphere {
+        /// Number of points.
+        n: usize,
+    },
+    /// The upper hemisphere (elevation > 0°) of `n` points ([`Grid::hemisphere`]): for
+    /// planar arrays lying horizontally.
+    Hemisphere {
         /// Number of points.
         n: usize,
     },
@@ -322,6 +347,7 @@ impl GridSpec {
                 elevation_deg,
             } => Grid::ring(step_deg, elevation_deg, radius_m),
             GridSpec::Sphere { n } => Grid::sphere(n, radius_m),
+            GridSpec::Hemisphere { n } => Grid::hemisphere(n, radius_m),
         }
     }
 }
@@ -331,7 +357,7 @@ impl FromStr for GridSpec {
     fn from_str(s: &str) -> Result<Self> {
         let bad = |why: &str| {
             Error::Config(format!(
-                "grid {s:?}: {why} (expected ring:STEP_DEG[:ELEV_DEG] or sphere:N, e.g. ring:5, ring:5:16.7, sphere:2522)"
+                "grid {s:?}: {why} (expected ring:STEP_DEG[:ELEV_DEG], sphere:N or hemisphere:N, e.g. ring:5, ring:5:16.7, sphere:2522, hemisphere:1261)"
             ))
         };
         let parts: Vec<&str> = s.trim().split(':').map(str::trim).collect();
@@ -370,12 +396,16 @@ impl FromStr for GridSpec {
                     elevation_deg,
                 })
             }
-            ["sphere", n] => {
+            [kind @ ("sphere" | "hemisphere"), n] => {
                 let n: usize = n.parse().map_err(|_| bad("N must be a whole number of points"))?;
                 if !(2..=super::MAX_DIRECTIONS).contains(&n) {
                     return Err(bad(&format!("N must be between 2 and {}", super::MAX_DIRECTIONS)));
                 }
-                Ok(GridSpec::Sphere { n })
+                Ok(if *kind == "sphere" {
+                    GridSpec::Sphere { n }
+                } else {
+                    GridSpec::Hemisphere { n }
+                })
             }
             _ => Err(bad("unknown form")),
         }
@@ -396,6 +426,7 @@ impl fmt::Display for GridSpec {
                 }
             }
             GridSpec::Sphere { n } => write!(f, "sphere:{n}"),
+            GridSpec::Hemisphere { n } => write!(f, "hemisphere:{n}"),
         }
     }
 }
@@ -403,6 +434,29 @@ impl fmt::Display for GridSpec {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// `hemisphere:N`: N directions above the horizontal plane, which a planar array lying
+    /// flat cannot tell from their mirror images (so the full sphere gets a note and the
+    /// hemisphere none); parsed, printed and built like `sphere:N`.
+    #[test]
+    fn hemisphere_grid_is_the_upper_half_and_silences_the_mirror_note() {
+        let spec: GridSpec = "hemisphere:500".parse().unwrap();
+        assert_eq!(spec, GridSpec::Hemisphere { n: 500 });
+        assert_eq!(spec.to_string().parse::<GridSpec>().unwrap(), spec);
+        let g = spec.build(2.0);
+        assert_eq!(g.len(), 500);
+        assert_eq!(g.kind, GridKind::Sphere);
+        assert!((0..g.len()).all(|i| g.elevation_deg(i) > 0.0 && (g.radius_m(i) - 2.0).abs() < 1e-12));
+        // The upper half of the 1000-point lattice, in its order.
+        let full = Grid::sphere(1000, 2.0);
+        assert_eq!(g.points[..], full.points[..500]);
+        assert!(g.neighbors_symmetric() && (0..g.len()).all(|i| g.neighbors[i].len() >= SPHERE_NEIGHBORS));
+        let ring = super::super::Geometry::circle(8, 0.0365, 0.0);
+        assert!(super::super::geometry::mirror_note(&ring.mics, &full.points).is_some());
+        assert_eq!(super::super::geometry::mirror_note(&ring.mics, &g.points), None);
+        assert!("hemisphere:1".parse::<GridSpec>().is_err());
+        assert!("hemisphere:x".parse::<GridSpec>().is_err());
+    }
 
     #[test]
     fn ring_order_and_neighbors() {

@@ -15,8 +15,11 @@
 //! cancelled (the caller decides: textbook GEVD without coherence).
 
 /// A channel this far (dB) from the median channel's level relative to the transfer
-/// functions is reported.
-pub const GAIN_DB: f64 = 1.0;
+/// functions is reported. Above what near rotors give matched arrays in the project's
+/// drone scenes (four rotors 25 cm from the centre: up to 1.1 dB on the 60-mic sphere,
+/// under 1 dB on the 8-mic ring), so those pass without a word; mismatches of 1–1.5 dB,
+/// which already cost talkers, pass too.
+pub const GAIN_DB: f64 = 1.5;
 
 /// The note for microphones with powers `power` (RMS² per microphone) against expected
 /// relative powers `expected` (same order), `inputs` their input channels, `skip` the
@@ -74,8 +77,8 @@ mod tests {
         let expected = [1.0, 2.0, 0.5, 1.0, 1.0];
         assert_eq!(gain_note(&expected, &expected, &inputs, &none), None);
         assert_eq!(gain_note(&[3.0; 5], &[1.0; 5], &inputs, &none), None);
-        // Channel 12 is 3 dB hot against free-field TFs; 0.9 dB on 11 is within.
-        let p = [1.0, 10f64.powf(0.09), 10f64.powf(0.3), 1.0, 1.0];
+        // Channel 12 is 3 dB hot against free-field TFs; 1.4 dB on 11 is within.
+        let p = [1.0, 10f64.powf(0.14), 10f64.powf(0.3), 1.0, 1.0];
         let note = gain_note(&p, &[1.0; 5], &inputs, &none).unwrap();
         assert!(note.contains("excess): 12 +3.0 dB."), "{note}");
         assert!(!note.contains(" 11 "), "{note}");
@@ -93,15 +96,15 @@ mod tests {
             None
         );
         // Several off, both signs.
-        let p = [1.0, 10f64.powf(-0.15), 10f64.powf(0.15), 1.0, 1.0];
+        let p = [1.0, 10f64.powf(-0.2), 10f64.powf(0.2), 1.0, 1.0];
         let note = gain_note(&p, &[1.0; 5], &inputs, &none).unwrap();
-        // Half the channels 3 dB above the others: ±1.5 dB from the median in dB.
-        let p = [1.0, 2.0, 1.0, 2.0];
+        // Half the channels 4 dB above the others: ±2 dB from the median in dB.
+        let p = [1.0, 10f64.powf(0.4), 1.0, 10f64.powf(0.4)];
         let half = gain_note(&p, &[1.0; 4], &inputs[..4], &none[..4]).unwrap();
         assert!(
-            half.contains("): 10 -1.5 dB, 11 +1.5 dB, 12 -1.5 dB, 13 +1.5 dB."),
+            half.contains("): 10 -2.0 dB, 11 +2.0 dB, 12 -2.0 dB, 13 +2.0 dB."),
             "{half}"
         );
-        assert!(note.contains("): 11 -1.5 dB, 12 +1.5 dB."), "{note}");
+        assert!(note.contains("): 11 -2.0 dB, 12 +2.0 dB."), "{note}");
     }
 }
