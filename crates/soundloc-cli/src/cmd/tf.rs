@@ -138,8 +138,11 @@ fn make(a: MakeArgs) -> anyhow::Result<ExitCode> {
         (None, None) => bail!("give --geometry FILE or --builtin"),
     }
     .direction_frame(a.radius);
-    if let Some(n) = moved.filter(|_| !a.quiet) {
-        eprintln!("soundloc: {n}");
+    if !a.quiet {
+        let notes = soundloc::array::freefield::free_field_notes(&geometry, a.radius, a.speed_of_sound);
+        for n in moved.into_iter().chain(notes) {
+            eprintln!("soundloc: {n}");
+        }
     }
     let grid = a.grid.build(a.radius);
     let nfft = a

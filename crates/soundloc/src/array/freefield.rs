@@ -30,6 +30,39 @@ use std::ops::Range;
 /// Speed of sound used by HARK's geometric TFs (fits tamago_geotf.zip), m/s.
 pub const DEFAULT_SPEED_OF_SOUND_M_S: f64 = 343.0;
 
+/// Speeds of sound outside this range (m/s) get a note from [`free_field_notes`]: air is
+/// 331–355 m/s from 0 to 40 °C, water about 1480 (hydrophone arrays); 34 300 (cm/s) or
+/// 1 are slips.
+pub const PLAUSIBLE_SPEED_OF_SOUND_M_S: std::ops::RangeInclusive<f64> = 200.0..=2000.0;
+
+/// What looks wrong in free-field TFs asked for with `geometry` (its positions as used,
+/// after [`Geometry::direction_frame`]), a grid of `radius_m` and `speed_of_sound_m_s`:
+/// positions that look like millimetres ([`Geometry::units_note`]), a grid radius inside
+/// the array, an implausible speed of sound. Said by `localize --geometry` and `tf make`
+/// alike; the TFs are made as asked.
+pub fn free_field_notes(geometry: &Geometry, radius_m: f64, speed_of_sound_m_s: f64) -> Vec<String> {
+    let mut notes: Vec<String> = geometry.units_note().into_iter().collect();
+    let reach = geometry
+        .mics
+        .iter()
+        .map(|&p| super::geometry::dist(p, [0.0; 3]))
+        .fold(0.0, f64::max);
+    if radius_m < reach {
+        notes.push(format!(
+            "the grid radius {radius_m} m is inside the array (its farthest microphone is {reach:.3} m \
+             from the grid's centre): the directions are points among the microphones, not far-field \
+             directions; HARK's free-field TFs use 1 m or more"
+        ));
+    }
+    if speed_of_sound_m_s.is_finite() && !PLAUSIBLE_SPEED_OF_SOUND_M_S.contains(&speed_of_sound_m_s) {
+        notes.push(format!(
+            "a speed of sound of {speed_of_sound_m_s} m/s: in air it is 331-355 m/s (343 at 20 °C, the \
+             default), in water about 1480; the value is in metres per second (34300 would be cm/s)"
+        ));
+    }
+    notes
+}
+
 /// Free-field TFs for `geometry` and `grid` over the absolute `bins` of an `nfft`-point
 /// FFT at `sample_rate_hz` (see the module docs for the formula). Errors when the bins
 /// are empty or beyond nfft/2, when the speed of sound or sample rate is not positive,
@@ -57,12 +90,12 @@ pub fn free_field(
     }
     if !(speed_of_sound_m_s.is_finite() && speed_of_sound_m_s > 0.0) {
         return Err(Error::Config(format!(
-            "free-field TFs: speed of sound {speed_of_sound_m_s} m/s must be positive"
+            "free-field TFs: speed of sound {speed_of_sound_m_s} m/s must be a positive, finite number"
         )));
     }
-    if geometry.mics.is_empty() || grid.is_empty() {
+    if geometry.mics.len() < 2 || grid.is_empty() {
         return Err(Error::Config(format!(
-            "free-field TFs: {} microphones and {} directions: need at least one of each",
+            "free-field TFs: {} microphone(s) and {} directions: localization needs at least 2 microphones and 1 direction",
             geometry.mics.len(),
             grid.len()
         )));
@@ -125,6 +158,29 @@ pub fn free_field(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// `localize --geometry` and `tf make` share these notes (tf make said none until
+    /// 2026-12-02: millimetre positions and a 1-microphone geometry went through silently).
+    #[test]
+    fn free_field_notes_and_a_single_microphone() {
+        let ring = Geometry::circle(8, 0.0365, 0.0);
+        assert!(free_field_notes(&ring, 1.0, 343.0).is_empty());
+        assert!(free_field_notes(&ring, 1.0, 1480.0).is_empty());
+        let mm = Geometry::circle(8, 36.5, 0.0);
+        let n = free_field_notes(&mm, 1.0, 343.0);
+        assert_eq!(n.len(), 2, "{n:?}");
+        assert!(
+            n[0].contains("millimetres") && n[1].contains("inside the array"),
+            "{n:?}"
+        );
+        for c in [34300.0, 1.0] {
+            let n = free_field_notes(&ring, 1.0, c);
+            assert!(n.len() == 1 && n[0].contains("331-355 m/s"), "{c}: {n:?}");
+        }
+        let one = Geometry::new(vec![[0.0; 3]], std::path::Path::new("one")).unwrap();
+        let e = free_field(&one, &Grid::ring(5.0, 0.0, 1.0), 512, 16000, 0..257, 343.0).unwrap_err();
+        assert!(e.to_string().contains("needs at least 2 microphones"), "{e}");
+    }
 
     #[test]
     fn sign_magnitude_and_delay() {

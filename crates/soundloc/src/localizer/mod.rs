@@ -322,19 +322,14 @@ impl LocalizerSpec {
                 }
                 let (geometry, moved) = Geometry::new(mics.clone(), Path::new("microphone positions"))?
                     .direction_frame(*radius_m);
-                let mut parts: Vec<String> = moved.into_iter().chain(geometry.units_note()).collect();
-                let reach = geometry
-                    .mics
-                    .iter()
-                    .map(|&p| crate::array::geometry::dist(p, [0.0; 3]))
-                    .fold(0.0, f64::max);
-                if *radius_m < reach {
-                    parts.push(format!(
-                        "the grid radius {radius_m} m is inside the array (its farthest microphone is {reach:.3} m \
-                         from the grid's centre): the directions are points among the microphones, not far-field \
-                         directions; HARK's free-field TFs use 1 m or more"
-                    ));
-                }
+                let parts: Vec<String> = moved
+                    .into_iter()
+                    .chain(crate::array::freefield::free_field_notes(
+                        &geometry,
+                        *radius_m,
+                        *speed_of_sound_m_s,
+                    ))
+                    .collect();
                 note = (!parts.is_empty()).then(|| parts.join("; "));
                 free_field(
                     &geometry,
