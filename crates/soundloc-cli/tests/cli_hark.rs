@@ -225,6 +225,57 @@ fn tf_inspect_hark_files() {
     );
 }
 
+/// `noisecm make`'s frames follow the recording's rate as `localize --geometry`'s and
+/// `tf make`'s do (32 ms / 10 ms: 1536 / 480 at 48 kHz; it was 512 / 160 at any rate, so
+/// a 48 kHz user's K did not fit the 48 kHz TFs), the summary names the rate, and the
+/// input checks run: a dead channel is named, and the not-positive-definite warning
+/// points at it.
+#[test]
+fn noisecm_make_frames_follow_the_rate_and_the_input_is_checked() {
+    let d = tmp("cmrate");
+    let wav16 = d.join("noise16.wav");
+    let audio = noise_wav(&wav16, 1.0);
+    let wav48 = d.join("noise48.wav");
+    let mut dead = audio.channels.clone();
+    dead[3].iter_mut().for_each(|v| *v = 0.0);
+    Audio::new(48000, audio.channels.clone())
+        .unwrap()
+        .write_wav(&wav48, SampleFormat::Int16)
+        .unwrap();
+    let k48 = d.join("k48.zip");
+    let out = ok(&["noisecm", "make", s(&wav48), "-o", s(&k48)]);
+    assert!(out.contains("nfft 1536 at 48000 Hz"), "{out}");
+    let cm = NoiseCm::load(&k48, Expected::default()).unwrap();
+    assert_eq!((cm.nfft, cm.num_bins()), (1536, 769));
+    let (want, frames) =
+        NoiseCm::estimate(&audio.channels, 48000, 1536, 480, WindowFunction::Conj, None).unwrap();
+    // The zip holds single precision (HARK's format).
+    let top = want.data.iter().map(|z| z.norm()).fold(0.0, f64::max);
+    let err = cm
+        .data
+        .iter()
+        .zip(&want.data)
+        .map(|(a, b)| (a - b).norm())
+        .fold(0.0, f64::max);
+    assert!(
+        cm.data.len() == want.data.len() && err < 1e-6 * top,
+        "{err} of {top}"
+    );
+    assert!(out.contains(&format!("{frames} frames")), "{out}");
+    let wav_dead = d.join("dead.wav");
+    Audio::new(16000, dead)
+        .unwrap()
+        .write_wav(&wav_dead, SampleFormat::Int16)
+        .unwrap();
+    let (code, _, err) = run(&["noisecm", "make", s(&wav_dead), "-o", s(&d.join("kd.zip"))]);
+    assert_eq!(code, 0, "{err}");
+    assert!(err.contains("input channel 3 (0-based) is constant"), "{err}");
+    assert!(
+        err.contains("not positive definite") && err.contains("see the channel warnings above"),
+        "{err}"
+    );
+}
+
 #[test]
 fn noisecm_make_text_and_zip_load_back() {
     let d = tmp("cmmake");

@@ -70,12 +70,15 @@ pub struct MakeArgs {
     /// Output format (default: zip when the output ends in .zip, else text).
     #[arg(long, value_enum)]
     pub format: Option<CmFormat>,
-    /// FFT length N (LENGTH).
-    #[arg(long, default_value_t = 512)]
-    pub fft_length: usize,
-    /// Frame advance in samples (ADVANCE).
-    #[arg(long, default_value_t = 160)]
-    pub hop: usize,
+    /// FFT length N (LENGTH) [default: 32 ms of the recording's rate, as `localize
+    /// --geometry` and `tf make`: 512 at 16 kHz, 1536 at 48 kHz]. It must be the
+    /// localization's: the file records the bins, not the rate.
+    #[arg(long)]
+    pub fft_length: Option<usize>,
+    /// Frame advance in samples (ADVANCE) [default: 10 ms of the recording's rate: 160 at
+    /// 16 kHz, 480 at 48 kHz].
+    #[arg(long)]
+    pub hop: Option<usize>,
     /// Analysis window function (WINDOW), as `localize --window-function`.
     #[arg(long, value_enum, default_value = "conj", alias = "window")]
     pub window_function: WindowArg,
@@ -175,19 +178,25 @@ fn make(a: MakeArgs) -> anyhow::Result<ExitCode> {
         .select_channels(&idx)
         .with_context(|| format!("{}: --input-channels", a.input.display()))?;
     map.invert(&idx, &mut audio.channels);
-    let (cm, frames) = NoiseCm::estimate(
-        &audio.channels,
-        audio.sample_rate_hz,
-        a.fft_length,
-        a.hop,
-        a.window_function.into(),
-        a.range,
-    )
-    .with_context(|| format!("{}", a.input.display()))?;
+    let fs = audio.sample_rate_hz;
+    let (nfft, hop) = soundloc::config::frame_sizes_for_rate(fs);
+    let (nfft, hop) = (a.fft_length.unwrap_or(nfft), a.hop.unwrap_or(hop));
+    // The input checks `localize` makes (a dead, constant or clipping channel), which also
+    // explain a K that is not positive definite.
+    let mut health = soundloc::audio::health::ChannelHealth::new(idx.clone(), fs as f64, hop, None);
+    health.observe(&audio.channels.iter().map(Vec::as_slice).collect::<Vec<_>>());
+    let warnings = health.notes(true);
+    for w in &warnings {
+        eprintln!("soundloc: {}: {w}", a.input.display());
+    }
+    let (cm, frames) = NoiseCm::estimate(&audio.channels, fs, nfft, hop, a.window_function.into(), a.range)
+        .with_context(|| format!("{}", a.input.display()))?;
     let shape = format!(
-        "{} channels, {} bins (nfft {}), {} frames of {}",
+        "{} channels, {} bins (nfft {} at {fs} Hz, {:.2} Hz apart; the file does not record the rate: use it with transfer functions of {fs} Hz and nfft {}), {} frames of {}",
         cm.num_mics,
         cm.num_bins(),
+        cm.nfft,
+        fs as f64 / cm.nfft as f64,
         cm.nfft,
         frames,
         a.input.display()
@@ -206,15 +215,23 @@ fn make(a: MakeArgs) -> anyhow::Result<ExitCode> {
         CmFormat::Zip => {
             cm.write_zip(&a.output)?;
             if !a.quiet {
-                outln!("wrote {}: {shape}", a.output.display());
+                outln!(
+                    "wrote {}: {shape}; single precision, as HARK's zips (a text pair keeps full precision)",
+                    a.output.display()
+                );
             }
         }
     }
     let s = cm.summary();
     if s.not_positive_definite > 0 {
+        let why = if warnings.is_empty() {
+            "use more noise frames or diagonal loading (or look for two channels carrying the same signal)"
+        } else {
+            "see the channel warnings above (a dead or constant channel has no noise of its own); otherwise use more noise frames or diagonal loading"
+        };
         eprintln!(
-            "warning: K is not positive definite in {} of {} bins ({} frames for {} channels): \
-             GEVD/GSVD will reject it; use more noise frames or diagonal loading",
+            "soundloc: warning: K is not positive definite in {} of {} bins ({} frames for {} channels): \
+             GEVD/GSVD will reject it; {why}",
             s.not_positive_definite, s.num_bins, frames, cm.num_mics
         );
     }
