@@ -24,7 +24,8 @@ pub struct Args {
     #[arg(long)]
     pub out_dir: PathBuf,
     /// Only share K of N (0-based): the inputs whose position in the list is K modulo N,
-    /// e.g. --shard $SLURM_ARRAY_TASK_ID/$SLURM_ARRAY_TASK_COUNT.
+    /// e.g. --shard $SLURM_ARRAY_TASK_ID/$SLURM_ARRAY_TASK_COUNT with a 0-based array
+    /// (sbatch --array=0-3; for --array=1-4 subtract 1).
     #[arg(long)]
     pub shard: Option<String>,
     /// Localize inputs whose result file already exists again (default: skip them, so a
@@ -70,8 +71,9 @@ fn inputs(a: &Args) -> anyhow::Result<Vec<PathBuf>> {
 }
 
 /// The shared run options that name one output file or endpoint per run: batch refuses
-/// them (each recording's results go to `--out-dir`), so its `--help` does not list them.
-const PER_INPUT_ONLY: [&str; 10] = [
+/// them (each recording's results go to `--out-dir`), so its `--help` does not list them;
+/// `odas_pots`/`odas_tracks`, which only size the ODAS outputs, are hidden with them.
+const PER_INPUT_ONLY: [&str; 12] = [
     "output",
     "spectrum",
     "plot",
@@ -82,6 +84,8 @@ const PER_INPUT_ONLY: [&str; 10] = [
     "serve",
     "odas_ssl",
     "odas_sst",
+    "odas_pots",
+    "odas_tracks",
 ];
 
 /// For `mut_args` on the batch command: hide [`PER_INPUT_ONLY`] from its help.

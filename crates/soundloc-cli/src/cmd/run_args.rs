@@ -58,12 +58,13 @@ pub struct AnalysisArgs {
     /// UPPER_BOUND_FREQUENCY, Hz (exclusive bin).
     #[arg(long, default_value_t = 2800.0)]
     pub upper_freq: f64,
-    /// LENGTH: FFT length in samples [default: 512; with --geometry 32 ms of the input's
-    /// rate (512 at 16 kHz, 1536 at 48 kHz)].
+    /// LENGTH: FFT length in samples [default: with --tf the zip's (512 for HARK's 16 kHz
+    /// zips, 1536 for a tf make zip at 48 kHz; 512 for HGTF files); with --geometry 32 ms of the input's rate
+    /// (512 at 16 kHz, 1536 at 48 kHz)].
     #[arg(long)]
     pub fft_length: Option<usize>,
-    /// ADVANCE: hop in samples [default: 160; with --geometry 10 ms of the input's rate
-    /// (160 at 16 kHz, 480 at 48 kHz)].
+    /// ADVANCE: hop in samples [default: with --tf nfft × 160/512 (HARK's 160 for 512);
+    /// with --geometry 10 ms of the input's rate (160 at 16 kHz, 480 at 48 kHz)].
     #[arg(long)]
     pub hop: Option<usize>,
     /// STFT window function (MultiFFT WINDOW).

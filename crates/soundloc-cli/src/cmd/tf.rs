@@ -115,11 +115,17 @@ fn inspect(a: InspectArgs) -> anyhow::Result<ExitCode> {
         let mut v = serde_json::to_value(&summary)?;
         if let Some(o) = v.as_object_mut() {
             o.insert("file".into(), a.file.display().to_string().into());
+            o.insert("verified".into(), (!quick).into());
         }
         outln!("{v}");
     } else {
         outln!("file             {}", a.file.display());
         out!("{summary}");
+        if quick {
+            outln!("verified         no: the zip's directory and XML only (--verify reads every value)");
+        } else {
+            outln!("verified         yes: every value read (CRC, sizes, finite numbers)");
+        }
     }
     Ok(ExitCode::SUCCESS)
 }

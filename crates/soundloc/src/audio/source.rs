@@ -96,7 +96,7 @@ fn open_reader<R: Read + Send + 'static>(
         Err(Error::format(
             name,
             format!(
-                "not a WAV (RIFF/WAVE) or FLAC file (starts with \"{shown}\"); for headerless PCM give --raw"
+                "not a WAV (RIFF/WAVE) or FLAC file (starts with \"{shown}\"); headerless PCM needs its encoding, channels and rate named (a localize input: --raw, --raw-channels, --rate)"
             ),
         ))
     }
