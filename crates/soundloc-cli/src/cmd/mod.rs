@@ -29,6 +29,7 @@ pub mod localize;
 pub mod noisecm;
 pub mod run_args;
 pub mod sinks;
+pub mod spectrum_out;
 pub mod tf;
 
 use clap::{Parser, Subcommand, ValueEnum};

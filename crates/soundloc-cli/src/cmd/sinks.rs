@@ -17,12 +17,13 @@ use std::time::Duration;
 
 use super::localize::{note, FormatArg};
 use super::run_args::RunArgs;
+use super::spectrum_out::{spectrum_sidecar, SpectrumSink};
 use anyhow::{bail, Context};
 use soundloc::output::atomic::{write_atomically, AtomicFile};
 use soundloc::output::hark_stream::HarkStreamSender;
 use soundloc::output::plot::{plot_spectrum, SpectrumPlot};
-use soundloc::output::{csv::CsvWriter, jsonl::JsonlWriter, npy::write_npy_f32};
-use soundloc::{LocalizationResult, Localizer, Output, SpectrumTable};
+use soundloc::output::{csv::CsvWriter, jsonl::JsonlWriter};
+use soundloc::{LocalizationResult, Localizer, Output};
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
@@ -224,12 +225,11 @@ pub struct Sinks {
     view: Option<LiveServer>,
     ssl: Option<OdasOut>,
     sst: Option<(OdasOut, SstSlots)>,
-    /// The end-of-run outputs need the spectrum.
-    keep_spectrum: bool,
     quiet: bool,
     /// Every result, when an end-of-run output needs them.
     keep: Option<Vec<LocalizationResult>>,
-    spectrum: Option<SpectrumTable>,
+    /// `--spectrum`, and the table `--plot` needs.
+    spectrum: SpectrumSink,
     count: usize,
     pots: usize,
     /// Tracking is on: SSL gets the windows' own peaks ([`Output::peaks`]).
@@ -428,10 +428,9 @@ impl Sinks {
             view,
             ssl,
             sst,
-            keep_spectrum: a.spectrum.is_some() || a.plot.is_some(),
             quiet: a.quiet,
             keep: keep_all.then(Vec::new),
-            spectrum: None,
+            spectrum: SpectrumSink::new(a.spectrum.as_deref(), a.plot.is_some()),
             count: 0,
             pots: a.live.odas_pots,
             tracking: a.track,
@@ -442,7 +441,7 @@ impl Sinks {
     /// the HARK stream, the live view).
     fn other_outputs(&self) -> bool {
         self.keep.is_some()
-            || self.keep_spectrum
+            || self.spectrum.wanted()
             || self.ssl.is_some()
             || self.sst.is_some()
             || self.hark.is_some()
@@ -488,11 +487,8 @@ impl Sinks {
             }
             v.status(status(progress, false), false);
         }
-        if let Some(t) = table.filter(|_| self.keep_spectrum) {
-            match &mut self.spectrum {
-                Some(all) => all.append(t),
-                None => self.spectrum = Some(t),
-            }
+        if let Some(t) = table.filter(|_| self.spectrum.wanted()) {
+            self.spectrum.take(t)?;
         }
         let mut notes = Vec::new();
         if let Some(h) = &self.hark {
@@ -617,11 +613,7 @@ impl Sinks {
         let grid = loc.grid();
         let az: Vec<f64> = (0..grid.len()).map(|d| grid.azimuth_deg(d)).collect();
         let el: Vec<f64> = (0..grid.len()).map(|d| grid.elevation_deg(d)).collect();
-        if let Some(table) = &self.spectrum {
-            if let Some(p) = &a.spectrum {
-                write_spectrum(p, table, &az, &el, loc.config())?;
-                super::localize::note(a.quiet, &format!("spectrum written to {}", p.display()));
-            }
+        if let Some(table) = self.spectrum.table() {
             if let Some(p) = &a.plot {
                 let plot = SpectrumPlot {
                     times_s: table.times_s.clone(),
@@ -643,6 +635,7 @@ impl Sinks {
                 super::localize::note(a.quiet, &format!("plot written to {}", p.display()));
             }
         }
+        self.spectrum.finish(&az, &el, loc.config(), a.quiet)?;
         if let Dest::File(l, p) = self.dest {
             let mut f = l.into_inner();
             f.flush()
@@ -651,45 +644,6 @@ impl Sinks {
         }
         Ok(())
     }
-}
-
-fn write_spectrum(
-    path: &Path,
-    table: &SpectrumTable,
-    az: &[f64],
-    el: &[f64],
-    config: &soundloc::LocalizeConfig,
-) -> anyhow::Result<()> {
-    let rows = table.frames.len();
-    write_atomically(path, |w| write_npy_f32(w, rows, table.num_dirs, &table.db))?;
-    let algorithm = config.algorithm;
-    let what = if algorithm.is_music() {
-        "MUSIC spectrum"
-    } else {
-        "steered response power (SRP-PHAT)"
-    };
-    let meta = serde_json::json!({
-        "description": format!("dB {what} 10*log10(P+1), {} summed over the bins, rows = results, columns = directions", config.label()),
-        "algorithm": algorithm.name(),
-        "analysis": config.label(),
-        "shape": [rows, table.num_dirs],
-        "frames": table.frames,
-        "times_s": table.times_s,
-        "azimuth_deg": az,
-        "elevation_deg": el,
-    });
-    write_atomically(spectrum_sidecar(path), |w| {
-        serde_json::to_writer(&mut *w, &meta)?;
-        writeln!(w)
-    })?;
-    Ok(())
-}
-
-/// The spectrum's metadata file: `FILE.json` next to `FILE` (e.g. `spec.npy.json`).
-fn spectrum_sidecar(path: &Path) -> PathBuf {
-    let mut side = path.as_os_str().to_owned();
-    side.push(".json");
-    PathBuf::from(side)
 }
 
 /// `-o -`: the results on stdout, as without `-o`.

@@ -9,7 +9,7 @@
 //! `(rows, cols)`.
 
 use crate::{Error, Result};
-use std::io::{self, Read, Write};
+use std::io::{self, Read, Seek, SeekFrom, Write};
 use std::path::Path;
 
 const MAGIC: &[u8; 6] = b"\x93NUMPY";
@@ -28,9 +28,15 @@ pub struct NpyF32 {
 /// The complete NPY v1.0 preamble (magic, version, length, padded header) for a
 /// `(rows, cols)` little-endian `f32` C-order array; its length is a multiple of 64.
 pub fn npy_header(rows: usize, cols: usize) -> Vec<u8> {
+    npy_header_at_least(rows, cols, 0)
+}
+
+/// [`npy_header`] padded with spaces to at least `min_total` bytes (still a multiple of
+/// 64): a header rewritten in place once the row count is known keeps its length.
+fn npy_header_at_least(rows: usize, cols: usize, min_total: usize) -> Vec<u8> {
     let dict = format!("{{'descr': '<f4', 'fortran_order': False, 'shape': ({rows}, {cols}), }}");
     // 10 bytes before the header text; the text ends with '\n'.
-    let unpadded = 10 + dict.len() + 1;
+    let unpadded = (10 + dict.len() + 1).max(min_total);
     let total = unpadded.div_ceil(64) * 64;
     let header_len = total - 10;
     let mut out = Vec::with_capacity(total);
@@ -66,6 +72,67 @@ pub fn write_npy_f32<W: Write>(mut w: W, rows: usize, cols: usize, data: &[f32])
         w.write_all(&buf)?;
     }
     Ok(())
+}
+
+/// An `.npy` written a row at a time, for arrays too big to hold (an hour's spectrum on a
+/// fine grid): the header is written first with room for any row count and rewritten
+/// with the real one by [`finish`](Self::finish). The bytes equal [`write_npy_f32`]'s
+/// but for the header's padding.
+#[derive(Debug)]
+pub struct NpyRowWriter<W: Write + Seek> {
+    w: W,
+    cols: usize,
+    rows: usize,
+    header_len: usize,
+    buf: Vec<u8>,
+}
+
+impl<W: Write + Seek> NpyRowWriter<W> {
+    /// Start an array of `cols` columns (≥ 1) at `w`'s current position 0.
+    pub fn new(mut w: W, cols: usize) -> io::Result<Self> {
+        if cols == 0 {
+            return Err(io::Error::new(io::ErrorKind::InvalidInput, "npy: 0 columns"));
+        }
+        let header = npy_header(usize::MAX, cols);
+        w.write_all(&header)?;
+        Ok(NpyRowWriter {
+            w,
+            cols,
+            rows: 0,
+            header_len: header.len(),
+            buf: Vec::new(),
+        })
+    }
+
+    /// Append whole rows (`values.len()` a multiple of the columns).
+    pub fn push(&mut self, values: &[f32]) -> io::Result<()> {
+        if !values.len().is_multiple_of(self.cols) {
+            return Err(io::Error::new(
+                io::ErrorKind::InvalidInput,
+                format!("npy: {} values are not whole rows of {}", values.len(), self.cols),
+            ));
+        }
+        self.buf.clear();
+        self.buf.extend(values.iter().flat_map(|v| v.to_le_bytes()));
+        self.w.write_all(&self.buf)?;
+        self.rows += values.len() / self.cols;
+        Ok(())
+    }
+
+    /// Rows written so far.
+    pub fn rows(&self) -> usize {
+        self.rows
+    }
+
+    /// Write the real shape into the header; the writer, positioned at the end.
+    pub fn finish(mut self) -> io::Result<W> {
+        let header = npy_header_at_least(self.rows, self.cols, self.header_len);
+        debug_assert_eq!(header.len(), self.header_len);
+        self.w.seek(SeekFrom::Start(0))?;
+        self.w.write_all(&header)?;
+        self.w.seek(SeekFrom::End(0))?;
+        Ok(self.w)
+    }
 }
 
 /// Write a `(rows, cols)` f32 array to `path`, atomically.
@@ -162,6 +229,31 @@ pub fn read_npy_f32_file(path: impl AsRef<Path>) -> Result<NpyF32> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn rows_written_one_at_a_time_read_back_as_the_whole_array() {
+        let data: Vec<f32> = (0..7 * 5).map(|i| i as f32 * 0.5 - 3.0).collect();
+        for pieces in [&[7][..], &[1, 2, 4], &[0, 3, 0, 4]] {
+            let mut w = NpyRowWriter::new(io::Cursor::new(Vec::new()), 5).unwrap();
+            let mut at = 0;
+            for &n in pieces {
+                w.push(&data[at * 5..(at + n) * 5]).unwrap();
+                at += n;
+            }
+            assert_eq!(w.rows(), 7);
+            let bytes = w.finish().unwrap().into_inner();
+            assert_eq!(bytes.len() % 4, 0);
+            let a = read_npy_f32(&bytes[..], Path::new("rows.npy")).unwrap();
+            assert_eq!((a.rows, a.cols), (7, 5));
+            assert_eq!(a.data, data);
+        }
+        // No rows: a (0, 5) array.
+        let w = NpyRowWriter::new(io::Cursor::new(Vec::new()), 5).unwrap();
+        let a = read_npy_f32(&w.finish().unwrap().into_inner()[..], Path::new("e.npy")).unwrap();
+        assert_eq!((a.rows, a.cols, a.data.len()), (0, 5, 0));
+        let mut w = NpyRowWriter::new(io::Cursor::new(Vec::new()), 5).unwrap();
+        assert!(w.push(&data[..4]).is_err());
+    }
 
     #[test]
     fn exact_header_bytes() {
