@@ -364,6 +364,12 @@ fn bench_refuses_sizes_it_cannot_build() {
         (vec!["--stream", "--streams", "0"], "--streams 0"),
         (vec!["--batch", "0"], "--batch 0"),
         (vec!["--repeats", "0"], "--repeats 0"),
+        // Options of another mode are refused, not ignored (the kernel benchmark printed
+        // its usual table for --period 5 or --array ring4 until 2026-12-02).
+        (vec!["--period", "5"], "--stream"),
+        (vec!["--seconds", "2"], "--stream"),
+        (vec!["--scenes", "1"], "--accuracy"),
+        (vec!["--array", "ring4"], "--stream"),
     ] {
         let o = bin().arg("bench").args(&args).output().unwrap();
         assert_clean_failure(&o, &[want]);
