@@ -258,13 +258,19 @@ pub fn drive(
         progress.compute_s,
         loc.stage_times()
     );
+    // The microphones analysed, when a selection keeps fewer than the input has.
+    let mics = loc.num_mics();
+    let channels = if mics < nch {
+        format!("{nch}-channel audio ({mics} microphones used)")
+    } else {
+        format!("{nch}-channel audio")
+    };
     note(
         a.quiet,
         &format!(
-            "{} results from {:.2} s of {}-channel audio, {} on {} (real-time factor {:.4})",
+            "{} results from {:.2} s of {channels}, {} on {} (real-time factor {:.4})",
             sinks.count(),
             audio_s,
-            nch,
             loc.config().label(),
             loc.device_name(),
             progress.compute_s / audio_s

@@ -75,10 +75,15 @@ pub fn free_field(
     bins: Range<usize>,
     speed_of_sound_m_s: f64,
 ) -> Result<TransferFunctions> {
-    if nfft < 2 || sample_rate_hz == 0 {
+    if nfft < 4 {
         return Err(Error::Config(format!(
-            "free-field TFs: nfft {nfft} and sample rate {sample_rate_hz} Hz must be positive (nfft ≥ 2)"
+            "free-field TFs: FFT length {nfft}: must be at least 4 (as the analysis needs)"
         )));
+    }
+    if sample_rate_hz == 0 {
+        return Err(Error::Config(
+            "free-field TFs: a sample rate of 0 Hz: must be positive".into(),
+        ));
     }
     if bins.start >= bins.end || bins.end > nfft / 2 + 1 {
         return Err(Error::Config(format!(

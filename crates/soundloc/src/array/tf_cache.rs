@@ -119,6 +119,11 @@ pub(crate) const FNV_START: u64 = 0xcbf2_9ce4_8422_2325;
 /// ([`AtomicFile`](crate::output::atomic::AtomicFile)), so concurrent readers never see
 /// half an entry. No fsync: a torn entry after a crash fails its checksum and is rebuilt.
 pub(crate) fn write_atomic(dir: &Path, file: &Path, parts: &[&[u8]]) -> std::io::Result<()> {
+    if dir.exists() && !dir.is_dir() {
+        return Err(std::io::Error::other(
+            "the cache directory is a file, not a folder",
+        ));
+    }
     std::fs::create_dir_all(dir)?;
     let io = |e: crate::Error| std::io::Error::other(e.to_string());
     let mut f = crate::output::atomic::AtomicFile::create(file).map_err(io)?;
