@@ -274,6 +274,10 @@ fn noisecm_make_frames_follow_the_rate_and_the_input_is_checked() {
         err.contains("not positive definite") && err.contains("see the channel warnings above"),
         "{err}"
     );
+    // -o rec.wav wrote a text pair named rec_r.wav / rec_i.wav.
+    let e = fails(&["noisecm", "make", s(&wav16), "-o", s(&d.join("rec.wav"))]);
+    assert!(e.contains("-o names the noise matrix, not audio"), "{e}");
+    assert!(!d.join("rec_r.wav").exists());
 }
 
 #[test]

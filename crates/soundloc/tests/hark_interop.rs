@@ -89,6 +89,18 @@ fn noise_cm_text_pair_round_trip_is_exact() {
         e.contains("noise.wav: a recording (WAV/FLAC), not a noise correlation matrix"),
         "{e}"
     );
+    // A .zip name that holds no zip is a bad zip (it was taken for a text pair's real
+    // part: "cannot derive the imaginary-part file name").
+    let z = re.with_file_name("k.zip");
+    std::fs::write(&z, b"").unwrap();
+    let e = NoiseCm::load(&z, Expected::default()).unwrap_err().to_string();
+    assert!(
+        e.contains("k.zip: empty file, not a noise correlation zip"),
+        "{e}"
+    );
+    std::fs::write(&z, b"0.1 0.2\n").unwrap();
+    let e = NoiseCm::load(&z, Expected::default()).unwrap_err().to_string();
+    assert!(e.contains("k.zip: not a zip file"), "{e}");
 }
 
 #[test]

@@ -149,6 +149,16 @@ fn make(a: MakeArgs) -> anyhow::Result<ExitCode> {
             CmFormat::Text
         }
     });
+    let audio_name = a
+        .output
+        .extension()
+        .is_some_and(|e| ["wav", "flac"].iter().any(|x| e.eq_ignore_ascii_case(x)));
+    if audio_name {
+        anyhow::bail!(
+            "{}: -o names the noise matrix, not audio: give a name such as K (the text pair K_r, K_i) or K.zip",
+            a.output.display()
+        );
+    }
     let (re, im) = text_pair_paths(&a.output);
     let outs: Vec<(&std::path::Path, &str)> = if format == CmFormat::Text {
         vec![(&re, "-o (real part)"), (&im, "-o (imaginary part)")]

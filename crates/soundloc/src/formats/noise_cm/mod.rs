@@ -377,6 +377,18 @@ fn locate(path: &Path) -> Result<Located> {
     if hark_zip::looks_like_zip(&head[..n]) {
         return Ok(Located::Zip);
     }
+    // A .zip name that is not a zip (empty, cut, another format) is a bad zip, not the
+    // real part of a text pair.
+    if path.extension().is_some_and(|e| e.eq_ignore_ascii_case("zip")) {
+        return Err(Error::format(
+            path,
+            if n == 0 {
+                "empty file, not a noise correlation zip"
+            } else {
+                "not a zip file (no zip signature), so not a HARK noise correlation zip"
+            },
+        ));
+    }
     if matches!(&head[..n], b"RIFF" | b"RF64" | b"fLaC") {
         return Err(Error::format(
             path,
