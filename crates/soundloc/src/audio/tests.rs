@@ -597,7 +597,7 @@ fn a_cut_file_yields_its_whole_frames_then_the_error_at_any_block_size() {
     // FLAC: 3 frames of 1024 declared, 2 present, then a third cut inside.
     let q = d.join("cut.flac");
     let ch: Vec<i32> = (0..3072).map(|i| (i * 7) % 5000 - 2500).collect();
-    let long = encode_flac(16000, 16, &[ch.clone()]);
+    let long = encode_flac(16000, 16, std::slice::from_ref(&ch));
     let two = encode_flac(16000, 16, &[ch[..2048].to_vec()]);
     std::fs::write(
         &q,
