@@ -19,33 +19,34 @@ fn scene(test: &str) -> (PathBuf, PathBuf) {
     (wav, geo)
 }
 
-#[test]
-fn a_closed_stdout_pipe_ends_the_run_quietly() {
-    let (wav, geo) = scene("a_closed_stdout_pipe_ends_the_run_quietly");
-    let mut child = bin()
-        .args([
-            "localize",
-            wav.to_str().unwrap(),
-            "--geometry",
-            geo.to_str().unwrap(),
-            "--grid",
-            "ring:5",
-            "--period",
-            "1",
-            "-q",
-        ])
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
+/// Run `cmd`, read one line of its stdout and close it (like `| head -1`): the line, the
+/// exit status and stderr.
+fn first_line_then_close(cmd: &mut std::process::Command) -> (String, std::process::ExitStatus, String) {
+    let mut child = cmd.stdout(Stdio::piped()).stderr(Stdio::piped()).spawn().unwrap();
     let mut first = String::new();
     BufReader::new(child.stdout.take().unwrap())
         .read_line(&mut first)
         .unwrap();
-    // The reader is gone (like `| head -1`).
     let status = child.wait().unwrap();
     let mut err = String::new();
     std::io::Read::read_to_string(&mut child.stderr.take().unwrap(), &mut err).unwrap();
+    (first, status, err)
+}
+
+#[test]
+fn a_closed_stdout_pipe_ends_the_run_quietly() {
+    let (wav, geo) = scene("a_closed_stdout_pipe_ends_the_run_quietly");
+    let (first, status, err) = first_line_then_close(bin().args([
+        "localize",
+        wav.to_str().unwrap(),
+        "--geometry",
+        geo.to_str().unwrap(),
+        "--grid",
+        "ring:5",
+        "--period",
+        "1",
+        "-q",
+    ]));
     assert!(first.starts_with("{\"frame\""), "{first}");
     assert!(status.success() && err.is_empty(), "{status:?}: {err}");
 }
@@ -58,26 +59,17 @@ fn a_closed_stdout_leaves_the_other_outputs_written() {
     let (wav, geo) = scene("closed_stdout_other_outputs");
     let summary = tmp("closed_stdout_summary.json");
     let _ = std::fs::remove_file(&summary);
-    let mut child = bin()
-        .args([
-            "localize",
-            wav.to_str().unwrap(),
-            "--geometry",
-            geo.to_str().unwrap(),
-        ])
-        .args(["--grid", "ring:5", "--period", "1", "--track", "--summary"])
-        .arg(&summary)
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    let mut first = String::new();
-    BufReader::new(child.stdout.take().unwrap())
-        .read_line(&mut first)
-        .unwrap();
-    let status = child.wait().unwrap();
-    let mut err = String::new();
-    std::io::Read::read_to_string(&mut child.stderr.take().unwrap(), &mut err).unwrap();
+    let (_, status, err) = first_line_then_close(
+        bin()
+            .args([
+                "localize",
+                wav.to_str().unwrap(),
+                "--geometry",
+                geo.to_str().unwrap(),
+            ])
+            .args(["--grid", "ring:5", "--period", "1", "--track", "--summary"])
+            .arg(&summary),
+    );
     assert!(status.success(), "{status:?}: {err}");
     assert!(err.contains("stdout was closed by its reader"), "{err}");
     let s: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&summary).unwrap()).unwrap();

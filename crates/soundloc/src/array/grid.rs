@@ -134,26 +134,21 @@ impl Grid {
     /// `n_points` directions over the full sphere (Fibonacci lattice, see the module
     /// docs) at radius `radius_m`, with a symmetric 6-nearest neighbour table.
     pub fn sphere(n_points: usize, radius_m: f64) -> Grid {
-        let units = super::geometry::fibonacci_sphere(n_points);
-        let neighbors = nearest_neighbors(&units, SPHERE_NEIGHBORS);
-        Grid {
-            points: units
-                .into_iter()
-                .map(|u| [u[0] * radius_m, u[1] * radius_m, u[2] * radius_m])
-                .collect(),
-            kind: GridKind::Sphere,
-            neighbors,
-        }
+        Self::of_units(super::geometry::fibonacci_sphere(n_points), radius_m)
     }
 
     /// The upper half (z > 0, elevation above 0°) of a Fibonacci lattice of 2·`n_points`
     /// directions: `n_points` directions for an array lying in the horizontal plane, whose
     /// mirror images below it give the same spectrum in free field.
     pub fn hemisphere(n_points: usize, radius_m: f64) -> Grid {
-        let units: Vec<[f64; 3]> = super::geometry::fibonacci_sphere(2 * n_points)
-            .into_iter()
-            .filter(|u| u[2] > 0.0)
-            .collect();
+        let mut units = super::geometry::fibonacci_sphere(2 * n_points);
+        units.retain(|u| u[2] > 0.0);
+        Self::of_units(units, radius_m)
+    }
+
+    /// A sphere-kind grid of unit directions `units` at `radius_m`, with a symmetric
+    /// [`SPHERE_NEIGHBORS`]-nearest neighbour table.
+    fn of_units(units: Vec<[f64; 3]>, radius_m: f64) -> Grid {
         let neighbors = nearest_neighbors(&units, SPHERE_NEIGHBORS);
         Grid {
             points: units
