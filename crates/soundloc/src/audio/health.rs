@@ -29,7 +29,8 @@
 //!   1/(4 τ_max) (phases ≤ π/2; at most 16 bins), on the first [`DECIDE_SECONDS`] to
 //!   [`BAND_SECONDS`] of frames.
 //! - **Gains** (where the caller asks: [`ChannelHealth::with_gain_check`]). Channels whose
-//!   level departs from the transfer functions' by [`gains::GAIN_DB`] or more ([`gains`]).
+//!   power in the used bins (summed over the STFT frames) departs from the transfer
+//!   functions' by [`gains::GAIN_DB`] or more ([`gains`]).
 
 pub mod gains;
 
@@ -91,6 +92,10 @@ pub struct ChannelHealth {
     /// whether it has spoken.
     expected: Option<Vec<f64>>,
     said_gains: bool,
+    /// With the gains check: Σ |X_m|² over the used bins of every frame, per microphone
+    /// (the band the expected powers are taken over), and the frames summed.
+    band_power: Vec<f64>,
+    band_frames: usize,
 }
 
 /// One channel's running level, peak and constancy.
@@ -288,6 +293,8 @@ impl ChannelHealth {
             said_quiet: false,
             expected: None,
             said_gains: false,
+            band_power: vec![0.0; m],
+            band_frames: 0,
             inputs,
         }
     }
@@ -320,6 +327,15 @@ impl ChannelHealth {
     /// Take new STFT frames, `[frame][used bin][mic]` with `num_bins` used bins.
     pub fn observe_frames<T: Real>(&mut self, frames: &[C<T>], num_bins: usize) {
         let m = self.inputs.len();
+        if self.expected.is_some() && num_bins > 0 && m > 0 && !self.said_gains {
+            for bin in frames.chunks_exact(m) {
+                for (p, z) in self.band_power.iter_mut().zip(bin) {
+                    let (re, im) = (z.re.to_f64(), z.im.to_f64());
+                    *p += re * re + im * im;
+                }
+            }
+            self.band_frames += frames.len() / (num_bins * m);
+        }
         let Some(c) = &mut self.coh else { return };
         if c.frames >= c.max_frames || num_bins == 0 || m == 0 {
             return;
@@ -439,7 +455,13 @@ impl ChannelHealth {
             }
             if let Some(expected) = self.expected.as_ref().filter(|_| !self.said_gains) {
                 self.said_gains = true;
-                let power: Vec<f64> = rms.iter().map(|r| r * r).collect();
+                // The used bins' power where frames came (the band `expected` covers),
+                // else the samples' (a stream shorter than one frame).
+                let power: Vec<f64> = if self.band_frames > 0 {
+                    self.band_power.clone()
+                } else {
+                    rms.iter().map(|r| r * r).collect()
+                };
                 let skip: Vec<bool> = (0..m).map(|c| self.said[c][0]).collect();
                 notes.extend(gains::gain_note(&power, expected, &self.inputs, &skip));
             }

@@ -1,11 +1,12 @@
 //! The gains check: channels whose level departs from what the transfer functions expect.
 //!
 //! A far sound field reaches every microphone of a small array at about the level the
-//! transfer functions give it, so over a recording channel m's power P_m (RMS² about its
-//! mean) follows E_m = mean over used bins and directions of |a_{d,k,m}|² (1 for
-//! free-field ones from a geometry; the measured gains for HARK zips). With
-//! g_m = 10·log10((P_m/E_m) / median_j(P_j/E_j)) (the median taken in dB), a channel with |g_m| ≥ [`GAIN_DB`] has a
-//! gain the transfer functions do not know. The whitened GEVD (the robust default) loses
+//! transfer functions give it, so over a recording channel m's power in the used bins,
+//! P_m = Σ |X_{m,k}|² over the STFT frames and used bins k, follows E_m = mean over the
+//! used bins and directions of |a_{d,k,m}|² (1 for free-field ones from a geometry; the
+//! measured gains for HARK zips). With g_m = 10·log10((P_m/E_m) / median_j(P_j/E_j)) (the
+//! median taken in dB), a channel with |g_m| ≥ [`GAIN_DB`] has a gain the transfer
+//! functions do not know. The whitened GEVD (the robust default) loses
 //! talkers at 1–3 dB of such mismatch (docs/accuracy.md, "Gain mismatch and coherence
 //! normalisation": 1 dB took a ring's reverberant two-talker windows from 55 to 18 %; a
 //! user sweep's room with a far noise source: ±1.5 dB gave 10° errors, ±3 dB lost a
