@@ -64,10 +64,22 @@ pub fn ring_scene(tag: &str, prefix: &str, repeat: usize) -> (Audio, PathBuf, Pa
             c.extend_from_slice(&one);
         }
     }
+    // Tests of one binary run in parallel and share these files: each is written beside
+    // its name and renamed over it, so a test reading it never sees it half written (a
+    // plain write truncated the geometry while another test compared its bytes).
+    let beside = |p: &std::path::Path| {
+        let mut t = p.as_os_str().to_owned();
+        t.push(format!(".{:?}.tmp", std::thread::current().id()));
+        PathBuf::from(t)
+    };
     let geo = tmp(tag, &format!("{prefix}ring8.toml"));
-    std::fs::write(&geo, s.geometry.to_toml_string()).unwrap();
+    let t = beside(&geo);
+    std::fs::write(&t, s.geometry.to_toml_string()).unwrap();
+    std::fs::rename(&t, &geo).unwrap();
     let wav = tmp(tag, &format!("{prefix}ring8x{repeat}.wav"));
-    audio.write_wav(&wav, SampleFormat::Int16).unwrap();
+    let t = beside(&wav);
+    audio.write_wav(&t, SampleFormat::Int16).unwrap();
+    std::fs::rename(&t, &wav).unwrap();
     (audio, geo, wav)
 }
 
