@@ -128,37 +128,27 @@ fn parse_range(s: &str) -> Result<(f64, f64), String> {
 }
 
 fn make(a: MakeArgs) -> anyhow::Result<ExitCode> {
-    let zip_name = a
-        .output
-        .extension()
-        .is_some_and(|e| e.eq_ignore_ascii_case("zip"));
+    let ext_is = |names: &[&str]| {
+        a.output
+            .extension()
+            .is_some_and(|e| names.iter().any(|x| e.eq_ignore_ascii_case(x)))
+    };
+    let zip_name = ext_is(&["zip"]);
     if a.format == Some(CmFormat::Text) && zip_name {
         anyhow::bail!(
             "{}: --format text writes a pair of text files, not a zip: name them without .zip (-o K gives K_r and K_i) or use --format zip",
             a.output.display()
         );
     }
-    let format = a.format.unwrap_or_else(|| {
-        let zip = a
-            .output
-            .extension()
-            .is_some_and(|e| e.eq_ignore_ascii_case("zip"));
-        if zip {
-            CmFormat::Zip
-        } else {
-            CmFormat::Text
-        }
-    });
-    let audio_name = a
-        .output
-        .extension()
-        .is_some_and(|e| ["wav", "flac"].iter().any(|x| e.eq_ignore_ascii_case(x)));
-    if audio_name {
+    if ext_is(&["wav", "flac"]) {
         anyhow::bail!(
             "{}: -o names the noise matrix, not audio: give a name such as K (the text pair K_r, K_i) or K.zip",
             a.output.display()
         );
     }
+    let format = a
+        .format
+        .unwrap_or(if zip_name { CmFormat::Zip } else { CmFormat::Text });
     let (re, im) = text_pair_paths(&a.output);
     let outs: Vec<(&std::path::Path, &str)> = if format == CmFormat::Text {
         vec![(&re, "-o (real part)"), (&im, "-o (imaginary part)")]

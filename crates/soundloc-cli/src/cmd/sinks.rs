@@ -2,8 +2,10 @@
 //! `-o FILE`) and the HARK network stream are written as each window completes; stdout is
 //! flushed after every block, so a pipe sees each line as soon as it exists. `-o` writes a
 //! temporary file next to the target and renames it over the target only when the run
-//! succeeds. Outputs that need the whole run (summary, HARK logs, the spectrum `.npy`, the
-//! plot) are written at the end. Every output path is checked before localization starts.
+//! succeeds. Outputs that need the whole run (summary, HARK logs, the plot) are written at
+//! the end; the spectrum `.npy` is appended to its temporary file as it comes and renamed
+//! at the end ([`super::spectrum_out`]). Every output path is checked before localization
+//! starts.
 //!
 //! Live outputs never stall localization: the HARK stream and ODAS's SSL/SST messages go
 //! through reconnecting senders that drop (and count) what a missing receiver cannot take,
