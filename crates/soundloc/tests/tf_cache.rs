@@ -154,3 +154,74 @@ fn concurrent_cold_loads_agree_and_leave_one_valid_entry() {
     assert_eq!(e.len(), 1, "one entry, no temporary files: {e:?}");
     assert!(matches!(load(&p, &dir).1, CacheOutcome::Hit(_)));
 }
+
+#[test]
+fn prune_deletes_least_recently_used_entries_only() {
+    use soundloc::array::tf_cache::prune;
+    use std::time::{Duration, SystemTime};
+    let dir = tmp("cache-prune");
+    std::fs::create_dir_all(&dir).unwrap();
+    let t0 = SystemTime::now() - Duration::from_secs(3600);
+    // Four 1000-byte entries, oldest first, and two files that are not entries.
+    let names = [
+        "tf-00000000000000a1.bin",
+        "cuda-00000000000000b2.bin",
+        "tf-00000000000000c3.bin",
+        "tf-00000000000000d4.bin",
+    ];
+    for (i, n) in names.iter().enumerate() {
+        let f = dir.join(n);
+        std::fs::write(&f, vec![0u8; 1000]).unwrap();
+        let h = std::fs::File::options().append(true).open(&f).unwrap();
+        h.set_modified(t0 + Duration::from_secs(60 * i as u64)).unwrap();
+    }
+    std::fs::write(dir.join("notes.txt"), vec![0u8; 5000]).unwrap();
+    std::fs::write(dir.join("tf-notahexkey.bin"), vec![0u8; 5000]).unwrap();
+    // The oldest is the one just stored: it is kept, the next two oldest go.
+    let keep = dir.join(names[0]);
+    assert_eq!(prune(&dir, &keep, Some(2000)), 2);
+    let mut left: Vec<String> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().into_string().unwrap())
+        .collect();
+    left.sort();
+    assert_eq!(left, vec!["notes.txt", names[0], names[3], "tf-notahexkey.bin"]);
+    // No limit, or under it: nothing goes.
+    assert_eq!(prune(&dir, &keep, None), 0);
+    assert_eq!(prune(&dir, &keep, Some(2000)), 0);
+}
+
+#[test]
+fn a_cache_hit_refreshes_its_entry_so_pruning_keeps_it() {
+    use soundloc::array::tf_cache::prune;
+    use std::time::{Duration, SystemTime};
+    let p = tmp("lru.zip");
+    let dir = tmp("cache-lru");
+    make_zip(&p, 1.0);
+    let entry = match load(&p, &dir).1 {
+        CacheOutcome::Stored(e, None) => e,
+        other => panic!("{other:?}"),
+    };
+    let old = SystemTime::now() - Duration::from_secs(7200);
+    std::fs::File::options()
+        .append(true)
+        .open(&entry)
+        .unwrap()
+        .set_modified(old)
+        .unwrap();
+    // A newer unrelated entry.
+    let newer = dir.join("tf-00000000000000ff.bin");
+    std::fs::write(&newer, vec![0u8; 100]).unwrap();
+    std::fs::File::options()
+        .append(true)
+        .open(&newer)
+        .unwrap()
+        .set_modified(old + Duration::from_secs(60))
+        .unwrap();
+    assert!(matches!(load(&p, &dir).1, CacheOutcome::Hit(_)));
+    assert!(std::fs::metadata(&entry).unwrap().modified().unwrap() > old + Duration::from_secs(3600));
+    // Room for one of the two: the one just used stays.
+    let size = std::fs::metadata(&entry).unwrap().len();
+    assert_eq!(prune(&dir, &dir.join("none"), Some(size)), 1);
+    assert!(entry.exists() && !newer.exists());
+}

@@ -19,6 +19,10 @@
 //!   concurrent runs never see half an entry; the last writer wins with identical bytes.
 //!   A cache folder that cannot be created or written is not an error: the run goes on
 //!   uncached and says so.
+//! - **Size.** After storing an entry, the folder's entries (`tf-*.bin` and the GPU's
+//!   `cuda-*.bin`) are held to [`max_bytes`] (`$SOUNDLOC_CACHE_MAX_MB`, default 2048 MB,
+//!   0 = no limit) by deleting the least recently used ones ([`prune`]; a hit refreshes its
+//!   entry's modification time). Never the entry just stored, and nothing else in the folder.
 //! - **Where.** [`TfCache::Default`]: `$SOUNDLOC_CACHE_DIR`, else `$XDG_CACHE_HOME/soundloc`,
 //!   else `$HOME/.cache/soundloc`; [`TfCache::Dir`] names one; [`TfCache::Off`] bypasses it.
 
@@ -252,7 +256,10 @@ pub fn load_cached(
     let file = dir.join(format!("tf-{key}.bin"));
     let why = if file.exists() {
         match read_entry(&file, &key) {
-            Ok(tf) => return Ok((tf, CacheOutcome::Hit(file))),
+            Ok(tf) => {
+                touch(&file);
+                return Ok((tf, CacheOutcome::Hit(file)));
+            }
             Err(e) => Some(format!("the old entry was unusable: {e}; rebuilt")),
         }
     } else {
@@ -260,8 +267,72 @@ pub fn load_cached(
     };
     let tf = read()?;
     let outcome = match write_entry(&dir, &file, &key, &tf) {
-        Ok(()) => CacheOutcome::Stored(file, why),
+        Ok(()) => {
+            prune(&dir, &file, max_bytes());
+            CacheOutcome::Stored(file, why)
+        }
         Err(e) => CacheOutcome::NotStored(format!("{}: {e}", dir.display())),
     };
     Ok((tf, outcome))
+}
+
+/// The cache's size limit in bytes: `$SOUNDLOC_CACHE_MAX_MB` megabytes (10⁶ bytes), default
+/// 2048; 0 (or an unreadable value: the default) as written below. `None`: no limit.
+pub fn max_bytes() -> Option<u64> {
+    let mb = std::env::var("SOUNDLOC_CACHE_MAX_MB")
+        .ok()
+        .and_then(|v| v.trim().parse::<u64>().ok())
+        .unwrap_or(2048);
+    (mb > 0).then(|| mb.saturating_mul(1_000_000))
+}
+
+/// Mark `file` as just used (its modification time := now), so [`prune`] keeps it longest.
+/// A read-only cache simply keeps the old time.
+pub(crate) fn touch(file: &Path) {
+    if let Ok(f) = std::fs::File::options().append(true).open(file) {
+        let _ = f.set_modified(std::time::SystemTime::now());
+    }
+}
+
+/// Is `name` a cache entry [`prune`] may delete: `tf-<key>.bin` or `cuda-<key>.bin`?
+fn is_entry(name: &str) -> bool {
+    let key = name
+        .strip_suffix(".bin")
+        .and_then(|n| n.strip_prefix("tf-").or_else(|| n.strip_prefix("cuda-")));
+    key.is_some_and(|k| !k.is_empty() && k.bytes().all(|b| b.is_ascii_hexdigit()))
+}
+
+/// Delete the least recently used entries of cache folder `dir` (by modification time,
+/// oldest first) until their total size is at most `max` bytes, keeping `keep` (the entry
+/// just stored). Only entries ([`is_entry`]) are counted or deleted; an entry that cannot
+/// be deleted is skipped. Returns the number deleted. `max` None: nothing is deleted.
+pub fn prune(dir: &Path, keep: &Path, max: Option<u64>) -> usize {
+    let Some(max) = max else { return 0 };
+    let Ok(read) = std::fs::read_dir(dir) else {
+        return 0;
+    };
+    let mut entries: Vec<(std::time::SystemTime, u64, PathBuf)> = read
+        .flatten()
+        .filter(|e| e.file_name().to_str().is_some_and(is_entry))
+        .filter_map(|e| {
+            let m = e.metadata().ok().filter(|m| m.is_file())?;
+            Some((m.modified().ok()?, m.len(), e.path()))
+        })
+        .collect();
+    let mut total: u64 = entries.iter().map(|e| e.1).sum();
+    entries.sort();
+    let mut removed = 0;
+    for (_, len, path) in entries {
+        if total <= max {
+            break;
+        }
+        if path == keep {
+            continue;
+        }
+        if std::fs::remove_file(&path).is_ok() {
+            total -= len;
+            removed += 1;
+        }
+    }
+    removed
 }

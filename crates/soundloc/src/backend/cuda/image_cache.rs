@@ -9,10 +9,11 @@
 //!   (u32 length + bytes), the image length (u64), its CRC-32 (u32), the image (CUBIN or
 //!   NUL-terminated PTX). A wrong magic, length or checksum is a miss and the entry is
 //!   rewritten; writing is atomic ([`crate::array::tf_cache::write_atomic`]).
-//! - A folder that cannot be read or written only costs the compilation.
+//! - A folder that cannot be read or written only costs the compilation. The folder's size
+//!   limit and least-recently-used deletion are the TF cache's ([`crate::array::tf_cache::prune`]).
 
 use super::kernels::Image;
-use crate::array::tf_cache::{fnv1a, write_atomic, FNV_START};
+use crate::array::tf_cache::{fnv1a, max_bytes, prune, touch, write_atomic, FNV_START};
 use std::path::{Path, PathBuf};
 
 const MAGIC: &[u8; 11] = b"SLCUDAIMG1\n";
@@ -54,6 +55,7 @@ pub(crate) fn read(file: &Path) -> Result<Image, String> {
     if !arch.starts_with("sm_") && rest.last() != Some(&0) {
         return Err("PTX entry is not NUL-terminated".into());
     }
+    touch(file);
     Ok(Image {
         bytes: rest.to_vec(),
         arch,
@@ -78,7 +80,9 @@ pub(crate) fn write(dir: &Path, file: &Path, img: &Image) -> std::io::Result<()>
             &crc32fast::hash(&img.bytes).to_le_bytes(),
             &img.bytes,
         ],
-    )
+    )?;
+    prune(dir, file, max_bytes());
+    Ok(())
 }
 
 #[cfg(test)]
