@@ -370,6 +370,11 @@ fn bench_refuses_sizes_it_cannot_build() {
         (vec!["--seconds", "2"], "--stream"),
         (vec!["--scenes", "1"], "--accuracy"),
         (vec!["--array", "ring4"], "--stream"),
+        // ... also beside another mode (clap's `requires` let these through).
+        (vec!["--stream", "--scenes", "1"], "--scenes"),
+        (vec!["--stream", "--split", "tune"], "--split"),
+        (vec!["--accuracy", "--seconds", "2"], "--seconds"),
+        (vec!["--accuracy", "--streams", "2"], "--streams"),
     ] {
         let o = bin().arg("bench").args(&args).output().unwrap();
         assert_clean_failure(&o, &[want]);

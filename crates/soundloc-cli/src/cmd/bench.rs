@@ -56,20 +56,20 @@ pub struct Args {
     #[arg(long, default_value_t = 1, requires = "stream_or_study")]
     pub period: usize,
     /// With --stream: seconds of audio per run (after one second of warm-up).
-    #[arg(long, default_value_t = 5.0, requires = "stream")]
+    #[arg(long, default_value_t = 5.0, requires = "stream", conflicts_with_all = ["accuracy", "e2e"])]
     pub seconds: f64,
     /// With --stream: concurrent streams sharing one device (a stream group: every 10 ms
     /// tick pushes a block into each, their windows run in one launch). Repeatable.
-    #[arg(long = "streams", default_values_t = [1usize], requires = "stream")]
+    #[arg(long = "streams", default_values_t = [1usize], requires = "stream", conflicts_with_all = ["accuracy", "e2e"])]
     pub streams: Vec<usize>,
     /// With --stream: the approximate mode (subspace tracking between windows, CPU); also
     /// prints how far its results are from the exact path's on simulated scenes.
-    #[arg(long, requires = "stream")]
+    #[arg(long, requires = "stream", conflicts_with_all = ["accuracy", "e2e"])]
     pub subspace_tracking: bool,
     /// With --stream: the audio arrives at real-time pace (10 ms blocks) and every push
     /// takes all blocks queued so far, as live input does when the localizer falls behind
     /// (one stream): does it keep up, with what latency and batches.
-    #[arg(long, requires = "stream")]
+    #[arg(long, requires = "stream", conflicts_with_all = ["accuracy", "e2e"])]
     pub paced: bool,
     /// With --stream: which arrays (repeatable; default: both).
     #[arg(long = "array", value_enum, requires = "stream_or_study")]
@@ -80,13 +80,13 @@ pub struct Args {
     #[arg(long, requires_all = ["tf", "input"], conflicts_with = "stream")]
     pub e2e: bool,
     /// With --e2e: the transfer functions (HARK TF zip or HGTF).
-    #[arg(long, requires = "e2e")]
+    #[arg(long, requires = "e2e", conflicts_with_all = ["stream", "accuracy"])]
     pub tf: Option<std::path::PathBuf>,
     /// With --e2e: the recording (WAV/FLAC).
-    #[arg(long, requires = "e2e")]
+    #[arg(long, requires = "e2e", conflicts_with_all = ["stream", "accuracy"])]
     pub input: Option<std::path::PathBuf>,
     /// With --e2e: noise-only time range of the input for K, START:END seconds.
-    #[arg(long, default_value = "0:1", requires = "e2e")]
+    #[arg(long, default_value = "0:1", requires = "e2e", conflicts_with_all = ["stream", "accuracy"])]
     pub noise_range: String,
     /// The accuracy study: simulated scenes (anechoic and RT60 0.2–0.6 s rooms, 1–3
     /// talkers, SNR +20…−10 dB; drone rotors or room noise: --scene) localized by every
@@ -96,32 +96,32 @@ pub struct Args {
     #[arg(long, conflicts_with_all = ["stream", "e2e"])]
     pub accuracy: bool,
     /// With --accuracy: seeds per condition.
-    #[arg(long, default_value_t = 2, requires = "accuracy")]
+    #[arg(long, default_value_t = 2, requires = "accuracy", conflicts_with_all = ["stream", "e2e"])]
     pub scenes: usize,
     /// With --accuracy: which seeds, the tuning split or the held-out test split.
-    #[arg(long, value_enum, default_value = "test", requires = "accuracy")]
+    #[arg(long, value_enum, default_value = "test", requires = "accuracy", conflicts_with_all = ["stream", "e2e"])]
     pub split: SplitArg,
     /// With --accuracy: only the conditions with at most this SNR (dB).
-    #[arg(long, allow_negative_numbers = true, requires = "accuracy")]
+    #[arg(long, allow_negative_numbers = true, requires = "accuracy", conflicts_with_all = ["stream", "e2e"])]
     pub max_snr: Option<f64>,
     /// With --accuracy: only the conditions with at least this SNR (dB).
-    #[arg(long, allow_negative_numbers = true, requires = "accuracy")]
+    #[arg(long, allow_negative_numbers = true, requires = "accuracy", conflicts_with_all = ["stream", "e2e"])]
     pub min_snr: Option<f64>,
     /// With --accuracy: only the variants whose name contains this text (repeatable).
-    #[arg(long, requires = "accuracy")]
+    #[arg(long, requires = "accuracy", conflicts_with_all = ["stream", "e2e"])]
     pub variant: Vec<String>,
     /// With --accuracy: what else sounds besides the talkers — drone rotors 25 cm from
     /// the array (the GEVD family, K from the first second), or broadband sources spread
     /// over the room (the algorithms that need no noise recording).
-    #[arg(long, value_enum, default_value = "drone", requires = "accuracy")]
+    #[arg(long, value_enum, default_value = "drone", requires = "accuracy", conflicts_with_all = ["stream", "e2e"])]
     pub scene: SceneArg,
     /// With --accuracy: render with an array that differs from its model, as a real array
     /// differs from its geometry or measured TFs: each microphone's position off by this
     /// much per axis (standard deviation, mm) ...
-    #[arg(long, default_value_t = 0.0, requires = "accuracy")]
+    #[arg(long, default_value_t = 0.0, requires = "accuracy", conflicts_with_all = ["stream", "e2e"])]
     pub position_error_mm: f64,
     /// ... and each channel's gain by this much (standard deviation, dB).
-    #[arg(long, default_value_t = 0.0, requires = "accuracy")]
+    #[arg(long, default_value_t = 0.0, requires = "accuracy", conflicts_with_all = ["stream", "e2e"])]
     pub gain_error_db: f64,
 }
 
