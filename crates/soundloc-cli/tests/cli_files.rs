@@ -366,6 +366,49 @@ fn outputs_never_replace_a_noise_cm_pair() {
     assert_eq!(std::fs::read(dir.join("K_i")).unwrap(), imag);
 }
 
+/// A read-only output file is refused, not replaced by the rename that writes outputs
+/// (`tf make` replaced a `chmod 444` TF zip, as root or not).
+#[test]
+fn read_only_outputs_are_not_replaced() {
+    let (_, geo, wav) = scene();
+    let dir = tmp_dir("read-only-out");
+    let zip = dir.join("tf.zip");
+    let csv = dir.join("out.csv");
+    for f in [&zip, &csv] {
+        std::fs::write(f, b"keep me").unwrap();
+        let mut perm = std::fs::metadata(f).unwrap().permissions();
+        perm.set_readonly(true);
+        std::fs::set_permissions(f, perm).unwrap();
+    }
+    let tf = bin()
+        .args(["tf", "make", "--geometry"])
+        .arg(&geo)
+        .args(["--grid", "ring:5", "-o"])
+        .arg(&zip)
+        .output()
+        .unwrap();
+    let loc = bin()
+        .arg("localize")
+        .arg(&wav)
+        .arg("--geometry")
+        .arg(&geo)
+        .args(OPTS)
+        .arg("-o")
+        .arg(&csv)
+        .output()
+        .unwrap();
+    for (o, f) in [(tf, &zip), (loc, &csv)] {
+        let e = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{f:?}: {e}");
+        assert!(
+            e.contains("read-only") && e.contains(&*f.to_string_lossy()),
+            "{e}"
+        );
+        assert!(!e.contains("panicked"), "{e}");
+        assert_eq!(std::fs::read(f).unwrap(), b"keep me");
+    }
+}
+
 /// `-o -` is stdout, as without `-o` (also with the recording on stdin); "-" for any
 /// other output is refused, not written as a file named "-".
 #[test]

@@ -110,6 +110,17 @@ impl AtomicFile {
         // The kernel follows links here, magic ones too (/dev/stdout, /dev/fd/N → a pipe,
         // whose link text `pipe:[N]` names no file).
         if let Ok(meta) = std::fs::metadata(path) {
+            // A rename would replace a file its owner made read-only (even as root): refuse,
+            // as `cp` does for other users.
+            if meta.is_file() && meta.permissions().readonly() {
+                return Err(Error::io(
+                    path,
+                    io::Error::new(
+                        io::ErrorKind::PermissionDenied,
+                        "is read-only: not replaced (make it writable or remove it first)",
+                    ),
+                ));
+            }
             if !meta.is_file() {
                 if meta.is_dir() {
                     return Err(Error::io(
