@@ -29,6 +29,10 @@ pub(crate) struct PyLocalizer {
     /// fs)`, `localize_file`'s header, `push(x, fs)`). Until then a call without `fs` is
     /// refused instead of analysing at a guessed rate.
     rate_named: AtomicBool,
+    /// `geometry=` with `resample=True` and no `fs=`: the analysis runs at 16 kHz and the
+    /// audio's rate is unknown: `localize(x)` must name it every time (it converts), a
+    /// stream once (its first `push(x, fs)`; `push` does not convert).
+    resample_unnamed: bool,
 }
 
 #[pymethods]
@@ -52,6 +56,7 @@ impl PyLocalizer {
             files,
             open_rate: spec.rate_open().then(|| spec.clone()),
             rate_named: AtomicBool::new(false),
+            resample_unnamed: spec.resample_rate_unnamed(),
         })
     }
 
@@ -259,7 +264,10 @@ impl PyLocalizer {
                      (localize(x, fs) converts whole recordings with resample=True)"
                 )
             })),
-            _ => Ok(()),
+            Some(_) => {
+                self.rate_named.store(true, Ordering::Relaxed);
+                Ok(())
+            }
         }
     }
 
@@ -277,11 +285,28 @@ impl PyLocalizer {
     }
 
     /// A call (`what`) without the audio's rate: refused while the rate is open and no
-    /// call has named it yet (`with` is the call that does). Free-field transfer
+    /// call has named it yet (`with` is the call that does), and with `resample=True` and
+    /// no `fs=` ([`PyLocalizer::resample_unnamed`]) for `localize` always, for `push` until
+    /// a push named it. Free-field transfer
     /// functions are made for the rate, so a guess gives wrong directions silently.
     fn rate_known(&self, what: &str, with: &str) -> PyResult<()> {
-        if self.open_rate.is_none() || self.rate_named.load(Ordering::Relaxed) {
+        let stream = what.starts_with("push");
+        if (self.open_rate.is_none() && !self.resample_unnamed)
+            || (self.rate_named.load(Ordering::Relaxed) && (stream || !self.resample_unnamed))
+        {
             return Ok(());
+        }
+        if self.resample_unnamed {
+            let how = if stream {
+                "a stream's first push names it (16000 Hz, the rate the analysis runs at: push does not convert)"
+            } else {
+                "it is converted to the 16000 Hz the analysis runs at"
+            };
+            return Err(PyValueError::new_err(format!(
+                "{what}: the audio's sampling rate is not known (resample=True, geometry= without fs=): \
+                 call {with}; {how}. fs= to Localizer() sets the analysis rate. A guess would give wrong \
+                 directions for audio at another rate"
+            )));
         }
         Err(PyValueError::new_err(format!(
             "{what}: the audio's sampling rate is not known (geometry= without fs=): pass fs= to \

@@ -418,6 +418,14 @@ impl PySpec {
             && matches!(self.spec.array, ArraySpec::FreeField { .. })
     }
 
+    /// Free-field TFs with `resample=True` and no `fs=`: the analysis runs at its default
+    /// rate, and the audio's own rate is unknown until a call names it.
+    pub fn resample_rate_unnamed(&self) -> bool {
+        self.fs_given.is_none()
+            && self.spec.resample
+            && matches!(self.spec.array, ArraySpec::FreeField { .. })
+    }
+
     /// This spec for audio at `fs` Hz (free-field TFs made for that rate), where the rate
     /// is open ([`Self::rate_open`]).
     pub fn at_rate(&self, fs: u32) -> Option<PySpec> {

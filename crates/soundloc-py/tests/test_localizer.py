@@ -347,6 +347,19 @@ def test_resample_converts_another_rate(tmp_path):
     with pytest.raises(ValueError, match="48000 Hz.*16000 Hz"):
         localizer(fs=FS).localize(x48, 48000)
     loc = localizer(resample=True)
+    # Without fs= anywhere the audio's rate is unknown: refused, not taken as 16 kHz.
+    free = soundloc.Localizer(geometry=MICS, grid="ring:5", resample=True, period=10)
+    with pytest.raises(ValueError, match="sampling rate is not known.*resample=True"):
+        free.localize(x48)
+    with pytest.raises(ValueError, match="sampling rate is not known.*first push"):
+        free.push(x48[:4800])
+    fr = free.localize(x48, 48000)
+    with pytest.raises(ValueError, match="sampling rate is not known"):
+        free.localize(x48)
+    free.reset()
+    free.push(scene()[:1600], FS)
+    free.push(scene()[1600:3200])
+    assert len(fr) >= 3
     r = loc.localize(x48, 48000)
     r16 = localizer().localize(scene(), FS)
     assert len(r) == len(r16) >= 3

@@ -75,6 +75,8 @@ Arguments (HARK LocalizeMUSIC name / pyroomacoustics name):
     resample: audio given to localize(x, fs) or localize_file at another rate than the
         analysis's (e.g. 48 kHz with a 16 kHz TF file) is converted instead of refused
         (band-limited, no delay added); push() takes blocks at the analysis rate (``loc.fs``).
+        With geometry= and no fs= the analysis runs at 16 kHz and every localize(x) must
+        name its audio's rate (a stream's first push(x, fs) names it once).
 
 Errors: ValueError (bad input or configuration), TypeError (an argument of the wrong type,
 e.g. a complex array as audio), OSError (files), RuntimeError (device).
