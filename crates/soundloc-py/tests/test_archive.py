@@ -66,6 +66,12 @@ def test_ray_data_equals_the_cli(recordings, tmp_path):
         ray.shutdown()
     check(rows, want)
     assert [r["output"] for r in rows] == [result_path(p, tmp_path / "ray") for p in paths]
+    # Bad options are the Localizer's own exception before Ray starts an actor (they
+    # were a RayActorError from the dead actor), and nothing is written.
+    for bad, exc in [(dict(KW, grid="ring:0"), ValueError), (dict(KW, no_such_option=1), TypeError)]:
+        with pytest.raises(exc):
+            localize_files(paths, tmp_path / "ray-bad", ray=True, concurrency=2, **bad)
+        assert not any((tmp_path / "ray-bad").glob("*.jsonl"))
 
 
 def test_errors_are_reported_per_recording(recordings, tmp_path):

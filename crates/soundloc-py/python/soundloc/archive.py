@@ -80,6 +80,12 @@ def localize_files(paths, out_dir, *, fmt="jsonl", overwrite=False, ray=False, c
     if todo and ray:
         import ray as _ray
 
+        # Bad options fail here, with their own exception, not as a dead Ray actor. On the
+        # CPU: the driver may have no GPU where the actors do.
+        from . import Localizer
+
+        Localizer(**dict(localizer_kwargs, device="cpu"))
+
         ds = _ray.data.from_items([{"path": p} for p in todo])
         ds = ds.map_batches(
             _Worker,
