@@ -151,3 +151,74 @@ fn utility_commands_end_quietly_on_a_closed_stdout_and_fail_on_a_full_one() {
         "{err}"
     );
 }
+
+/// `-o` and `--odas-sst` naming FIFOs are followed live, as stdout is: their first lines
+/// arrive while the input is still open (until 2026-12-02 they came only at the end, or
+/// in 8 KiB bursts, although the README offers a FIFO to follow ODAS output live).
+#[cfg(unix)]
+#[test]
+fn fifo_outputs_are_flushed_as_results_come() {
+    use std::io::Write;
+    use std::sync::mpsc;
+    let (wav, geo) = scene("live_fifo");
+    let bytes = std::fs::read(&wav).unwrap();
+    let mut fifos = Vec::new();
+    for name in ["live_fifo.jsonl", "live_fifo_sst.json"] {
+        let f = tmp(name);
+        let _ = std::fs::remove_file(&f);
+        assert!(std::process::Command::new("mkfifo")
+            .arg(&f)
+            .status()
+            .unwrap()
+            .success());
+        fifos.push(f);
+    }
+    let (tx, rx) = mpsc::channel();
+    let readers: Vec<_> = fifos
+        .iter()
+        .cloned()
+        .map(|f| {
+            let tx = tx.clone();
+            std::thread::spawn(move || {
+                let mut r = BufReader::new(std::fs::File::open(&f).unwrap());
+                let mut line = String::new();
+                r.read_line(&mut line).unwrap();
+                tx.send(line).unwrap();
+                std::io::Read::read_to_end(&mut r, &mut Vec::new()).unwrap();
+            })
+        })
+        .collect();
+    let mut child = common::spawn_piped(
+        bin()
+            .args(["localize", "-", "--geometry", geo.to_str().unwrap()])
+            .args(["--grid", "ring:5", "--period", "10", "--track", "-q", "-o"])
+            .arg(&fifos[0])
+            .arg("--odas-sst")
+            .arg(&fifos[1]),
+    );
+    // The first second (a few results: less than a write buffer holds), then wait with
+    // stdin still open.
+    let cut = 44 + 16000 * 8 * 2;
+    assert!(bytes.len() > 2 * cut);
+    let mut stdin = child.stdin.take().unwrap();
+    stdin.write_all(&bytes[..cut]).unwrap();
+    stdin.flush().unwrap();
+    let mut first = Vec::new();
+    for _ in 0..2 {
+        first.push(
+            rx.recv_timeout(std::time::Duration::from_secs(60))
+                .expect("a line before the input ended"),
+        );
+    }
+    // A result line, and the first line of an ODAS message ("{" alone).
+    first.sort();
+    assert_eq!(first[0], "{\n", "{first:?}");
+    assert!(first[1].starts_with("{\"frame\""), "{first:?}");
+    stdin.write_all(&bytes[cut..]).unwrap();
+    drop(stdin);
+    let o = child.wait_with_output().unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    for r in readers {
+        r.join().unwrap();
+    }
+}

@@ -1,6 +1,7 @@
 //! Where `localize` and `listen` put results. Result lines (JSON lines or CSV, on stdout or
 //! `-o FILE`) and the HARK network stream are written as each window completes; stdout is
-//! flushed after every block, so a pipe sees each line as soon as it exists. `-o` writes a
+//! flushed after every block, so a pipe sees each line as soon as it exists; so are `-o` and
+//! the ODAS file outputs when they name a FIFO or device. `-o` writes a
 //! temporary file next to the target and renames it over the target only when the run
 //! succeeds. Outputs that need the whole run (summary, HARK logs, the plot) are written at
 //! the end; the spectrum `.npy` is appended to its temporary file as it comes and renamed
@@ -128,8 +129,10 @@ impl OdasOut {
     fn write(&mut self, text: &str) -> anyhow::Result<()> {
         match self {
             OdasOut::Net(n) => n.send(text.as_bytes().to_vec()),
+            // A FIFO or device is followed live: each message flushed as it is written.
             OdasOut::File(f, p) => f
                 .write_all(text.as_bytes())
+                .and_then(|_| if f.is_special() { f.flush() } else { Ok(()) })
                 .with_context(|| format!("{}: writing ODAS messages", p.display()))?,
         }
         Ok(())
@@ -192,7 +195,9 @@ pub struct Progress {
 
 enum Dest {
     Stdout(Lines<std::io::Stdout>),
-    File(Lines<AtomicFile>, PathBuf),
+    /// `-o FILE`; `true` when FILE is a FIFO or device, written in place and flushed after
+    /// every block as stdout is (a reader follows it live).
+    File(Lines<AtomicFile>, PathBuf, bool),
     /// Stdout, after its reader closed it while other outputs were still being written.
     Closed,
 }
@@ -351,7 +356,11 @@ impl Sinks {
     /// Open the streaming outputs (the `-o` temporary file, the HARK stream connection).
     pub fn open(a: &RunArgs, loc: &Localizer, source: &str) -> anyhow::Result<Self> {
         let dest = match a.output.as_ref().filter(|p| !is_stdout(p)) {
-            Some(p) => Dest::File(Lines::new(a.format, AtomicFile::create(p)?)?, p.clone()),
+            Some(p) => {
+                let f = AtomicFile::create(p)?;
+                let live = f.is_special();
+                Dest::File(Lines::new(a.format, f)?, p.clone(), live)
+            }
             None => Dest::Stdout(Lines::new(a.format, std::io::stdout()).map_err(stdout_error)?),
         };
         let hark = match &a.hark_stream {
@@ -533,9 +542,13 @@ impl Sinks {
                 }
             }
             Dest::Closed => {}
-            Dest::File(l, p) => {
+            Dest::File(l, p, live) => {
                 for r in &results {
                     l.write(r)
+                        .with_context(|| format!("{}: writing results", p.display()))?;
+                }
+                if *live {
+                    l.flush()
                         .with_context(|| format!("{}: writing results", p.display()))?;
                 }
             }
@@ -638,7 +651,7 @@ impl Sinks {
             }
         }
         self.spectrum.finish(&az, &el, loc.config(), a.quiet)?;
-        if let Dest::File(l, p) = self.dest {
+        if let Dest::File(l, p, _) = self.dest {
             let mut f = l.into_inner();
             f.flush()
                 .with_context(|| format!("{}: writing results", p.display()))?;
