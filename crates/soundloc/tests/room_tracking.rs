@@ -167,4 +167,32 @@ fn the_room_default_tracks_one_talker_as_one_source() {
     });
     let e = Localizer::new(&spec).err().unwrap().to_string();
     assert!(e.contains("srp-phat estimates no source count"), "{e}");
+    // Outside the room default the tracker takes every peak: at THRESH 0 a note says what
+    // to set (the gate where the algorithm counts sources), and it is right: the second
+    // peaks start tracks; with the gate, one talker is one track. A threshold silences it.
+    let says = |spec: &LocalizerSpec, what: &str| {
+        Localizer::new(spec)
+            .unwrap()
+            .notes()
+            .iter()
+            .any(|n| n.contains("takes every peak at THRESH 0 dB") && n.contains(what))
+    };
+    spec.algorithm = Some(soundloc::Algorithm::Sevd);
+    spec.tracking = Some(TrackingSpec::default());
+    assert!(says(&spec, "--active-only"));
+    assert!(tracks(&spec).len() > 1);
+    spec.algorithm = Some(soundloc::Algorithm::SrpPhat);
+    assert!(says(&spec, "--thresh") && !says(&spec, "--active-only"));
+    spec.algorithm = Some(soundloc::Algorithm::Sevd);
+    spec.tracking = Some(TrackingSpec {
+        active_only: Some(true),
+        ..TrackingSpec::default()
+    });
+    assert!(!says(&spec, ""));
+    assert_eq!(tracks(&spec).len(), 1);
+    spec.tracking = Some(TrackingSpec {
+        tracker: soundloc::tracking::TrackerConfig::with_thresh(10.0),
+        ..TrackingSpec::default()
+    });
+    assert!(!says(&spec, ""));
 }

@@ -212,6 +212,24 @@ pub(crate) fn prepare(
              start tracks"
         ));
     }
+    // Outside the room default the tracker takes every peak (HARK's rule); with THRESH at
+    // its default 0 dB every noise peak then starts a track (15 ids for one talker in a
+    // user's sweep with a noise range), so say what to set.
+    if let Some(t) = spec.tracking.as_ref() {
+        if t.active_only.is_none() && !room_default && t.tracker.thresh_db == 0.0 {
+            let gate = if config.counts_sources() {
+                ", or turn on the gate that feeds each window's num_active strongest peaks \
+                 (--active-only, track_active_only=True in Python)"
+            } else {
+                ""
+            };
+            notes.push(format!(
+                "the tracker takes every peak at THRESH 0 dB, as HARK's does, so noise peaks start \
+                 tracks too: set the tracker threshold (--thresh, tracker_thresh_db=) above the power of \
+                 the windows without a talker{gate}"
+            ));
+        }
+    }
     let tracking = spec.tracking.map(|t| TrackingSpec {
         active_only: Some(t.active_only.unwrap_or(room_default && config.counts_sources())),
         ..t
