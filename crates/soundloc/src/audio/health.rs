@@ -448,7 +448,7 @@ impl ChannelHealth {
                 if let Some(w) = what {
                     self.said[c][0] = true;
                     notes.push(format!(
-                        "warning: input channel {} (0-based) {w}: a dead or unplugged microphone? It adds only noise to every direction; {leave_out}",
+                        "warning: input channel {} (0-based) {w}: a dead or unplugged microphone? It adds only noise to every direction and makes the source count (num_active) and tracks unreliable; {leave_out}",
                         self.inputs[c]
                     ));
                 }
