@@ -13,7 +13,7 @@
 //!
 //! | ODAS | soundloc |
 //! |---|---|
-//! | `timeStamp` | the result frame c (STFT frame index; ODAS counts hops too) |
+//! | `timeStamp` | c + 1 for the result frame c (0-based STFT frame index): ODAS counts hops from 1 (`src_hops.c` increments its counter before the first hop), and its sinks treat a zero time stamp as no message |
 //! | `x, y, z` | unit vector of the source's azimuth and elevation (`%1.3f`) |
 //! | `E` (SSL) | [`energy`]: P̄ / (P̄ + 1) = 1 − 10^(−dB/10) for the MUSIC power dB = 10·log10(P̄ + 1), in [0, 1) and increasing with power |
 //! | `id` (SST) | soundloc's track id + 1 (ODAS reserves 0 for an empty slot; ids must be ≥ 0) |
@@ -72,7 +72,7 @@ fn close(out: &mut String) {
 
 /// Append the SSL message of `result` with `pots` entries.
 pub fn write_ssl(result: &LocalizationResult, pots: usize, out: &mut String) {
-    open(out, result.frame);
+    open(out, result.frame + 1);
     for k in 0..pots {
         let (v, e) = match result.sources.get(k) {
             Some(s) => (unit_vector(s), energy(s.power_db)),
@@ -126,7 +126,7 @@ impl SstSlots {
                 }
             }
         }
-        open(out, result.frame);
+        open(out, result.frame + 1);
         let n = self.slots.len();
         for (k, slot) in self.slots.iter().enumerate() {
             let src = slot.and_then(|id| live.iter().find(|s| s.id == Some(id)));
@@ -186,11 +186,12 @@ mod tests {
     #[test]
     fn ssl_has_odas_layout_fixed_entries_and_unit_vectors() {
         let r = result(
-            12,
+            11,
             vec![src(None, 45.0, 0.0, 30.0), src(None, -90.0, 30.0, 3.0103)],
         );
         let mut s = String::new();
         write_ssl(&r, 3, &mut s);
+        // Frame 11 (0-based) is ODAS's hop 12.
         assert_eq!(
             s,
             "{\n    \"timeStamp\": 12,\n    \"src\": [\n\
