@@ -276,8 +276,8 @@ pub fn load_cached(
     Ok((tf, outcome))
 }
 
-/// The cache's size limit in bytes: `$SOUNDLOC_CACHE_MAX_MB` megabytes (10⁶ bytes), default
-/// 2048; 0 (or an unreadable value: the default) as written below. `None`: no limit.
+/// The cache's size limit in bytes: `$SOUNDLOC_CACHE_MAX_MB` megabytes (10⁶ bytes; 2048
+/// when unset or not a whole number). `None` (no limit) for 0.
 pub fn max_bytes() -> Option<u64> {
     let mb = std::env::var("SOUNDLOC_CACHE_MAX_MB")
         .ok()
