@@ -77,3 +77,57 @@ fn errors_name_the_file() {
     assert!(e.contains("absent.flac"), "{e}");
     std::fs::remove_dir_all(&d).unwrap();
 }
+
+/// A live stream (stdin, a socket) is not ended by a non-finite sample: it becomes 0, with
+/// one warning naming it and a count at the end; every sample keeps its place. A file with
+/// the same bytes is refused (it can be fixed and read again).
+#[test]
+fn a_streams_non_finite_samples_become_zero_with_a_warning() {
+    use soundloc::audio::{AudioSource, RawEncoding, RawSource};
+    let mut x: Vec<f32> = (0..3000).map(|i| (i % 17) as f32).collect();
+    x[1001] = f32::NAN;
+    x[2500] = f32::INFINITY;
+    let bytes: Vec<u8> = x.iter().flat_map(|v| v.to_le_bytes()).collect();
+    let name = std::path::Path::new("-");
+    let mut src = RawSource::new(
+        std::io::Cursor::new(bytes.clone()),
+        RawEncoding::F32le,
+        2,
+        16000,
+        name,
+    )
+    .unwrap();
+    let (mut got, mut notes, mut buf) = (Vec::new(), Vec::new(), Vec::new());
+    loop {
+        let n = src.read_interleaved(256, &mut buf).unwrap();
+        notes.extend(src.take_notes());
+        if n == 0 {
+            break;
+        }
+        got.extend_from_slice(&buf);
+    }
+    let mut want = x.clone();
+    want[1001] = 0.0;
+    want[2500] = 0.0;
+    assert_eq!(got, want);
+    assert_eq!(notes.len(), 2, "{notes:?}");
+    assert!(
+        notes[0].starts_with("warning: -: sample 500 of channel 1 is NaN"),
+        "{notes:?}"
+    );
+    assert!(
+        notes[1].contains("2 non-finite samples were replaced by 0"),
+        "{notes:?}"
+    );
+    // A WAV file with a NaN is still an error.
+    let d = temp_dir("nan-file");
+    let p = d.join("nan.wav");
+    let mut a = soundloc::audio::Audio {
+        sample_rate_hz: 16000,
+        channels: vec![vec![0.5; 100], vec![0.25; 100]],
+    };
+    a.channels[1][40] = f32::NAN;
+    a.write_wav(&p, SampleFormat::Float32).unwrap();
+    let e = read_audio(&p).unwrap_err().to_string();
+    assert!(e.contains("sample 40 of channel 1 is NaN"), "{e}");
+}

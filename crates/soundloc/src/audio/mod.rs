@@ -9,7 +9,8 @@
 //!
 //! The format is recognised from the first bytes (`RIFF…WAVE` or `fLaC`), not from the
 //! file name. Every error names the file: unreadable path, unknown format, no audio
-//! frames, a non-finite sample (`sample 1234 of channel 2 is NaN`, both 0-based), an
+//! frames, a non-finite sample in a file (`sample 1234 of channel 2 is NaN`, both 0-based; a
+//! stream replaces it by 0 with a warning), an
 //! unsupported bit depth.
 
 pub mod flac_write;

@@ -216,6 +216,8 @@ struct PcmReader<R> {
     /// The truncation found with whole frames still to deliver: returned by the next read,
     /// so a cut file yields the same frames, then the same error, whatever its block size.
     cut: Option<Error>,
+    /// Non-finite samples of a stream (not greedy) replaced by 0 so far.
+    non_finite: u64,
 }
 
 impl<R: Read> PcmReader<R> {
@@ -277,13 +279,29 @@ impl<R: Read> PcmReader<R> {
         for s in self.bytes[..used].chunks_exact(self.enc.bytes()) {
             buf.push(self.enc.decode(s));
         }
-        check_finite(
+        if let Err(e) = check_finite(
             name,
             buf,
             self.channels,
             self.frames_read,
             Some((&self.bytes[..used], self.enc)),
-        )?;
+        ) {
+            // A file is refused (it can be fixed and read again); a live stream is not
+            // ended for a glitch: its non-finite samples become 0, which keeps every later
+            // result at its time.
+            if self.greedy {
+                return Err(e);
+            }
+            let bad = buf.iter().filter(|v| !v.is_finite()).count() as u64;
+            buf.iter_mut().filter(|v| !v.is_finite()).for_each(|v| *v = 0.0);
+            if self.non_finite == 0 {
+                self.notes.push(format!(
+                    "warning: {e}: this stream's non-finite samples are replaced by 0 (the windows \
+                     holding them are less reliable); a count follows at its end"
+                ));
+            }
+            self.non_finite += bad;
+        }
         self.bytes.copy_within(used..have, 0);
         self.carry = have - used;
         if self.ended && frames == 0 && self.carry > 0 {
@@ -295,6 +313,14 @@ impl<R: Read> PcmReader<R> {
             self.carry = 0;
         }
         self.frames_read += frames as u64;
+        if self.ended && frames == 0 && self.non_finite > 0 {
+            self.notes.push(format!(
+                "{}: {} non-finite samples were replaced by 0 in all",
+                name.display(),
+                self.non_finite
+            ));
+            self.non_finite = 0;
+        }
         Ok(frames)
     }
 }
@@ -391,6 +417,7 @@ impl<R: Read + Send> RawSource<R> {
                 greedy: false,
                 notes: Vec::new(),
                 cut: None,
+                non_finite: 0,
             },
             rate: sample_rate_hz,
             name: name.to_path_buf(),
@@ -553,6 +580,7 @@ impl<R: Read + Send> WavSource<R> {
                             greedy,
                             notes: header_notes,
                             cut: None,
+                            non_finite: 0,
                         },
                         rate,
                         name: name.to_path_buf(),
