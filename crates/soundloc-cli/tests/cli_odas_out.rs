@@ -380,6 +380,12 @@ fn live_output_options_are_checked_before_any_work() {
         assert!(e.contains("half an address, not HOST:PORT"), "{bad:?}: {e}");
         assert!(!Path::new(bad).exists(), "{bad:?} written");
     }
+    // A bare port for the HARK stream (it connected to the "host" 5530, 0.0.21.154).
+    let e = run(&["--hark-stream", "5530"]);
+    assert!(
+        e.contains("a port without a host") && e.contains("127.0.0.1:5530"),
+        "{e}"
+    );
     let busy = TcpListener::bind("127.0.0.1:0").unwrap();
     let e = run(&["--serve", &busy.local_addr().unwrap().to_string()]);
     assert!(e.contains("--serve") && e.contains("cannot listen"), "{e}");
