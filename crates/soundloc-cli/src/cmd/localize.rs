@@ -277,10 +277,21 @@ pub fn drive(
         ),
     );
     if lost_frames > 0 {
+        let rtf = progress.compute_s / audio_s;
+        // Computing at well under real time, the run was held up elsewhere: by what reads
+        // its outputs (a pipe that is read slowly blocks every write).
+        let why = if rtf < 0.5 {
+            format!(
+                "the input came faster than it was handled; the localization itself ran at a real-time \
+                 factor of {rtf:.3}: writing the results held it up, e.g. a slow reader of stdout or of a FIFO"
+            )
+        } else {
+            "the input came faster than it was localized".to_string()
+        };
         note(
             a.quiet,
             &format!(
-                "warning: {:.2} s of audio lost in {gaps} gaps (the input came faster than it was localized)",
+                "warning: {:.2} s of audio lost in {gaps} gaps ({why})",
                 lost_frames as f64 / fs
             ),
         );

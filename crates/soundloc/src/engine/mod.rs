@@ -252,7 +252,7 @@ impl<T: Real> Engine<T> {
         self.pending.clear();
         self.new_stream_id();
         out.notes.push(format!(
-            "input gap: {:.3} s of audio lost at {at:.3} s (the input came faster than it was localized); \
+            "input gap: {:.3} s of audio lost at {at:.3} s (the input came faster than it was handled); \
              windows across it skipped{}",
             samples as f64 / fs,
             if held > 0 {
