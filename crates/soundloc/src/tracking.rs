@@ -469,7 +469,8 @@ impl IntervalExtender {
         self.pending.push_back(result);
         let mut out = Vec::new();
         while let Some(front) = self.pending.front() {
-            if front.frame.saturating_add(p) < f {
+            // No later result (frame > f) can reach back to it: r.frame + P ≤ f.
+            if front.frame.saturating_add(p) <= f {
                 if let Some(r) = self.pending.pop_front() {
                     out.push(r);
                 }

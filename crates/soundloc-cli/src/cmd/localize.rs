@@ -113,14 +113,21 @@ pub fn drive(
     let fs = fmt.sample_rate_hz as f64;
     if live {
         let c = loc.config();
+        let hold = loc.preroll_hold_frames();
+        let delay = loc.latency_frames() + hold;
         note(
             a.quiet,
             &format!(
-                "streaming from {}: a result is out {} frames ({:.0} ms) after its frame starts, plus one frame of {} samples",
+                "streaming from {}: a result is out {} frames ({:.0} ms) after its frame starts, plus one frame of {} samples{}",
                 name.display(),
-                loc.latency_frames(),
-                loc.latency_frames() as f64 * c.hop as f64 / fs * 1e3,
-                c.nfft
+                delay,
+                delay as f64 * c.hop as f64 / fs * 1e3,
+                c.nfft,
+                if hold > 0 {
+                    format!(" (of which {hold} frames --preroll's wait)")
+                } else {
+                    String::new()
+                }
             ),
         );
     }

@@ -424,7 +424,9 @@ impl Sinks {
                     device: loc.device_name(),
                     sample_rate_hz: c.sample_rate_hz,
                     hop: c.hop,
-                    latency_ms: (loc.latency_frames() * c.hop + c.nfft) as f64 / fs * 1e3,
+                    latency_ms: ((loc.latency_frames() + loc.preroll_hold_frames()) * c.hop + c.nfft) as f64
+                        / fs
+                        * 1e3,
                 };
                 v.hello(live::hello(&info, &az, &el));
                 // Always said, even with --quiet: the user needs the address.

@@ -204,6 +204,17 @@ impl<T: Real> Engine<T> {
         self.scheduler.latency_frames()
     }
 
+    /// Frames a result then waits in the interval extender (`preroll` P > 0): until the
+    /// first result at or past its frame + P, ⌈P / PERIOD⌉ · PERIOD; 0 without one.
+    pub fn preroll_hold_frames(&self) -> usize {
+        let period = self.plan.config.period.max(1);
+        self.extender.as_ref().map_or(0, |_| {
+            self.options
+                .tracking
+                .map_or(0, |t| t.preroll.div_ceil(period) * period)
+        })
+    }
+
     /// Samples per channel still needed before the next window completes (≥ 1).
     pub fn samples_needed_next(&self) -> usize {
         let c = &self.plan.config;

@@ -513,6 +513,11 @@ impl Localizer {
         dispatch!(self, e => e.latency_frames())
     }
 
+    /// See [`Engine::preroll_hold_frames`].
+    pub fn preroll_hold_frames(&self) -> usize {
+        dispatch!(self, e => e.preroll_hold_frames())
+    }
+
     /// See [`Engine::samples_needed_next`].
     pub fn samples_needed_next(&self) -> usize {
         dispatch!(self, e => e.samples_needed_next())
