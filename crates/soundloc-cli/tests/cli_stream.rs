@@ -339,9 +339,26 @@ fn tcp_listen_and_connect_equal_the_file_and_a_cut_frame_is_reported() {
     assert!(String::from_utf8_lossy(&o.stderr).contains("--realtime paces a file"));
     // Waiting for a sender, a missing TF file or a channel count the array cannot take is
     // an error at once, not after a sender connected (its audio would be lost).
-    for (tf, channels, want) in [
-        ("/nonexistent/tf.zip", "8", "/nonexistent/tf.zip"),
-        ("", "6", "has 6 channels"),
+    // So are a busy --serve port and a receiver host that does not resolve (they were
+    // found only after the sender connected, until 2026-12-02).
+    let busy = TcpListener::bind("127.0.0.1:0").unwrap();
+    let busy = busy.local_addr().unwrap().port().to_string();
+    for (tf, channels, want, extra) in [
+        ("/nonexistent/tf.zip", "8", "/nonexistent/tf.zip", &[][..]),
+        ("", "6", "has 6 channels", &[][..]),
+        ("", "8", "cannot listen", &["--serve", busy.as_str()][..]),
+        (
+            "",
+            "8",
+            "cannot resolve",
+            &["--hark-stream", "no-such-host.invalid:5530"][..],
+        ),
+        (
+            "",
+            "8",
+            "cannot resolve",
+            &["--odas-ssl", "no-such-host.invalid:9001"][..],
+        ),
     ] {
         let mut cmd = bin();
         cmd.args([
@@ -358,6 +375,7 @@ fn tcp_listen_and_connect_equal_the_file_and_a_cut_frame_is_reported() {
         } else {
             cmd.args(["--tf", tf]);
         }
+        cmd.args(extra);
         let mut child = cmd.stderr(Stdio::piped()).stdout(Stdio::null()).spawn().unwrap();
         let t = Instant::now();
         let status = loop {

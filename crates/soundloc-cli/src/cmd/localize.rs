@@ -37,6 +37,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         // where the rate is known (a raw input's --rate, or a TF file's own), and a raw
         // input's channels are checked against the array. The localizer is kept for the
         // run when the sender's audio asks for the same one.
+        Sinks::check_addresses(&args.run)?;
         let spec = args.run.spec(args.input.rate.unwrap_or(16000))?;
         if let (Some(rate), Some(channels)) = (args.input.rate, args.input.raw_channels) {
             let loc = Localizer::new(&spec)?;

@@ -262,6 +262,31 @@ impl Sinks {
     /// Check every output path before anything is computed: its folder exists, it is not
     /// a folder, and it replaces neither an input (`input`: the recording's path, if any,
     /// and the run's other files) nor another output.
+    /// For an input that waits for its sender (`tcp-listen:`): the live outputs'
+    /// addresses are checked now (the view's port can be bound, the receivers' hosts
+    /// resolve), so that a mistake is not found only once the sender has connected, its
+    /// audio then lost.
+    pub fn check_addresses(a: &RunArgs) -> anyhow::Result<()> {
+        use std::net::ToSocketAddrs;
+        if let Some(v) = &a.live.serve {
+            drop(LiveServer::bind(&serve_address(v))?);
+        }
+        let mut peers = Vec::new();
+        if let Some(h) = &a.hark_stream {
+            peers.push(("--hark-stream", soundloc::output::hark_stream::peer_address(h)?));
+        }
+        for (v, what) in [(&a.live.odas_ssl, "ODAS SSL"), (&a.live.odas_sst, "ODAS SST")] {
+            if let Some(addr) = v.as_deref().map(|v| odas_target(v, what)).transpose()?.flatten() {
+                peers.push((what, addr.to_string()));
+            }
+        }
+        for (what, p) in peers {
+            p.to_socket_addrs()
+                .with_context(|| format!("{what} {p}: cannot resolve the receiver's address"))?;
+        }
+        Ok(())
+    }
+
     pub fn check_paths(a: &RunArgs, input: Option<&Path>) -> anyhow::Result<()> {
         let sidecar = a.spectrum.as_deref().map(spectrum_sidecar);
         let l = &a.live;
@@ -405,13 +430,7 @@ impl Sinks {
         }
         let view = match &l.serve {
             Some(addr) => {
-                // A bare port means loopback.
-                let addr = if addr.bytes().all(|b| b.is_ascii_digit()) {
-                    format!("127.0.0.1:{addr}")
-                } else {
-                    addr.clone()
-                };
-                let v = LiveServer::bind(&addr)?;
+                let v = LiveServer::bind(&serve_address(addr))?;
                 let c = loc.config();
                 let grid = loc.grid();
                 let az: Vec<f64> = (0..grid.len()).map(|d| grid.azimuth_deg(d)).collect();
@@ -660,6 +679,15 @@ impl Sinks {
             f.commit()?;
         }
         Ok(())
+    }
+}
+
+/// The live view's listening address for `--serve V`: a bare port means loopback.
+fn serve_address(v: &str) -> String {
+    if v.bytes().all(|b| b.is_ascii_digit()) {
+        format!("127.0.0.1:{v}")
+    } else {
+        v.to_string()
     }
 }
 

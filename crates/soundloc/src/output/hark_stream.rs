@@ -114,26 +114,30 @@ pub struct HarkStreamSender {
     advance: i32,
 }
 
+/// The receiver's `HOST:PORT` for `--hark-stream` ADDR: HOST alone gets port
+/// [`DEFAULT_PORT`]; a bare number is a port, not a host name (it resolved as the IPv4
+/// address 0.0.21.154), and is refused, as the ODAS outputs refuse half an address.
+pub fn peer_address(addr: &str) -> Result<String> {
+    if !addr.is_empty() && addr.bytes().all(|b| b.is_ascii_digit()) {
+        return Err(Error::Config(format!(
+            "HARK stream {addr:?}: a port without a host; write HOST:PORT (e.g. 127.0.0.1:{addr}), \
+             or HOST alone for port {DEFAULT_PORT}"
+        )));
+    }
+    Ok(if addr.contains(':') {
+        addr.to_string()
+    } else {
+        format!("{addr}:{DEFAULT_PORT}")
+    })
+}
+
 impl HarkStreamSender {
     /// Starts sending to `addr` (`host:port`; a bare host gets [`DEFAULT_PORT`]). `advance`
     /// is the frame shift in samples written into every header. Fails only on an address
     /// that does not resolve.
     pub fn connect(addr: &str, advance: i32) -> Result<Self> {
-        // A bare number is a port, not a host name (it resolved as the IPv4 address
-        // 0.0.21.154): refused, as the ODAS outputs refuse half an address.
-        if !addr.is_empty() && addr.bytes().all(|b| b.is_ascii_digit()) {
-            return Err(crate::Error::Config(format!(
-                "HARK stream {addr:?}: a port without a host; write HOST:PORT (e.g. 127.0.0.1:{addr}), \
-                 or HOST alone for port {DEFAULT_PORT}"
-            )));
-        }
-        let peer = if addr.contains(':') {
-            addr.to_string()
-        } else {
-            format!("{addr}:{DEFAULT_PORT}")
-        };
         Ok(HarkStreamSender {
-            net: NetSender::start("HARK stream", &peer)?,
+            net: NetSender::start("HARK stream", &peer_address(addr)?)?,
             advance,
         })
     }
