@@ -78,7 +78,7 @@ impl PyLocalizer {
         let mut guard = self.lock(py)?;
         match fs {
             Some(f) => self.adopt_rate(py, &mut guard, f)?,
-            None => self.rate_known("localize(x)", "localize(x, fs)")?,
+            None => self.rate_known("localize(x)", "localize(x, fs)", false)?,
         }
         let loc = &mut *guard;
         let mut out = match converter(loc, &s, fs, channels_first)? {
@@ -251,7 +251,7 @@ impl PyLocalizer {
         let open = self.open_rate.is_some();
         let have = loc.config().sample_rate_hz;
         match fs {
-            None => self.rate_known("push(x)", "push(x, fs)"),
+            None => self.rate_known("push(x)", "push(x, fs)", true),
             Some(f) if open && first => self.adopt_rate(py, loc, f),
             Some(f) if f != have => Err(PyValueError::new_err(if open {
                 format!(
@@ -284,13 +284,12 @@ impl PyLocalizer {
         Ok(())
     }
 
-    /// A call (`what`) without the audio's rate: refused while the rate is open and no
+    /// A call (`what`; `stream`: a push) without the audio's rate: refused while the rate is open and no
     /// call has named it yet (`with` is the call that does), and with `resample=True` and
     /// no `fs=` ([`PyLocalizer::resample_unnamed`]) for `localize` always, for `push` until
     /// a push named it. Free-field transfer
     /// functions are made for the rate, so a guess gives wrong directions silently.
-    fn rate_known(&self, what: &str, with: &str) -> PyResult<()> {
-        let stream = what.starts_with("push");
+    fn rate_known(&self, what: &str, with: &str, stream: bool) -> PyResult<()> {
         if (self.open_rate.is_none() && !self.resample_unnamed)
             || (self.rate_named.load(Ordering::Relaxed) && (stream || !self.resample_unnamed))
         {
