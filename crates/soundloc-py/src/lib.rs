@@ -149,10 +149,23 @@ pub(crate) fn points(x: &Bound<'_, PyAny>, what: &str) -> PyResult<Vec<[f64; 3]>
             }
         )));
     }
+    // Planar positions, one per row: (M, 2).
+    if v.len() > 3 && v.iter().all(|r| r.len() == 2) {
+        return Err(PyValueError::new_err(format!(
+            "{what}: a ({}, 2) array holds x, y only; give (M, 3) with z: e.g. \
+             np.column_stack([P, np.zeros(len(P))]) for a planar array",
+            v.len()
+        )));
+    }
     v.into_iter()
-        .map(|p| {
-            <[f64; 3]>::try_from(p.as_slice())
-                .map_err(|_| PyValueError::new_err(format!("{what}: every row must hold x, y, z")))
+        .enumerate()
+        .map(|(i, p)| {
+            <[f64; 3]>::try_from(p.as_slice()).map_err(|_| {
+                PyValueError::new_err(format!(
+                    "{what}: every row must hold x, y, z (row {i} has {} values)",
+                    p.len()
+                ))
+            })
         })
         .collect()
 }

@@ -123,6 +123,37 @@ def test_bad_input_raises():
         d.locate_sources(np.ones((4, NFFT // 2 + 1, 10), complex), num_src=0)
 
 
+def test_ported_scripts_get_errors_in_their_own_terms():
+    """What a pyroomacoustics script can pass wrongly is refused at construction with
+    pyroomacoustics' names: num_src that leaves MUSIC no noise subspace (SRP has none to
+    leave), an azimuth that is not a non-empty 1-D array, an algorithm soundloc lacks; a
+    real-valued X (its phase lost) warns."""
+    L = pra.circular_2D_array([0, 0], 4, 0.0, 0.05)
+    for cls in (soundloc.doa.MUSIC, soundloc.doa.NormMUSIC):
+        with pytest.raises(ValueError, match=r"num_src must be below the number of microphones .*num_src=4 with M=4"):
+            cls(L, FS, NFFT, num_src=4)
+        d = cls(L, FS, NFFT, num_src=3)
+        with pytest.raises(ValueError, match="num_src=5 with M=4"):
+            d.locate_sources(np.ones((4, NFFT // 2 + 1, 10), complex), num_src=5)
+    soundloc.doa.SRP(L, FS, NFFT, num_src=4)
+    for az in (np.zeros((2, 3)), np.array([])):
+        with pytest.raises(ValueError, match="Azimuth must be a non-empty 1D ndarray"):
+            soundloc.doa.MUSIC(L, FS, NFFT, azimuth=az)
+    with pytest.raises(ValueError, match="Colatitude must be"):
+        soundloc.doa.MUSIC(L, FS, NFFT, dim=3, azimuth=np.arange(3.0), colatitude=[])
+    with pytest.raises(KeyError, match="'CSSM': soundloc.doa provides MUSIC, NormMUSIC, SRP"):
+        soundloc.doa.algorithms["CSSM"]
+    assert soundloc.doa.algorithms["SRP"] is soundloc.doa.SRP and "MUSIC" in soundloc.doa.algorithms
+    Lr, X = scene(4, [60.0])
+    d = soundloc.doa.MUSIC(Lr, FS, NFFT)
+    with pytest.warns(UserWarning, match="real dtype float64: the STFT's phase is lost"):
+        d.locate_sources(X.real)
+    import warnings
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        d.locate_sources(X)
+
+
 def test_views_and_dtypes_give_the_same_result():
     """A slice of X (read in place through its strides), a Fortran-ordered copy, reversed
     views (negative strides: copied), a field of a structured array (strides of no whole

@@ -532,6 +532,8 @@ def test_geometry_by_columns_and_a_hop_past_the_frame_are_named():
         soundloc.Localizer(geometry=MICS.T, grid="ring:5", device="cpu")
     with pytest.raises(ValueError, match=r"\(2, 8\) array .*L\.T with a column of zeros"):
         soundloc.Localizer(geometry=MICS.T[:2], grid="ring:5", device="cpu")
+    with pytest.raises(ValueError, match=r"\(8, 2\) array holds x, y only; give \(M, 3\)"):
+        soundloc.Localizer(geometry=MICS[:, :2], grid="ring:5", device="cpu")
     three = soundloc.Localizer(geometry=MICS[[0, 3, 5]], grid="ring:5", device="cpu", num_sources=1)
     assert any("3 × 3 array" in n for n in three.notes)
     assert not any("3 × 3" in n for n in localizer().notes)
@@ -798,3 +800,14 @@ def test_copy_is_refused_cleanly():
     for f in (copy.deepcopy, pickle.dumps):
         with pytest.raises(TypeError):
             f(loc)
+
+
+def test_pyroomacoustics_argument_names_are_accepted():
+    """num_src= and c= (pyroomacoustics' DOA names) mean num_sources= and speed_of_sound=:
+    the same spec; naming both is an error."""
+    a = soundloc.Localizer(geometry=MICS, grid="ring:5", device="cpu", num_src=1, c=340.0)
+    b = soundloc.Localizer(geometry=MICS, grid="ring:5", device="cpu", num_sources=1, speed_of_sound=340.0)
+    assert a.spec_json() == b.spec_json()
+    assert a.spec_json() != soundloc.Localizer(geometry=MICS, grid="ring:5", device="cpu").spec_json()
+    with pytest.raises(TypeError, match="num_src= and num_sources= name the same argument"):
+        soundloc.Localizer(geometry=MICS, grid="ring:5", num_src=1, num_sources=2)

@@ -46,7 +46,7 @@ Arguments (HARK LocalizeMUSIC name / pyroomacoustics name):
         "raw" ‖a‖² as spec §5, where a loud noise source that K holds shows as a peak at
         its own strength; "whitened" ‖a_w‖² = aᴴK⁻¹a, which flattens it; "geometric"
         ‖a‖·‖a_w‖; None: geometric in the robust default, raw with algorithm="gevd").
-    num_sources (NUM_SOURCE / num_src), max_peaks (MAXNUM_OUT_PEAKS), window (WINDOW, frames),
+    num_sources (NUM_SOURCE; num_src= is accepted as pyroomacoustics' name), max_peaks (MAXNUM_OUT_PEAKS), window (WINDOW, frames),
     period (PERIOD), window_type "past"|"middle"|"future" (WINDOW_TYPE), freq_range
         (LOWER/UPPER_BOUND_FREQUENCY, Hz; pyroomacoustics' freq_range), nfft (LENGTH),
         hop (ADVANCE): 512 and 160 samples, with geometry= 32 and 10 ms of the rate (the
@@ -258,7 +258,16 @@ _COUNTS = {"num_sources", "window", "period", "nfft", "hop", "channels", "input_
            "subspace_dim", "preroll", "noise_preceding"}
 
 
+# pyroomacoustics' names for the same arguments (its DOA constructors' num_src and c).
+_ALIASES = {"num_src": "num_sources", "c": "speed_of_sound"}
+
+
 def _spec_of(kwargs):
+    for alias, name in _ALIASES.items():
+        if alias in kwargs:
+            if name in kwargs:
+                raise TypeError(f"{alias}= and {name}= name the same argument: give one")
+            kwargs = {(name if k == alias else k): v for k, v in kwargs.items()}
     # A negative count or index is a bad value, not a numeric overflow.
     try:
         return _spec(**kwargs)

@@ -19,6 +19,7 @@ sphere); ``src_idx`` / ``azimuth_recon`` hold the ``num_src`` strongest in
 pyroomacoustics' order (its ``find_peaks``: weakest of them first, strongest last).
 """
 
+import warnings
 from types import SimpleNamespace
 
 import numpy as np
@@ -71,8 +72,7 @@ class _DOA:
             raise ValueError(f"nfft must be an even FFT length of at least 4, got {nfft}")
         if not (np.isfinite(c) and c > 0):
             raise ValueError(f"c must be a positive speed of sound in m/s, got {c}")
-        if int(num_src) < 1:
-            raise ValueError(f"num_src must be at least 1, got {num_src}")
+        self._algorithm_checks(int(num_src), L.shape[1])
         if n_grid is not None and int(n_grid) < 1:
             raise ValueError(f"n_grid must be at least 1, got {n_grid}")
         self.L = L if L.shape[0] == 3 else np.vstack([L, np.zeros((1, L.shape[1]))])
@@ -98,6 +98,13 @@ class _DOA:
                 self.grid = _Grid(np.arctan2(y, x), np.arctan2(np.linalg.norm(np.stack([x, y]), axis=0), z))
         if not hasattr(self, "grid"):
             azimuth = np.asarray(azimuth, dtype=float)
+            if azimuth.ndim != 1 or azimuth.size == 0:
+                raise ValueError(f"Azimuth must be a non-empty 1D ndarray, got shape {azimuth.shape}")
+            if colatitude is not None:
+                colatitude = np.asarray(colatitude, dtype=float)
+                if colatitude.ndim != 1 or colatitude.size == 0:
+                    raise ValueError(
+                        f"Colatitude must be a non-empty 1D ndarray, got shape {colatitude.shape}")
             if dim == 2:
                 self.grid = _Grid(azimuth, None)
             elif colatitude is None:
@@ -117,10 +124,17 @@ class _DOA:
     def locate_sources(self, X, num_src=None, freq_range=(500.0, 4000.0), freq_bins=None, freq_hz=None):
         """Localize from X, the rfft of each microphone: (M, nfft/2 + 1, snapshots)."""
         if num_src is not None:
-            if int(num_src) < 1:
-                raise ValueError(f"num_src must be at least 1, got {num_src}")
+            self._algorithm_checks(int(num_src), self.M)
             self.num_src = int(num_src)
         X = np.asarray(X)
+        if not np.iscomplexobj(X):
+            # pyroomacoustics takes it too, but a real array has lost the STFT's phase: the
+            # directions come out mirror-ambiguous, so say so rather than guess silently.
+            warnings.warn(
+                f"X has real dtype {X.dtype}: the STFT's phase is lost and the directions are "
+                "not meaningful (pass the complex STFT, e.g. pyroomacoustics.transform.stft.analysis)",
+                stacklevel=2,
+            )
         if (X.dtype != np.complex128 or not X.flags.aligned
                 or any(st < 0 or st % X.itemsize for st in X.strides)):
             X = np.ascontiguousarray(X, dtype=np.complex128)
@@ -149,6 +163,15 @@ class _DOA:
         if self.dim == 3:
             self.colatitude_recon = self.grid.colatitude[self.src_idx]
         return self
+
+    def _algorithm_checks(self, num_src, m):
+        if num_src < 1:
+            raise ValueError(f"num_src must be at least 1, got {num_src}")
+        # MUSIC needs a noise subspace: at least one of the M dimensions left over.
+        if self._algorithm != "srp-phat" and num_src >= m:
+            raise ValueError(
+                f"num_src must be below the number of microphones for {type(self).__name__} "
+                f"(its noise subspace has M - num_src dimensions): got num_src={num_src} with M={m}")
 
     def _used_bins(self, freq_range, freq_bins, freq_hz):
         """The used bins, their span lo..hi and the weights within it (kept between calls
@@ -204,4 +227,14 @@ class SRP(_DOA):
         return p * self.M ** 2 / (self.num_freq * pairs)
 
 
-algorithms = {"MUSIC": MUSIC, "NormMUSIC": NormMUSIC, "SRP": SRP}
+class _Algorithms(dict):
+    """pyroomacoustics' ``algorithms`` table; a name it has and soundloc lacks is a clear
+    KeyError."""
+
+    def __missing__(self, name):
+        raise KeyError(
+            f"{name!r}: soundloc.doa provides {', '.join(self)} (pyroomacoustics' CSSM, WAVES, "
+            "TOPS and FRIDA are not implemented)")
+
+
+algorithms = _Algorithms(MUSIC=MUSIC, NormMUSIC=NormMUSIC, SRP=SRP)

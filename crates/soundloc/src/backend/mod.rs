@@ -71,8 +71,13 @@ impl std::str::FromStr for DeviceChoice {
                 let mut mask = 0u64;
                 for n in list.split(',') {
                     let i: u32 = n.trim().parse().map_err(|_| bad())?;
-                    if i >= 64 || mask >> i & 1 == 1 {
+                    if i >= 64 {
                         return Err(bad());
+                    }
+                    if mask >> i & 1 == 1 {
+                        return Err(crate::Error::Config(format!(
+                            "device {s:?}: GPU {i} is named twice (each GPU once: cuda:0,1)"
+                        )));
                     }
                     mask |= 1 << i;
                 }

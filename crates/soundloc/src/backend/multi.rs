@@ -283,6 +283,8 @@ mod tests {
         for bad in ["gpu", "cuda:", "cuda:x", "cuda:64", "cuda:1,1", "cuda:-1"] {
             assert!(p(bad).is_err(), "{bad}");
         }
+        let twice = p("cuda:0,2,0").unwrap_err().to_string();
+        assert!(twice.contains("GPU 0 is named twice"), "{twice}");
         let j: DeviceChoice = serde_json::from_str("\"cuda:2,3\"").unwrap();
         assert_eq!(serde_json::to_string(&j).unwrap(), "\"cuda:2,3\"");
         assert!(serde_json::from_str::<DeviceChoice>("\"tpu\"").is_err());
