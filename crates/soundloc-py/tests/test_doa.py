@@ -148,6 +148,17 @@ def test_ported_scripts_get_errors_in_their_own_terms():
     d = soundloc.doa.MUSIC(Lr, FS, NFFT)
     with pytest.warns(UserWarning, match="real dtype float64: the STFT's phase is lost"):
         d.locate_sources(X.real)
+    # The attributes ported scripts read afterwards, as pyroomacoustics sets them.
+    d.locate_sources(X, freq_range=[500.0, 4000.0])
+    np.testing.assert_allclose(d.freq_hz, d.freq_bins * FS / NFFT)
+    assert d.freq_bins[0] == 8 and d.num_snap == X.shape[2] and d.num_freq == d.freq_bins.size
+    assert d.grid.cartesian.shape == (2, 360) and d.grid.spherical.shape == (1, 360)
+    np.testing.assert_allclose(d.grid.cartesian[:, 90], [0.0, 1.0], atol=1e-12)
+    s3 = soundloc.doa.SRP(pra.circular_2D_array([0, 0], 4, 0.0, 0.05), FS, NFFT, dim=3, n_grid=50)
+    assert s3.grid.cartesian.shape == (3, 50) and s3.grid.spherical.shape == (2, 50)
+    np.testing.assert_allclose(np.linalg.norm(s3.grid.cartesian, axis=0), 1.0)
+    with pytest.raises(ValueError, match=r"values must be \(50,\)"):
+        s3.grid.set_values(np.zeros(3))
     import warnings
     with warnings.catch_warnings():
         warnings.simplefilter("error")

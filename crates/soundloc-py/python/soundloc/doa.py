@@ -17,6 +17,10 @@ Re aᴴ R̃ a with R̃ the phase-transformed correlation), so existing plotting 
 Peaks: local maxima of the grid (left/right on a circle, the 6 nearest directions on a
 sphere); ``src_idx`` / ``azimuth_recon`` hold the ``num_src`` strongest in
 pyroomacoustics' order (its ``find_peaks``: weakest of them first, strongest last).
+After ``locate_sources`` also ``freq_bins``, ``freq_hz``, ``num_freq``, ``num_snap`` and
+``grid.cartesian`` / ``grid.spherical`` / ``grid.set_values`` as pyroomacoustics has them;
+not provided: CSSM, WAVES, TOPS, FRIDA, per-bin ``Pssl`` and the plotting helpers
+(``polar_plt_dirac``, ``grid.plot``: plot ``grid.values`` with matplotlib directly).
 """
 
 import warnings
@@ -46,6 +50,22 @@ class _Grid:
         self.n_points = self.azimuth.size
         self.values = np.zeros(self.n_points)
         self.dim = 2 if self.colatitude is None else 3
+
+    @property
+    def cartesian(self):
+        """Unit vectors as pyroomacoustics stores them: (2, N) on a circle, (3, N) else."""
+        return np.stack([self.x, self.y] if self.dim == 2 else [self.x, self.y, self.z])
+
+    @property
+    def spherical(self):
+        """(1, N) azimuths on a circle, (2, N) azimuths and colatitudes else (radians)."""
+        return np.stack([self.azimuth] if self.dim == 2 else [self.azimuth, self.colatitude])
+
+    def set_values(self, vals):
+        vals = np.asarray(vals, dtype=float)
+        if vals.shape != (self.n_points,):
+            raise ValueError(f"values must be ({self.n_points},), got shape {vals.shape}")
+        self.values = vals
 
     def points(self):
         return np.stack([self.x, self.y, self.z], axis=1)
@@ -116,6 +136,9 @@ class _DOA:
         self.colatitude_recon = None
         self.src_idx = None
         self.freq_bins = None
+        self.freq_hz = None
+        self.num_freq = None
+        self.num_snap = None
         self._native = _Frames(
             np.ascontiguousarray(self.L.T), np.ascontiguousarray(self.grid.points() * _FAR_M),
             self.fs, self.nfft, self.c, self._algorithm, self._normalize, False, precision, device,
@@ -151,7 +174,9 @@ class _DOA:
             self._bins_key = key
         bins, (lo, hi), weights = self._bins
         self.freq_bins = bins
+        self.freq_hz = bins * float(self.fs) / float(self.nfft)
         self.num_freq = bins.size
+        self.num_snap = X.shape[2]
         db, peaks = self._native.process(X, (lo, hi), weights, self.num_src)
         self.grid.values = self._scale(10.0 ** (db.astype(np.float64) / 10.0) - 1.0)
         # soundloc gives them strongest first; pyroomacoustics ascending.
