@@ -137,7 +137,7 @@ function waterfallColumn(db, result) {
     ctx.fillRect(w.width - colW, w.height - (b + 1) * bh, colW, Math.ceil(bh));
   }
   if (result) {
-    for (const s of result.sources) {
+    for (const s of result.sources.filter((s) => !s.held)) {
       const y = w.height - ((wrapAz(s.azimuth_deg) + 180) / 360) * w.height;
       ctx.fillStyle = rgb(sourceColour(s));
       ctx.fillRect(w.width - colW - 1, y - 2, colW + 2, 4);
@@ -156,9 +156,11 @@ function onResult(r) {
     tr.dataset.elevation = s.elevation_deg;
     tr.dataset.power = s.power_db;
     if (s.id !== undefined) tr.dataset.id = s.id;
+    // A tracked source carried through a pause (not observed in this window): dimmed.
+    if (s.held) { tr.dataset.held = "1"; tr.className = "held"; }
     const cells = [
       `<span class="swatch" style="background:${rgb(sourceColour(s))}"></span>`,
-      s.id === undefined ? "–" : String(s.id),
+      s.id === undefined ? "–" : String(s.id) + (s.held ? " (held)" : ""),
       s.azimuth_deg.toFixed(1),
       s.elevation_deg.toFixed(1),
       s.power_db.toFixed(2),
@@ -179,7 +181,7 @@ function drawStatus() {
   let t = view.connected ? "" : "disconnected — retrying…  ";
   if (h) t += `${h.label || h.algorithm} on ${h.device} · latency ${h.latency_ms.toFixed(0)} ms`;
   if (s) {
-    t += ` + ${s.compute_ms.toFixed(1)} ms compute · real-time factor ${s.rtf.toFixed(3)}` +
+    t += ` · last block ${s.compute_ms.toFixed(2)} ms compute · real-time factor ${s.rtf.toFixed(3)}` +
       ` · ${s.audio_s.toFixed(1)} s localized`;
     if (s.lost_s > 0) t += ` · ${s.lost_s.toFixed(2)} s of input lost`;
     if (s.view_dropped > 0) t += ` · ${s.view_dropped} messages dropped for this page`;
@@ -263,7 +265,12 @@ function draw() {
   if (view.last) {
     for (const s of view.last.sources) {
       const [x, y] = place(s);
-      if (view.sky) {
+      if (s.held) {
+        // Held (carried through a pause, not observed): a dashed outline only.
+        ctx.beginPath(); ctx.arc(x, y, view.sky ? 9 : 6, 0, 2 * Math.PI);
+        ctx.setLineDash([3, 3]); ctx.strokeStyle = rgb(sourceColour(s)); ctx.lineWidth = 2; ctx.stroke();
+        ctx.setLineDash([]);
+      } else if (view.sky) {
         // Hollow rings on the sky map: the spectrum under a source stays visible.
         ctx.beginPath(); ctx.arc(x, y, 9, 0, 2 * Math.PI);
         ctx.strokeStyle = "#000"; ctx.lineWidth = 4.5; ctx.stroke();

@@ -81,7 +81,15 @@ pub const MAX_SPECTRA_PER_S: f64 = 50.0;
 impl LiveServer {
     /// Listen on `addr` (`HOST:PORT`; port 0 picks a free one).
     pub fn bind(addr: &str) -> anyhow::Result<Self> {
-        let l = TcpListener::bind(addr).with_context(|| format!("--serve {addr}: cannot listen"))?;
+        let l = TcpListener::bind(addr).with_context(|| {
+            use std::net::ToSocketAddrs;
+            let form = if addr.to_socket_addrs().is_err() {
+                " (expected [HOST:]PORT: 8080, 127.0.0.1:8080, 0.0.0.0:8080)"
+            } else {
+                ""
+            };
+            format!("--serve {addr}: cannot listen{form}")
+        })?;
         let addr = l.local_addr()?;
         let state = Arc::new(Mutex::new(State::default()));
         let s = state.clone();
@@ -246,7 +254,20 @@ fn handle(conn: TcpStream, state: &Mutex<State>) {
         .lines()
         .any(|l| l.to_ascii_lowercase().starts_with("sec-websocket-key:"));
     let route = path.split('?').next().unwrap_or("");
-    if method == "GET" && route == "/ws" && upgrade && key {
+    // A page of another site open in the same browser may not read the stream: a
+    // WebSocket request that carries an Origin must come from this server's own page.
+    let header = |name: &str| {
+        head.lines().find_map(|l| {
+            let (k, v) = l.split_once(':')?;
+            k.trim().eq_ignore_ascii_case(name).then(|| v.trim().to_string())
+        })
+    };
+    let foreign = match (header("origin"), header("host")) {
+        (Some(o), Some(h)) => o.split_once("://").map(|(_, a)| a) != Some(h.as_str()),
+        (Some(_), None) => true,
+        _ => false,
+    };
+    if method == "GET" && route == "/ws" && upgrade && key && !foreign {
         websocket(conn, state);
         return;
     }
@@ -256,26 +277,35 @@ fn handle(conn: TcpStream, state: &Mutex<State>) {
     if conn.read_exact(&mut sink).is_err() {
         return;
     }
-    let (status, ctype, body) = match (method, route) {
+    // HEAD is GET without the body (RFC 9110 §9.3.2).
+    let get = matches!(method, "GET" | "HEAD");
+    let (status, ctype, body) = match (get, route) {
         _ if !utf8 => ("400 Bad Request", "text/plain; charset=utf-8", "not UTF-8\n"),
-        ("GET", "/ws") => (
+        (true, "/ws") if foreign => (
+            "403 Forbidden",
+            "text/plain; charset=utf-8",
+            "the live view's stream is served to its own page only (Origin differs from Host)\n",
+        ),
+        (true, "/ws") => (
             "400 Bad Request",
             "text/plain; charset=utf-8",
             "a WebSocket upgrade with Sec-WebSocket-Key is expected here\n",
         ),
-        ("GET", "/" | "/index.html") => ("200 OK", "text/html; charset=utf-8", PAGE),
-        ("GET", "/view.js") => ("200 OK", "text/javascript; charset=utf-8", SCRIPT),
-        ("GET", _) => ("404 Not Found", "text/plain; charset=utf-8", "not found\n"),
-        _ => (
+        (true, "/" | "/index.html") => ("200 OK", "text/html; charset=utf-8", PAGE),
+        (true, "/view.js") => ("200 OK", "text/javascript; charset=utf-8", SCRIPT),
+        (true, _) => ("404 Not Found", "text/plain; charset=utf-8", "not found\n"),
+        (false, _) => (
             "405 Method Not Allowed",
             "text/plain; charset=utf-8",
-            "GET only\n",
+            "GET or HEAD only\n",
         ),
     };
+    let allow = if get { "" } else { "Allow: GET, HEAD\r\n" };
     let _ = write!(
         conn,
-        "HTTP/1.1 {status}\r\nContent-Type: {ctype}\r\nContent-Length: {}\r\nCache-Control: no-store\r\nX-Content-Type-Options: nosniff\r\nConnection: close\r\n\r\n{body}",
-        body.len()
+        "HTTP/1.1 {status}\r\nContent-Type: {ctype}\r\nContent-Length: {}\r\n{allow}Cache-Control: no-store\r\nX-Content-Type-Options: nosniff\r\nConnection: close\r\n\r\n{}",
+        body.len(),
+        if method == "HEAD" { "" } else { body }
     );
     let _ = conn.flush();
 }

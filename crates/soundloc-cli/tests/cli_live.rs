@@ -362,5 +362,46 @@ fn several_pages_at_once_and_a_stalled_one_never_stalls_the_engine() {
     assert!(wall < Duration::from_secs(40), "{wall:?}");
     s.wait_input_end();
     drop(stalled);
+    // Plain HTTP: HEAD is GET without the body; other methods are 405 with Allow; a
+    // WebSocket request from another site's page (Origin ≠ Host) is refused, one from the
+    // view's own page is upgraded.
+    let head = http(&s.addr, &format!("HEAD / HTTP/1.1\r\nHost: {}\r\n\r\n", s.addr));
+    assert!(head.starts_with("HTTP/1.1 200 OK"), "{head}");
+    assert!(head.contains("Content-Length: ") && head.ends_with("\r\n\r\n"), "{head}");
+    let post = http(&s.addr, &format!("POST / HTTP/1.1\r\nHost: {}\r\nContent-Length: 0\r\n\r\n", s.addr));
+    assert!(post.starts_with("HTTP/1.1 405") && post.contains("Allow: GET, HEAD"), "{post}");
+    let upgrade = |origin: &str| {
+        http(
+            &s.addr,
+            &format!(
+                "GET /ws HTTP/1.1\r\nHost: {a}\r\nOrigin: {origin}\r\nUpgrade: websocket\r\nConnection: Upgrade\r\nSec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\nSec-WebSocket-Version: 13\r\n\r\n",
+                a = s.addr
+            ),
+        )
+    };
+    let foreign = upgrade("http://evil.example");
+    assert!(foreign.starts_with("HTTP/1.1 403") && foreign.contains("Origin differs from Host"), "{foreign}");
+    let own = upgrade(&format!("http://{}", s.addr));
+    assert!(own.starts_with("HTTP/1.1 101"), "{own}");
     s.stop();
+}
+
+/// Send `request` and read the answer until the server closes or 2 s pass (a WebSocket
+/// stays open: its upgrade head is what arrived by then).
+fn http(addr: &str, request: &str) -> String {
+    let mut c = TcpStream::connect(addr).unwrap();
+    c.write_all(request.as_bytes()).unwrap();
+    c.set_read_timeout(Some(Duration::from_secs(2))).unwrap();
+    let mut got = Vec::new();
+    let mut buf = [0u8; 4096];
+    while let Ok(n) = c.read(&mut buf) {
+        if n == 0 {
+            break;
+        }
+        got.extend_from_slice(&buf[..n]);
+        if got.starts_with(b"HTTP/1.1 101") && got.windows(4).any(|w| w == b"\r\n\r\n") {
+            break;
+        }
+    }
+    String::from_utf8_lossy(&got).into_owned()
 }

@@ -138,6 +138,7 @@ mod capture {
             return Ok(ExitCode::SUCCESS);
         }
         super::super::sinks::Sinks::check_paths(&a.run, None)?;
+        super::super::sinks::Sinks::check_addresses(&a.run)?;
         super::super::input::check_max_buffer(a.max_buffer)?;
         // The arguments' own errors (no array, a bad geometry file or range) before the
         // device's (the rate is the device's; 16 kHz stands in for it here).

@@ -30,14 +30,16 @@ pub fn note(quiet: bool, msg: &str) {
 
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     Sinks::check_paths(&args.run, Some(Path::new(&args.input.input)))?;
+    // A busy or malformed --serve port, or a receiver that does not resolve, is said before
+    // the transfer functions load (and, for tcp-listen:, before a sender connects).
+    Sinks::check_addresses(&args.run)?;
     let mut ready = None;
     if args.input.input.starts_with("tcp-listen:") {
         // What can be checked before a sender connects is checked now: an error after it
-        // connected would throw its audio away. The transfer functions (and K) are loaded
+        // connected would throw its audio away. The addresses are checked above; the transfer functions (and K) are loaded
         // where the rate is known (a raw input's --rate, or a TF file's own), and a raw
         // input's channels are checked against the array. The localizer is kept for the
         // run when the sender's audio asks for the same one.
-        Sinks::check_addresses(&args.run)?;
         let spec = args.run.spec(args.input.rate.unwrap_or(16000))?;
         if let (Some(rate), Some(channels)) = (args.input.rate, args.input.raw_channels) {
             let loc = Localizer::new(&spec)?;

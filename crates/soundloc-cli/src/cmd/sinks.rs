@@ -449,7 +449,16 @@ impl Sinks {
                 };
                 v.hello(live::hello(&info, &az, &el));
                 // Always said, even with --quiet: the user needs the address.
-                eprintln!("soundloc: live view at http://{}/", v.local_addr());
+                let at = v.local_addr();
+                if at.ip().is_unspecified() {
+                    eprintln!(
+                        "soundloc: live view at http://{at}/ (every interface: http://127.0.0.1:{p}/ on this \
+                         machine, http://<its address>:{p}/ from others)",
+                        p = at.port()
+                    );
+                } else {
+                    eprintln!("soundloc: live view at http://{at}/");
+                }
                 Some(v)
             }
             None => None,

@@ -4,15 +4,17 @@
 //! Text messages are JSON objects with a `type`:
 //!
 //! - `hello` (first, once per client): the grid (`azimuth_deg`, `elevation_deg` per
-//!   direction, `kind` `"ring"` when all directions share one elevation, else `"sphere"`),
+//!   direction, `kind` `"ring"` when all directions share one elevation to within
+//!   [`RING_TOLERANCE_DEG`], else `"sphere"`),
 //!   the run (`source`, `algorithm` (its name, e.g. `sevd`), `label` (what runs, for people:
 //!   e.g. `normmusic (subspace 4, coherence, refined)`), `device`, `sample_rate_hz`, `hop`,
 //!   `latency_ms`: the
 //!   algorithmic latency, the window's look-ahead plus one frame) and the look from
 //!   [`super::style`] (`colormap`: 256 RGB triples, `track_colours`, `peak_colour`,
 //!   `azimuth_bin_deg`, `scale_results`).
-//! - `result`: one localization result as in JSON lines (`frame`, `time_s`, `sources` with
-//!   `azimuth_deg`, `elevation_deg`, `power_db`, `id` when tracked).
+//! - `result`: one localization result as in JSON lines (`frame`, `time_s`, `num_active`
+//!   when estimated, `sources` with `azimuth_deg`, `elevation_deg`, `power_db`, `id` when
+//!   tracked, `held: true` for a tracked source carried through a pause, not observed).
 //! - `status` (about twice a second): `audio_s` localized, `rtf` (compute time / audio
 //!   time), `compute_ms` (the last block's), `lost_s` (live input dropped while behind),
 //!   `view_dropped` (messages this client missed because it read too slowly), `finished`.
@@ -58,11 +60,16 @@ pub struct RunInfo {
     pub latency_ms: f64,
 }
 
+/// Directions whose elevations all lie within this of the first are a ring (one
+/// elevation): measured transfer functions' rings vary by a few hundredths of a degree
+/// (HARK's tamago zip: 30.957°–30.969°), and a sky map of them would draw rows never scanned.
+pub const RING_TOLERANCE_DEG: f64 = 0.5;
+
 /// The `hello` message for a grid of `azimuth_deg` / `elevation_deg` directions.
 pub fn hello(info: &RunInfo, azimuth_deg: &[f64], elevation_deg: &[f64]) -> String {
     let ring = elevation_deg
         .first()
-        .is_none_or(|e0| elevation_deg.iter().all(|e| (e - e0).abs() < 1e-6));
+        .is_none_or(|e0| elevation_deg.iter().all(|e| (e - e0).abs() < RING_TOLERANCE_DEG));
     json!({
         "type": "hello",
         "version": 1,
@@ -101,10 +108,17 @@ pub fn result(r: &LocalizationResult) -> String {
             if let Some(id) = s.id {
                 o["id"] = json!(id);
             }
+            if s.held {
+                o["held"] = json!(true);
+            }
             o
         })
         .collect();
-    json!({"type": "result", "frame": r.frame, "time_s": r.time_s, "sources": sources}).to_string()
+    let mut m = json!({"type": "result", "frame": r.frame, "time_s": r.time_s, "sources": sources});
+    if let Some(n) = r.num_active {
+        m["num_active"] = json!(n);
+    }
+    m.to_string()
 }
 
 /// How the run is going, for the `status` message.
@@ -176,6 +190,12 @@ mod tests {
         assert_eq!(v["colormap"][255], json!(style::colormap(1.0)));
         let v: serde_json::Value = serde_json::from_str(&hello(&info, &[0.0, 90.0], &[0.0, 30.0])).unwrap();
         assert_eq!(v["grid"]["kind"], "sphere");
+        // A measured ring's elevations wander by hundredths of a degree (HARK's tamago zip).
+        let v: serde_json::Value =
+            serde_json::from_str(&hello(&info, &[0.0, 90.0, 180.0], &[30.957, 30.969, 30.96])).unwrap();
+        assert_eq!(v["grid"]["kind"], "ring");
+        let v: serde_json::Value = serde_json::from_str(&hello(&info, &[0.0, 90.0], &[0.0, 0.6])).unwrap();
+        assert_eq!(v["grid"]["kind"], "sphere");
         assert_eq!(v["azimuth_bin_deg"], 2.0);
     }
 
@@ -200,6 +220,12 @@ mod tests {
         let v: serde_json::Value = serde_json::from_str(&result(&r)).unwrap();
         assert_eq!(v["type"], "result");
         assert_eq!(v["sources"][0]["id"], 3);
+        assert!(v["sources"][0].get("held").is_none() && v.get("num_active").is_none());
+        let mut h = r.clone();
+        h.sources[0].held = true;
+        h.num_active = Some(0);
+        let v: serde_json::Value = serde_json::from_str(&result(&h)).unwrap();
+        assert_eq!((v["sources"][0]["held"].clone(), v["num_active"].clone()), (json!(true), json!(0)));
         assert_eq!(v["sources"][0]["azimuth_deg"], 90.0);
         let b = spectrum(7, 0.5, &[1.0, -2.5]);
         assert_eq!(&b[..4], SPECTRUM_MAGIC);
