@@ -367,9 +367,18 @@ fn several_pages_at_once_and_a_stalled_one_never_stalls_the_engine() {
     // view's own page is upgraded.
     let head = http(&s.addr, &format!("HEAD / HTTP/1.1\r\nHost: {}\r\n\r\n", s.addr));
     assert!(head.starts_with("HTTP/1.1 200 OK"), "{head}");
-    assert!(head.contains("Content-Length: ") && head.ends_with("\r\n\r\n"), "{head}");
-    let post = http(&s.addr, &format!("POST / HTTP/1.1\r\nHost: {}\r\nContent-Length: 0\r\n\r\n", s.addr));
-    assert!(post.starts_with("HTTP/1.1 405") && post.contains("Allow: GET, HEAD"), "{post}");
+    assert!(
+        head.contains("Content-Length: ") && head.ends_with("\r\n\r\n"),
+        "{head}"
+    );
+    let post = http(
+        &s.addr,
+        &format!("POST / HTTP/1.1\r\nHost: {}\r\nContent-Length: 0\r\n\r\n", s.addr),
+    );
+    assert!(
+        post.starts_with("HTTP/1.1 405") && post.contains("Allow: GET, HEAD"),
+        "{post}"
+    );
     let upgrade = |origin: &str| {
         http(
             &s.addr,
@@ -380,7 +389,10 @@ fn several_pages_at_once_and_a_stalled_one_never_stalls_the_engine() {
         )
     };
     let foreign = upgrade("http://evil.example");
-    assert!(foreign.starts_with("HTTP/1.1 403") && foreign.contains("Origin differs from Host"), "{foreign}");
+    assert!(
+        foreign.starts_with("HTTP/1.1 403") && foreign.contains("Origin differs from Host"),
+        "{foreign}"
+    );
     let own = upgrade(&format!("http://{}", s.addr));
     assert!(own.starts_with("HTTP/1.1 101"), "{own}");
     s.stop();

@@ -391,8 +391,14 @@ fn live_output_options_are_checked_before_any_work() {
     assert!(e.contains("--serve") && e.contains("cannot listen"), "{e}");
     // A malformed one names the accepted form, before anything is loaded or noted.
     let e = run(&["--serve", "abc"]);
-    assert!(e.contains("--serve abc: cannot listen (expected [HOST:]PORT"), "{e}");
-    assert!(!e.contains("room default") && !e.contains("noise source"), "said after the preamble: {e}");
+    assert!(
+        e.contains("--serve abc: cannot listen (expected [HOST:]PORT"),
+        "{e}"
+    );
+    assert!(
+        !e.contains("room default") && !e.contains("noise source"),
+        "said after the preamble: {e}"
+    );
 }
 
 #[test]

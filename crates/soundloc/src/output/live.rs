@@ -225,7 +225,10 @@ mod tests {
         h.sources[0].held = true;
         h.num_active = Some(0);
         let v: serde_json::Value = serde_json::from_str(&result(&h)).unwrap();
-        assert_eq!((v["sources"][0]["held"].clone(), v["num_active"].clone()), (json!(true), json!(0)));
+        assert_eq!(
+            (v["sources"][0]["held"].clone(), v["num_active"].clone()),
+            (json!(true), json!(0))
+        );
         assert_eq!(v["sources"][0]["azimuth_deg"], 90.0);
         let b = spectrum(7, 0.5, &[1.0, -2.5]);
         assert_eq!(&b[..4], SPECTRUM_MAGIC);
