@@ -79,17 +79,15 @@ pub struct LiveServer {
 pub const MAX_SPECTRA_PER_S: f64 = 50.0;
 
 impl LiveServer {
+    /// Whether `addr` can be listened on (the error `bind` would give), checked before a
+    /// run's slow steps; the port is free again when this returns.
+    pub fn check(addr: &str) -> anyhow::Result<()> {
+        listen(addr).map(drop)
+    }
+
     /// Listen on `addr` (`HOST:PORT`; port 0 picks a free one).
     pub fn bind(addr: &str) -> anyhow::Result<Self> {
-        let l = TcpListener::bind(addr).with_context(|| {
-            use std::net::ToSocketAddrs;
-            let form = if addr.to_socket_addrs().is_err() {
-                " (expected [HOST:]PORT: 8080, 127.0.0.1:8080, 0.0.0.0:8080)"
-            } else {
-                ""
-            };
-            format!("--serve {addr}: cannot listen{form}")
-        })?;
+        let l = listen(addr)?;
         let addr = l.local_addr()?;
         let state = Arc::new(Mutex::new(State::default()));
         let s = state.clone();
@@ -263,7 +261,10 @@ fn handle(conn: TcpStream, state: &Mutex<State>) {
         })
     };
     let foreign = match (header("origin"), header("host")) {
-        (Some(o), Some(h)) => o.split_once("://").map(|(_, a)| a) != Some(h.as_str()),
+        // Host names compare without regard to case (RFC 3986 §3.2.2).
+        (Some(o), Some(h)) => !o
+            .split_once("://")
+            .is_some_and(|(_, a)| a.eq_ignore_ascii_case(&h)),
         (Some(_), None) => true,
         _ => false,
     };
@@ -308,6 +309,18 @@ fn handle(conn: TcpStream, state: &Mutex<State>) {
         if method == "HEAD" { "" } else { body }
     );
     let _ = conn.flush();
+}
+
+fn listen(addr: &str) -> anyhow::Result<TcpListener> {
+    TcpListener::bind(addr).with_context(|| {
+        use std::net::ToSocketAddrs;
+        let form = if addr.to_socket_addrs().is_err() {
+            " (expected [HOST:]PORT: 8080, 127.0.0.1:8080, 0.0.0.0:8080)"
+        } else {
+            ""
+        };
+        format!("--serve {addr}: cannot listen{form}")
+    })
 }
 
 fn websocket(conn: TcpStream, state: &Mutex<State>) {

@@ -30,9 +30,17 @@ struct Served {
 
 impl Served {
     fn start(args: &[&str]) -> Served {
+        // A fixed port, as users give it: the address check before the run must leave it
+        // free for the run's own server (it held it until 2026-12-03, and a fixed
+        // --serve port failed with "Address already in use").
+        let port = std::net::TcpListener::bind("127.0.0.1:0")
+            .unwrap()
+            .local_addr()
+            .unwrap()
+            .port();
         let mut child = common::bin_for_ctrl_c()
             .args(args)
-            .args(["--serve", "127.0.0.1:0"])
+            .args(["--serve", &format!("127.0.0.1:{port}")])
             .stdout(Stdio::null())
             .stderr(Stdio::piped())
             .spawn()

@@ -36,8 +36,8 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     let mut ready = None;
     if args.input.input.starts_with("tcp-listen:") {
         // What can be checked before a sender connects is checked now: an error after it
-        // connected would throw its audio away. The addresses are checked above; the transfer functions (and K) are loaded
-        // where the rate is known (a raw input's --rate, or a TF file's own), and a raw
+        // connected would throw its audio away. The addresses were checked above; the
+        // transfer functions (and K) are loaded where the rate is known (a raw input's --rate, or a TF file's own), and a raw
         // input's channels are checked against the array. The localizer is kept for the
         // run when the sender's audio asks for the same one.
         let spec = args.run.spec(args.input.rate.unwrap_or(16000))?;

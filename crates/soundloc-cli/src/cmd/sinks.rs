@@ -269,7 +269,8 @@ impl Sinks {
     pub fn check_addresses(a: &RunArgs) -> anyhow::Result<()> {
         use std::net::ToSocketAddrs;
         if let Some(v) = &a.live.serve {
-            drop(LiveServer::bind(&serve_address(v))?);
+            // Not LiveServer::bind: its accept thread would keep the port for the run.
+            LiveServer::check(&serve_address(v))?;
         }
         let mut peers = Vec::new();
         if let Some(h) = &a.hark_stream {

@@ -12,9 +12,10 @@
 //!   algorithmic latency, the window's look-ahead plus one frame) and the look from
 //!   [`super::style`] (`colormap`: 256 RGB triples, `track_colours`, `peak_colour`,
 //!   `azimuth_bin_deg`, `scale_results`).
-//! - `result`: one localization result as in JSON lines (`frame`, `time_s`, `num_active`
-//!   when estimated, `sources` with `azimuth_deg`, `elevation_deg`, `power_db`, `id` when
-//!   tracked, `held: true` for a tracked source carried through a pause, not observed).
+//! - `result`: one localization result, its JSON line as `soundloc localize` writes it
+//!   (`frame`, `time_s`, `num_active` when estimated, `sources` with `azimuth_deg`,
+//!   `elevation_deg`, `x`, `y`, `z`, `power_db`, `grid_index`, `id` when tracked, `held: true`
+//!   for a tracked source carried through a pause, not observed).
 //! - `status` (about twice a second): `audio_s` localized, `rtf` (compute time / audio
 //!   time), `compute_ms` (the last block's), `lost_s` (live input dropped while behind),
 //!   `view_dropped` (messages this client missed because it read too slowly), `finished`.
@@ -94,31 +95,15 @@ pub fn hello(info: &RunInfo, azimuth_deg: &[f64], elevation_deg: &[f64]) -> Stri
     .to_string()
 }
 
-/// The `result` message of one result.
+/// The `result` message of one result: its JSON line ([`super::jsonl::to_json_line`],
+/// the same fields and rules as `soundloc localize`'s output) with `"type": "result"` first.
 pub fn result(r: &LocalizationResult) -> String {
-    let sources: Vec<_> = r
-        .sources
-        .iter()
-        .map(|s| {
-            let mut o = json!({
-                "azimuth_deg": s.azimuth_deg,
-                "elevation_deg": s.elevation_deg,
-                "power_db": s.power_db,
-            });
-            if let Some(id) = s.id {
-                o["id"] = json!(id);
-            }
-            if s.held {
-                o["held"] = json!(true);
-            }
-            o
-        })
-        .collect();
-    let mut m = json!({"type": "result", "frame": r.frame, "time_s": r.time_s, "sources": sources});
-    if let Some(n) = r.num_active {
-        m["num_active"] = json!(n);
+    let line = super::jsonl::to_json_line(r);
+    // The line is a JSON object: "{" then its fields.
+    match line.strip_prefix('{') {
+        Some(fields) => format!("{{\"type\":\"result\",{fields}"),
+        None => json!({"type": "result"}).to_string(),
     }
-    m.to_string()
 }
 
 /// How the run is going, for the `status` message.
@@ -230,6 +215,14 @@ mod tests {
             (json!(true), json!(0))
         );
         assert_eq!(v["sources"][0]["azimuth_deg"], 90.0);
+        // Beyond "type", the fields are the JSON line's.
+        let mut line: serde_json::Value =
+            serde_json::from_str(&super::super::jsonl::to_json_line(&h)).unwrap();
+        line["type"] = json!("result");
+        assert_eq!(
+            serde_json::from_str::<serde_json::Value>(&result(&h)).unwrap(),
+            line
+        );
         let b = spectrum(7, 0.5, &[1.0, -2.5]);
         assert_eq!(&b[..4], SPECTRUM_MAGIC);
         assert_eq!(b.len(), SPECTRUM_HEADER_BYTES + 8);
