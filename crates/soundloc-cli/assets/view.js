@@ -80,7 +80,29 @@ function setup(h) {
     : "ring, seen from above: 0° (+x) up, 90° (+y) left; radius and colour = power";
   const w = $("waterfall");
   w.getContext("2d").clearRect(0, 0, w.width, w.height);
+  waterfallAxis();
   view.dirty = true;
+}
+
+// Azimuth labels beside the waterfall (its rows: −180° bottom … 180° top).
+function waterfallAxis() {
+  const a = $("waterfall-axis"), ctx = a.getContext("2d");
+  ctx.clearRect(0, 0, a.width, a.height);
+  ctx.fillStyle = "#aaa"; ctx.strokeStyle = "#666"; ctx.font = "11px sans-serif";
+  ctx.textAlign = "right";
+  for (const az of [180, 90, 0, -90, -180]) {
+    const y = Math.min(a.height - 6, Math.max(6, a.height - ((az + 180) / 360) * a.height));
+    ctx.textBaseline = "middle";
+    ctx.fillText(`${az}°`, a.width - 7, y);
+    ctx.beginPath(); ctx.moveTo(a.width - 5, y); ctx.lineTo(a.width, y); ctx.stroke();
+  }
+}
+
+// A label with a dark outline, readable over any colour of the map.
+function outlined(ctx, text, x, y, align, baseline) {
+  ctx.font = "11px sans-serif"; ctx.textAlign = align; ctx.textBaseline = baseline;
+  ctx.lineWidth = 3; ctx.strokeStyle = "rgba(0,0,0,0.85)"; ctx.strokeText(text, x, y);
+  ctx.fillStyle = "#ddd"; ctx.fillText(text, x, y);
 }
 
 function scale() {
@@ -204,6 +226,19 @@ function drawSky(ctx, W, H, db, lo, hi) {
   ctx.drawImage(off, 0, 0, W, H);
   // Canvas pixel of a direction (also used by the browser test).
   view.skyAt = (az, el) => [((wrapAz(az) + 180) / 360) * W, ((90 - el) / 180) * H];
+  // Ticks on the edges only (lines across would hide the spectrum): azimuth along the
+  // bottom, elevation on the left.
+  ctx.strokeStyle = "#ddd"; ctx.lineWidth = 1;
+  for (const az of [-180, -90, 0, 90, 180]) {
+    const [x] = view.skyAt(az === 180 ? 179.999 : az, 0), xx = az === 180 ? W : x;
+    ctx.beginPath(); ctx.moveTo(xx, H); ctx.lineTo(xx, H - 5); ctx.stroke();
+    outlined(ctx, `${az}°`, xx, H - 7, az === -180 ? "left" : az === 180 ? "right" : "center", "bottom");
+  }
+  for (const el of [60, 30, 0, -30, -60]) {
+    const [, y] = view.skyAt(0, el);
+    ctx.beginPath(); ctx.moveTo(0, y); ctx.lineTo(5, y); ctx.stroke();
+    outlined(ctx, `${el}°`, 7, y, "left", "middle");
+  }
   return (s) => view.skyAt(s.azimuth_deg, s.elevation_deg);
 }
 
@@ -260,6 +295,8 @@ function draw() {
   const c = $("map"), ctx = c.getContext("2d");
   ctx.clearRect(0, 0, c.width, c.height);
   const [lo, hi] = scale();
+  // Disconnected: the last picture stays, faded, so it is not taken for a live one.
+  ctx.globalAlpha = view.connected ? 1 : 0.35;
   const H = c.height - 20, W = view.sky ? 2 * H : c.width;
   const place = view.sky ? drawSky(ctx, W, H, view.spectrum, lo, hi) : drawRing(ctx, W, H, view.spectrum, lo, hi);
   if (view.last) {
@@ -289,6 +326,7 @@ function draw() {
   }
   ctx.fillStyle = "#ccc"; ctx.font = "11px sans-serif"; ctx.textAlign = "left"; ctx.textBaseline = "middle";
   ctx.fillText(`${lo.toFixed(1)} … ${hi.toFixed(1)} dB`, 216, c.height - 9);
+  ctx.globalAlpha = 1;
 }
 
 function connect() {

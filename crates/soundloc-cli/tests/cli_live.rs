@@ -191,7 +191,24 @@ fn browser_shows_the_ring_peaks_at_the_right_azimuths() {
         .exec("const c = document.getElementById('waterfall'); const p = c.getContext('2d').getImageData(c.width - 1, c.height / 2, 1, 1).data; return p[3];")
         .unwrap();
     assert_eq!(wf.as_i64(), Some(255));
+    // The server gone: the page says so and fades the last picture (drawn at a third of
+    // full opacity over the page's background).
     s.stop();
+    browser
+        .wait_for(
+            "return !window.soundlocView.connected && document.getElementById('status').textContent.startsWith('disconnected');",
+            Duration::from_secs(10),
+        )
+        .unwrap();
+    std::thread::sleep(Duration::from_millis(300));
+    let alpha = browser
+        .exec("const [x, y] = window.soundlocView.ringAt(30, 0.6); return document.getElementById('map').getContext('2d').getImageData(Math.round(x), Math.round(y), 1, 1).data[3];")
+        .unwrap();
+    let alpha = alpha.as_i64().unwrap();
+    assert!(
+        (1..200).contains(&alpha),
+        "ring at 30° after the server stopped: alpha {alpha} (not faded)"
+    );
 }
 
 #[test]
