@@ -152,9 +152,10 @@ fn utility_commands_end_quietly_on_a_closed_stdout_and_fail_on_a_full_one() {
     );
 }
 
-/// `-o` and `--odas-sst` naming FIFOs are followed live, as stdout is: their first lines
-/// arrive while the input is still open (until 2026-12-02 they came only at the end, or
-/// in 8 KiB bursts, although the README offers a FIFO to follow ODAS output live).
+/// `-o`, `--odas-sst` and the HARK logs naming FIFOs are followed live, as stdout is: their
+/// first lines arrive while the input is still open (until 2026-12-02 `-o` and ODAS came
+/// only at the end, or in 8 KiB bursts, although the README offers a FIFO to follow ODAS
+/// output live; the HARK logs until 2026-12-03).
 #[cfg(unix)]
 #[test]
 fn fifo_outputs_are_flushed_as_results_come() {
@@ -163,7 +164,12 @@ fn fifo_outputs_are_flushed_as_results_come() {
     let (wav, geo) = scene("live_fifo");
     let bytes = std::fs::read(&wav).unwrap();
     let mut fifos = Vec::new();
-    for name in ["live_fifo.jsonl", "live_fifo_sst.json"] {
+    for name in [
+        "live_fifo.jsonl",
+        "live_fifo_sst.json",
+        "live_fifo.log",
+        "live_fifo.xml",
+    ] {
         let f = tmp(name);
         let _ = std::fs::remove_file(&f);
         assert!(std::process::Command::new("mkfifo")
@@ -181,8 +187,12 @@ fn fifo_outputs_are_flushed_as_results_come() {
             let tx = tx.clone();
             std::thread::spawn(move || {
                 let mut r = BufReader::new(std::fs::File::open(&f).unwrap());
+                // The first line after the XML log's head.
                 let mut line = String::new();
-                r.read_line(&mut line).unwrap();
+                while line.is_empty() || line.starts_with("<hark_xml") {
+                    line.clear();
+                    r.read_line(&mut line).unwrap();
+                }
                 tx.send(line).unwrap();
                 std::io::Read::read_to_end(&mut r, &mut Vec::new()).unwrap();
             })
@@ -194,7 +204,11 @@ fn fifo_outputs_are_flushed_as_results_come() {
             .args(["--grid", "ring:5", "--period", "10", "--track", "-q", "-o"])
             .arg(&fifos[0])
             .arg("--odas-sst")
-            .arg(&fifos[1]),
+            .arg(&fifos[1])
+            .arg("--log-text")
+            .arg(&fifos[2])
+            .arg("--log-xml")
+            .arg(&fifos[3]),
     );
     // The first second (a few results: less than a write buffer holds), then wait with
     // stdin still open.
@@ -204,16 +218,28 @@ fn fifo_outputs_are_flushed_as_results_come() {
     stdin.write_all(&bytes[..cut]).unwrap();
     stdin.flush().unwrap();
     let mut first = Vec::new();
-    for _ in 0..2 {
+    for _ in 0..fifos.len() {
         first.push(
             rx.recv_timeout(std::time::Duration::from_secs(60))
                 .expect("a line before the input ended"),
         );
     }
-    // A result line, and the first line of an ODAS message ("{" alone).
+    // A result line, the first line of an ODAS message ("{" alone), a text log line
+    // (frame, then id x y z per source) and an XML log frame.
     first.sort();
-    assert_eq!(first[0], "{\n", "{first:?}");
-    assert!(first[1].starts_with("{\"frame\""), "{first:?}");
+    assert!(
+        first[0].starts_with("    <positions type=\"localization\" frame=\""),
+        "{first:?}"
+    );
+    let text: Vec<&str> = first[1].split_whitespace().collect();
+    assert!(
+        text[0].parse::<u64>().is_ok()
+            && (text.len() - 1).is_multiple_of(4)
+            && text.iter().all(|t| t.parse::<f64>().is_ok()),
+        "{first:?}"
+    );
+    assert_eq!(first[2], "{\n", "{first:?}");
+    assert!(first[3].starts_with("{\"frame\""), "{first:?}");
     stdin.write_all(&bytes[cut..]).unwrap();
     drop(stdin);
     let o = child.wait_with_output().unwrap();

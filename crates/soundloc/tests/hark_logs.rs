@@ -3,7 +3,7 @@
 
 use std::io::Read;
 use std::net::TcpListener;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
 use soundloc::formats::source_log::{self, SourceLogFormat};
@@ -116,6 +116,30 @@ fn source_log_xml_round_trip() {
     assert!(text.contains("id=\"-1\"/>"));
     assert_eq!(source_log::detect(&text), SourceLogFormat::Xml);
     check_log_round_trip(&source_log::read(&p, 0.01).expect("read"), &orig);
+}
+
+/// The streaming writer (a live run's log) writes what the whole-run writer does, and
+/// reads back to the same results.
+#[test]
+fn source_log_writer_streams_the_same_log() {
+    let orig = log_results();
+    for format in [SourceLogFormat::Text, SourceLogFormat::Xml] {
+        let mut w = source_log::SourceLogWriter::new(Vec::new(), format).unwrap();
+        for r in &orig {
+            w.write(r).unwrap();
+        }
+        let streamed = String::from_utf8(w.finish().unwrap()).unwrap();
+        let whole = match format {
+            SourceLogFormat::Text => source_log::to_text(&orig),
+            SourceLogFormat::Xml => source_log::to_xml(&orig),
+        };
+        assert_eq!(streamed, whole);
+        let back = match format {
+            SourceLogFormat::Text => source_log::parse_text(&streamed, Path::new("s.log"), 0.01),
+            SourceLogFormat::Xml => source_log::parse_xml(&streamed, Path::new("s.xml"), 0.01),
+        };
+        check_log_round_trip(&back.unwrap(), &orig);
+    }
 }
 
 #[test]

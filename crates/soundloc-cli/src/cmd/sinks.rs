@@ -3,8 +3,9 @@
 //! flushed after every block, so a pipe sees each line as soon as it exists; so are `-o` and
 //! the ODAS file outputs when they name a FIFO or device. `-o` writes a
 //! temporary file next to the target and renames it over the target only when the run
-//! succeeds. Outputs that need the whole run (summary, HARK logs, the plot) are written at
-//! the end; the spectrum `.npy` is appended to its temporary file as it comes and renamed
+//! succeeds. The HARK source-location logs are written as results come, the same way
+//! (renamed at the end; a FIFO or device flushed after every block). Outputs that need the
+//! whole run (summary, the plot) are written at the end; the spectrum `.npy` is appended to its temporary file as it comes and renamed
 //! at the end ([`super::spectrum_out`]). Every output path is checked before localization
 //! starts.
 //!
@@ -22,6 +23,7 @@ use super::localize::{note, FormatArg};
 use super::run_args::RunArgs;
 use super::spectrum_out::{spectrum_sidecar, SpectrumSink};
 use anyhow::{bail, Context};
+use soundloc::formats::source_log::{SourceLogFormat, SourceLogWriter};
 use soundloc::output::atomic::{write_atomically, AtomicFile};
 use soundloc::output::hark_stream::HarkStreamSender;
 use soundloc::output::plot::{plot_spectrum, SpectrumPlot};
@@ -235,6 +237,8 @@ pub struct Sinks {
     quiet: bool,
     /// Every result, when an end-of-run output needs them.
     keep: Option<Vec<LocalizationResult>>,
+    /// `--log-text`, `--log-xml`: written as results come.
+    logs: Vec<(SourceLogWriter<AtomicFile>, PathBuf)>,
     /// `--spectrum`, and the table `--plot` needs.
     spectrum: SpectrumSink,
     count: usize,
@@ -393,7 +397,18 @@ impl Sinks {
             Some(addr) => Some(HarkStreamSender::connect(addr, loc.config().hop as i32)?),
             None => None,
         };
-        let keep_all = a.summary.is_some() || a.log_text.is_some() || a.log_xml.is_some() || a.plot.is_some();
+        let keep_all = a.summary.is_some() || a.plot.is_some();
+        let mut logs = Vec::new();
+        for (p, format) in [
+            (&a.log_text, SourceLogFormat::Text),
+            (&a.log_xml, SourceLogFormat::Xml),
+        ] {
+            if let Some(p) = p {
+                let w = SourceLogWriter::new(AtomicFile::create(p)?, format)
+                    .with_context(|| format!("{}: writing the source-location log", p.display()))?;
+                logs.push((w, p.clone()));
+            }
+        }
         let l = &a.live;
         let ssl = l
             .odas_ssl
@@ -472,6 +487,7 @@ impl Sinks {
             sst,
             quiet: a.quiet,
             keep: keep_all.then(Vec::new),
+            logs,
             spectrum: SpectrumSink::new(a.spectrum.as_deref(), a.plot.is_some()),
             count: 0,
             pots: a.live.odas_pots,
@@ -483,6 +499,7 @@ impl Sinks {
     /// the HARK stream, the live view).
     fn other_outputs(&self) -> bool {
         self.keep.is_some()
+            || !self.logs.is_empty()
             || self.spectrum.wanted()
             || self.ssl.is_some()
             || self.sst.is_some()
@@ -596,6 +613,16 @@ impl Sinks {
                 o.write(&text)?;
             }
         }
+        for (w, p) in &mut self.logs {
+            let written = results.iter().try_for_each(|r| w.write(r)).and_then(|_| {
+                if w.get_mut().is_special() {
+                    w.get_mut().flush()
+                } else {
+                    Ok(())
+                }
+            });
+            written.with_context(|| format!("{}: writing the source-location log", p.display()))?;
+        }
         self.count += results.len();
         if let Some(k) = &mut self.keep {
             k.extend(results);
@@ -649,12 +676,12 @@ impl Sinks {
                 writeln!(w)
             })?;
         }
-        use soundloc::formats::source_log::{write, SourceLogFormat};
-        if let Some(p) = &a.log_text {
-            write(p, &results, SourceLogFormat::Text)?;
-        }
-        if let Some(p) = &a.log_xml {
-            write(p, &results, SourceLogFormat::Xml)?;
+        for (w, p) in self.logs {
+            let f = w
+                .finish()
+                .and_then(|mut f| f.flush().map(|_| f))
+                .with_context(|| format!("{}: writing the source-location log", p.display()))?;
+            f.commit()?;
         }
         let grid = loc.grid();
         let az: Vec<f64> = (0..grid.len()).map(|d| grid.azimuth_deg(d)).collect();

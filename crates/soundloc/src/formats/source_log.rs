@@ -32,7 +32,8 @@
 //!
 //! An untracked source (`id: None`) is written as id −1, and id −1 reads back as `None`.
 //! Sources are written in the result's order (strongest first) and read back in file order.
-//! Writers replace the file atomically ([`crate::output::atomic::AtomicFile`]).
+//! Writers replace the file atomically ([`crate::output::atomic::AtomicFile`]);
+//! [`SourceLogWriter`] writes one result at a time (a live run's log, a FIFO).
 
 use std::fmt::Write as _;
 use std::io::Write as _;
@@ -79,50 +80,110 @@ fn source_from_xyz(id: i64, x: f64, y: f64, z: f64) -> Source {
     }
 }
 
-/// The text log as a string.
-pub fn to_text(results: &[LocalizationResult]) -> String {
-    let mut s = String::new();
-    for r in results {
-        let _ = write!(s, "{}", r.frame);
-        for src in &r.sources {
-            let _ = write!(s, " {} {} {} {}", id_out(src), src.x, src.y, src.z);
+/// Writes a log one result at a time, as HARK's `SaveSourceLocation` does while it runs
+/// (a live run's log grows as results come; a FIFO's reader sees each frame at once when
+/// the caller flushes). [`SourceLogWriter::finish`] writes the XML tail.
+#[derive(Debug)]
+pub struct SourceLogWriter<W: std::io::Write> {
+    w: W,
+    format: SourceLogFormat,
+    line: String,
+}
+
+impl<W: std::io::Write> SourceLogWriter<W> {
+    /// A writer to `w`; the XML head is written now.
+    pub fn new(mut w: W, format: SourceLogFormat) -> std::io::Result<Self> {
+        if format == SourceLogFormat::Xml {
+            w.write_all(XML_HEAD.as_bytes())?;
         }
-        s.push('\n');
+        Ok(SourceLogWriter {
+            w,
+            format,
+            line: String::new(),
+        })
+    }
+
+    /// One result: a text line, or one `<positions>` element.
+    pub fn write(&mut self, r: &LocalizationResult) -> std::io::Result<()> {
+        self.line.clear();
+        push_frame(&mut self.line, r, self.format);
+        self.w.write_all(self.line.as_bytes())
+    }
+
+    /// The underlying writer, e.g. to flush it after a block of results.
+    pub fn get_mut(&mut self) -> &mut W {
+        &mut self.w
+    }
+
+    /// Ends the log (the XML tail) and returns the writer, not flushed.
+    pub fn finish(mut self) -> std::io::Result<W> {
+        if self.format == SourceLogFormat::Xml {
+            self.w.write_all(XML_TAIL.as_bytes())?;
+        }
+        Ok(self.w)
+    }
+}
+
+/// Appends one result's text line or `<positions>` element to `s`.
+fn push_frame(s: &mut String, r: &LocalizationResult, format: SourceLogFormat) {
+    match format {
+        SourceLogFormat::Text => {
+            let _ = write!(s, "{}", r.frame);
+            for src in &r.sources {
+                let _ = write!(s, " {} {} {} {}", id_out(src), src.x, src.y, src.z);
+            }
+            s.push('\n');
+        }
+        SourceLogFormat::Xml => {
+            let _ = writeln!(
+                s,
+                "    <positions type=\"localization\" frame=\"{}\" coordinate=\"cartesian\">",
+                r.frame
+            );
+            for src in &r.sources {
+                let _ = writeln!(
+                    s,
+                    "        <position x=\"{}\" y=\"{}\" z=\"{}\" id=\"{}\"/>",
+                    src.x,
+                    src.y,
+                    src.z,
+                    id_out(src)
+                );
+            }
+            s.push_str("    </positions>\n");
+        }
+    }
+}
+
+const XML_HEAD: &str = "<hark_xml version=\"1.3\">\n";
+const XML_TAIL: &str = "</hark_xml>\n";
+
+/// The whole log of `results` as a string.
+fn to_string(results: &[LocalizationResult], format: SourceLogFormat) -> String {
+    let xml = format == SourceLogFormat::Xml;
+    let mut s = String::from(if xml { XML_HEAD } else { "" });
+    for r in results {
+        push_frame(&mut s, r, format);
+    }
+    if xml {
+        s.push_str(XML_TAIL);
     }
     s
+}
+
+/// The text log as a string.
+pub fn to_text(results: &[LocalizationResult]) -> String {
+    to_string(results, SourceLogFormat::Text)
 }
 
 /// The XML log as a string.
 pub fn to_xml(results: &[LocalizationResult]) -> String {
-    let mut s = String::from("<hark_xml version=\"1.3\">\n");
-    for r in results {
-        let _ = writeln!(
-            s,
-            "    <positions type=\"localization\" frame=\"{}\" coordinate=\"cartesian\">",
-            r.frame
-        );
-        for src in &r.sources {
-            let _ = writeln!(
-                s,
-                "        <position x=\"{}\" y=\"{}\" z=\"{}\" id=\"{}\"/>",
-                src.x,
-                src.y,
-                src.z,
-                id_out(src)
-            );
-        }
-        s.push_str("    </positions>\n");
-    }
-    s.push_str("</hark_xml>\n");
-    s
+    to_string(results, SourceLogFormat::Xml)
 }
 
 /// Writes `results` to `path` in `format`, atomically.
 pub fn write(path: &Path, results: &[LocalizationResult], format: SourceLogFormat) -> Result<()> {
-    let text = match format {
-        SourceLogFormat::Text => to_text(results),
-        SourceLogFormat::Xml => to_xml(results),
-    };
+    let text = to_string(results, format);
     write_atomically(path, |f| f.write_all(text.as_bytes()))
 }
 
