@@ -248,3 +248,40 @@ fn fifo_outputs_are_flushed_as_results_come() {
         r.join().unwrap();
     }
 }
+
+/// The summary and the HARK logs, taken in as results come (since 2026-12-03: no longer
+/// from every result kept to the end), hold what the whole run's results give: the
+/// summary equals `summarize` of the printed results, the text log their `to_text`.
+#[test]
+fn summary_and_logs_equal_the_whole_runs() {
+    let (wav, geo) = scene("summary_and_logs");
+    let (summary, log) = (tmp("summary_and_logs.json"), tmp("summary_and_logs.log"));
+    let o = bin()
+        .args([
+            "localize",
+            wav.to_str().unwrap(),
+            "--geometry",
+            geo.to_str().unwrap(),
+        ])
+        .args(["--grid", "ring:5", "--period", "5", "--track", "-q", "--summary"])
+        .arg(&summary)
+        .arg("--log-text")
+        .arg(&log)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let results: Vec<soundloc::LocalizationResult> = String::from_utf8(o.stdout)
+        .unwrap()
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    assert!(results.len() > 20);
+    let want = serde_json::to_value(soundloc::tracking::summarize(&results)).unwrap();
+    assert!(want.as_array().is_some_and(|a| a.len() >= 2), "{want}");
+    let got: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&summary).unwrap()).unwrap();
+    assert_eq!(got, want);
+    assert_eq!(
+        std::fs::read_to_string(&log).unwrap(),
+        soundloc::formats::source_log::to_text(&results)
+    );
+}

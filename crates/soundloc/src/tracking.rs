@@ -535,18 +535,32 @@ pub struct SourceSummary {
 /// One summary per id (sorted by id) over the results that observe it; sources without an
 /// id, and [`Source::held`] ones, are ignored.
 pub fn summarize(results: &[LocalizationResult]) -> Vec<SourceSummary> {
-    struct Acc {
-        s: SourceSummary,
-        /// Σ cos az, Σ sin az, Σ el (radians), and how many directions.
-        sum: [f64; 3],
-        n: usize,
-    }
-    let mut acc: BTreeMap<i64, Acc> = BTreeMap::new();
-    for r in results {
+    let mut s = Summarizer::default();
+    results.iter().for_each(|r| s.add(r));
+    s.finish()
+}
+
+/// [`summarize`] one result at a time (a live run's summary, without keeping its results).
+#[derive(Debug, Clone, Default)]
+pub struct Summarizer {
+    acc: BTreeMap<i64, SummaryAcc>,
+}
+
+#[derive(Debug, Clone)]
+struct SummaryAcc {
+    s: SourceSummary,
+    /// Σ cos az, Σ sin az, Σ el (radians), and how many directions.
+    sum: [f64; 3],
+    n: usize,
+}
+
+impl Summarizer {
+    /// Takes in one result's tracked, observed sources.
+    pub fn add(&mut self, r: &LocalizationResult) {
         for s in r.sources.iter().filter(|s| !s.held) {
             let Some(id) = s.id else { continue };
             let v = unit_vector(s);
-            let a = acc.entry(id).or_insert_with(|| Acc {
+            let a = self.acc.entry(id).or_insert_with(|| SummaryAcc {
                 s: SourceSummary {
                     id,
                     start_frame: r.frame,
@@ -585,13 +599,18 @@ pub fn summarize(results: &[LocalizationResult]) -> Vec<SourceSummary> {
             }
         }
     }
-    acc.into_values()
-        .map(|mut a| {
-            let [c, s, el] = a.sum;
-            let az = s.atan2(c).to_degrees();
-            a.s.mean_azimuth_deg = if az <= -180.0 { az + 360.0 } else { az };
-            a.s.mean_elevation_deg = (el / a.n.max(1) as f64).to_degrees();
-            a.s
-        })
-        .collect()
+
+    /// One summary per id, sorted by id.
+    pub fn finish(self) -> Vec<SourceSummary> {
+        self.acc
+            .into_values()
+            .map(|mut a| {
+                let [c, s, el] = a.sum;
+                let az = s.atan2(c).to_degrees();
+                a.s.mean_azimuth_deg = if az <= -180.0 { az + 360.0 } else { az };
+                a.s.mean_elevation_deg = (el / a.n.max(1) as f64).to_degrees();
+                a.s
+            })
+            .collect()
+    }
 }

@@ -5,7 +5,7 @@
 //! temporary file next to the target and renames it over the target only when the run
 //! succeeds. The HARK source-location logs are written as results come, the same way
 //! (renamed at the end; a FIFO or device flushed after every block). Outputs that need the
-//! whole run (summary, the plot) are written at the end; the spectrum `.npy` is appended to its temporary file as it comes and renamed
+//! whole run (the summary, taken in as results come; the plot) are written at the end; the spectrum `.npy` is appended to its temporary file as it comes and renamed
 //! at the end ([`super::spectrum_out`]). Every output path is checked before localization
 //! starts.
 //!
@@ -235,8 +235,10 @@ pub struct Sinks {
     ssl: Option<OdasOut>,
     sst: Option<(OdasOut, SstSlots)>,
     quiet: bool,
-    /// Every result, when an end-of-run output needs them.
+    /// Every result, when the plot needs them.
     keep: Option<Vec<LocalizationResult>>,
+    /// `--summary`, taken in as results come.
+    summary: Option<soundloc::tracking::Summarizer>,
     /// `--log-text`, `--log-xml`: written as results come.
     logs: Vec<(SourceLogWriter<AtomicFile>, PathBuf)>,
     /// `--spectrum`, and the table `--plot` needs.
@@ -397,7 +399,7 @@ impl Sinks {
             Some(addr) => Some(HarkStreamSender::connect(addr, loc.config().hop as i32)?),
             None => None,
         };
-        let keep_all = a.summary.is_some() || a.plot.is_some();
+        let keep_all = a.plot.is_some();
         let mut logs = Vec::new();
         for (p, format) in [
             (&a.log_text, SourceLogFormat::Text),
@@ -487,6 +489,7 @@ impl Sinks {
             sst,
             quiet: a.quiet,
             keep: keep_all.then(Vec::new),
+            summary: a.summary.is_some().then(Default::default),
             logs,
             spectrum: SpectrumSink::new(a.spectrum.as_deref(), a.plot.is_some()),
             count: 0,
@@ -499,6 +502,7 @@ impl Sinks {
     /// the HARK stream, the live view).
     fn other_outputs(&self) -> bool {
         self.keep.is_some()
+            || self.summary.is_some()
             || !self.logs.is_empty()
             || self.spectrum.wanted()
             || self.ssl.is_some()
@@ -623,6 +627,9 @@ impl Sinks {
             });
             written.with_context(|| format!("{}: writing the source-location log", p.display()))?;
         }
+        if let Some(s) = &mut self.summary {
+            results.iter().for_each(|r| s.add(r));
+        }
         self.count += results.len();
         if let Some(k) = &mut self.keep {
             k.extend(results);
@@ -669,8 +676,8 @@ impl Sinks {
             o.finish(a.quiet)?;
         }
         let results = self.keep.unwrap_or_default();
-        if let Some(p) = &a.summary {
-            let s = soundloc::tracking::summarize(&results);
+        if let (Some(p), Some(s)) = (&a.summary, self.summary) {
+            let s = s.finish();
             write_atomically(p, |w| {
                 serde_json::to_writer_pretty(&mut *w, &s)?;
                 writeln!(w)
