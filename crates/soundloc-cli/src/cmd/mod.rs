@@ -25,6 +25,7 @@ pub mod bench;
 pub mod demo;
 pub mod input;
 pub mod listen;
+mod live_out;
 pub mod localize;
 pub mod noisecm;
 pub mod run_args;

@@ -1,13 +1,12 @@
 //! Where `localize` and `listen` put results. Result lines (JSON lines or CSV, on stdout or
-//! `-o FILE`) and the HARK network stream are written as each window completes; stdout is
-//! flushed after every block, so a pipe sees each line as soon as it exists; so are `-o` and
-//! the ODAS file outputs when they name a FIFO or device. `-o` writes a
-//! temporary file next to the target and renames it over the target only when the run
-//! succeeds. The HARK source-location logs are written as results come, the same way
-//! (renamed at the end; a FIFO or device flushed after every block). Outputs that need the
-//! whole run (the summary, taken in as results come; the plot) are written at the end; the spectrum `.npy` is appended to its temporary file as it comes and renamed
-//! at the end ([`super::spectrum_out`]). Every output path is checked before localization
-//! starts.
+//! `-o FILE`), the HARK source-location logs and the HARK network stream are written as
+//! each window completes; stdout is flushed after every block, so a pipe sees each line
+//! as soon as it exists; so are `-o`, the logs and the ODAS file outputs when they name a
+//! FIFO or device. Files are written to a temporary file next to the target, renamed over
+//! it only when the run succeeds. The summary is taken in as results come and written at
+//! the end; the plot needs the whole run's results; the spectrum `.npy` is appended to its
+//! temporary file as it comes and renamed at the end ([`super::spectrum_out`]). Every
+//! output path is checked before localization starts.
 //!
 //! Live outputs never stall localization: the HARK stream and ODAS's SSL/SST messages go
 //! through reconnecting senders that drop (and count) what a missing receiver cannot take,
@@ -15,10 +14,10 @@
 
 use crate::serve::LiveServer;
 use soundloc::output::live;
-use soundloc::output::netsink::NetSender;
 use soundloc::output::odas::{self, SstSlots};
-use std::time::Duration;
 
+pub use super::live_out::LiveArgs;
+use super::live_out::{odas_target, report, OdasOut, NET_GRACE};
 use super::localize::{note, FormatArg};
 use super::run_args::RunArgs;
 use super::spectrum_out::{spectrum_sidecar, SpectrumSink};
@@ -61,124 +60,6 @@ impl<W: Write> Lines<W> {
             Lines::Jsonl(j) => j.into_inner(),
             Lines::Csv(c) => c.into_inner(),
         }
-    }
-}
-
-/// Live outputs: the browser view and ODAS's JSON messages.
-#[derive(clap::Args, Debug, Clone)]
-pub struct LiveArgs {
-    /// Serve a live view (spectrum, peaks, tracks) to browsers at HOST:PORT, e.g.
-    /// 127.0.0.1:8080, or a bare PORT on loopback (port 0 picks one). After the input ends
-    /// the view stays up until Ctrl-C.
-    #[arg(long, value_name = "[HOST:]PORT")]
-    pub serve: Option<String>,
-    /// ODAS SSL messages (potential sources) to a TCP server HOST:PORT (odas_web listens
-    /// on 9001; retried while absent, never blocking) or to a file.
-    #[arg(long, value_name = "HOST:PORT|FILE")]
-    pub odas_ssl: Option<String>,
-    /// ODAS SST messages (tracked sources; needs --track) to a TCP server HOST:PORT
-    /// (odas_web listens on 9000) or to a file.
-    #[arg(long, value_name = "HOST:PORT|FILE")]
-    pub odas_sst: Option<String>,
-    /// Potential sources per ODAS SSL message (ODAS's nPots).
-    #[arg(long, default_value_t = odas::DEFAULT_POTS, requires = "odas_ssl")]
-    pub odas_pots: usize,
-    /// Track slots per ODAS SST message (ODAS's nTracks).
-    #[arg(long, default_value_t = odas::DEFAULT_TRACKS, requires = "odas_sst")]
-    pub odas_tracks: usize,
-}
-
-/// Where ODAS messages go: `tcp:HOST:PORT` or `HOST:PORT` (a name with no `/` ending in
-/// `:digits`) is a TCP server; anything else is a file.
-enum OdasOut {
-    Net(NetSender),
-    File(AtomicFile, PathBuf),
-}
-
-/// `Some(address)` for a TCP server, `None` for a file. A name with no `/` that has a `:`
-/// but is not `HOST:PORT` (`localhost:9000x`, a trailing space, `127.0.0.1:`) is refused,
-/// and so is half an address (a bare port `9001`, `localhost`, an IP address): a
-/// mistyped address would silently become a file (`--serve 9001` means a port).
-fn odas_target<'a>(v: &'a str, what: &str) -> anyhow::Result<Option<&'a str>> {
-    if let Some(a) = v.strip_prefix("tcp:") {
-        return Ok(Some(a));
-    }
-    match v.rsplit_once(':') {
-        Some(_) if v.contains('/') => Ok(None),
-        Some((_, port)) if !port.is_empty() && port.bytes().all(|b| b.is_ascii_digit()) => Ok(Some(v)),
-        Some(_) => bail!(
-            "{what} {v:?}: neither HOST:PORT nor a file name (write tcp:HOST:PORT for a server, ./{v} for a file)"
-        ),
-        None if v.bytes().all(|b| b.is_ascii_digit())
-            || v.eq_ignore_ascii_case("localhost")
-            || v.parse::<std::net::IpAddr>().is_ok() =>
-        {
-            bail!(
-                "{what} {v:?}: half an address, not HOST:PORT (write 127.0.0.1:9001 for a server, ./{v} for a file)"
-            )
-        }
-        None => Ok(None),
-    }
-}
-
-impl OdasOut {
-    fn open(v: &str, what: &str) -> anyhow::Result<Self> {
-        Ok(match odas_target(v, what)? {
-            Some(addr) => OdasOut::Net(NetSender::start(what, addr)?),
-            None => OdasOut::File(AtomicFile::create(v)?, PathBuf::from(v)),
-        })
-    }
-    fn write(&mut self, text: &str) -> anyhow::Result<()> {
-        match self {
-            OdasOut::Net(n) => n.send(text.as_bytes().to_vec()),
-            // A FIFO or device is followed live: each message flushed as it is written.
-            OdasOut::File(f, p) => f
-                .write_all(text.as_bytes())
-                .and_then(|_| if f.is_special() { f.flush() } else { Ok(()) })
-                .with_context(|| format!("{}: writing ODAS messages", p.display()))?,
-        }
-        Ok(())
-    }
-    fn notes(&self) -> Vec<String> {
-        match self {
-            OdasOut::Net(n) => n.take_notes(),
-            OdasOut::File(..) => Vec::new(),
-        }
-    }
-    fn finish(self, quiet: bool) -> anyhow::Result<()> {
-        match self {
-            OdasOut::Net(n) => {
-                let what = n.what().to_string();
-                let peer = n.peer().to_string();
-                let (stats, notes) = n.finish_noted(NET_GRACE);
-                for m in notes {
-                    note(quiet, &m);
-                }
-                report(quiet, &what, &peer, stats);
-            }
-            OdasOut::File(mut f, p) => {
-                f.flush()
-                    .with_context(|| format!("{}: writing ODAS messages", p.display()))?;
-                f.commit()?;
-            }
-        }
-        Ok(())
-    }
-}
-
-/// How long network outputs may keep sending what is queued once the run ends.
-const NET_GRACE: Duration = Duration::from_secs(2);
-
-fn report(quiet: bool, what: &str, peer: &str, s: soundloc::output::netsink::NetStats) {
-    if s.dropped > 0 {
-        note(
-            quiet,
-            &format!(
-                "warning: {what}: {} of {} messages to {peer} dropped (receiver absent, gone or too slow)",
-                s.dropped,
-                s.sent + s.dropped
-            ),
-        );
     }
 }
 
