@@ -2,6 +2,7 @@
 //! and their writers.
 
 use crate::err;
+use crate::Released;
 use numpy::ndarray::Array2;
 use numpy::{IntoPyArray, PyArray2};
 use pyo3::exceptions::{PyTypeError, PyValueError};
@@ -13,9 +14,7 @@ use std::path::PathBuf;
 /// e.g. int16 values for 16-bit files, sampling rate in Hz).
 #[pyfunction]
 pub(crate) fn read_audio(py: Python<'_>, path: PathBuf) -> PyResult<(Bound<'_, PyArray2<f32>>, u32)> {
-    let a = py
-        .allow_threads(|| soundloc::audio::read_audio(&path))
-        .map_err(err)?;
+    let a = py.released(|| soundloc::audio::read_audio(&path)).map_err(err)?;
     let (n, c) = (a.channels.first().map_or(0, |v| v.len()), a.channels.len());
     let mut x = Array2::<f32>::zeros((n, c));
     for (j, ch) in a.channels.iter().enumerate() {
@@ -32,7 +31,7 @@ pub(crate) fn read_audio(py: Python<'_>, path: PathBuf) -> PyResult<(Bound<'_, P
 #[pyfunction]
 pub(crate) fn read_tf<'py>(py: Python<'py>, path: PathBuf) -> PyResult<Bound<'py, PyDict>> {
     let tf = py
-        .allow_threads(|| soundloc::array::TransferFunctions::load(&path))
+        .released(|| soundloc::array::TransferFunctions::load(&path))
         .map_err(err)?;
     let (d, m, b) = (tf.grid.len(), tf.num_mics, tf.num_bins);
     let data: Vec<numpy::Complex32> = tf
@@ -62,7 +61,7 @@ pub(crate) fn read_noise_cm<'py>(
 ) -> PyResult<(Bound<'py, numpy::PyArray3<numpy::Complex64>>, usize)> {
     use soundloc::formats::noise_cm::{Expected, NoiseCm};
     let k = py
-        .allow_threads(|| NoiseCm::load(&path, Expected::default()))
+        .released(|| NoiseCm::load(&path, Expected::default()))
         .map_err(err)?;
     let (f, m) = (k.nfft / 2 + 1, k.num_mics);
     let data: Vec<numpy::Complex64> = k.data.iter().map(|z| numpy::Complex64::new(z.re, z.im)).collect();
@@ -80,7 +79,7 @@ pub(crate) fn read_source_log_json(
     frame_period_s: f64,
 ) -> PyResult<Vec<String>> {
     let r = py
-        .allow_threads(|| soundloc::formats::source_log::read(&path, frame_period_s))
+        .released(|| soundloc::formats::source_log::read(&path, frame_period_s))
         .map_err(err)?;
     Ok(r.iter().map(soundloc::output::jsonl::to_json_line).collect())
 }
@@ -148,7 +147,7 @@ pub(crate) fn write_tf(
         row[first_bin..first_bin + given].copy_from_slice(src);
     }
     let data = full;
-    py.allow_threads(|| -> soundloc::Result<()> {
+    py.released(|| -> soundloc::Result<()> {
         let grid = match neighbors {
             Some(nb) => Grid::from_table(dirs, nb)?,
             None => Grid::from_points(dirs)?,
@@ -211,7 +210,7 @@ pub(crate) fn write_noise_cm(
             path.display()
         )));
     }
-    py.allow_threads(|| -> soundloc::Result<Vec<PathBuf>> {
+    py.released(|| -> soundloc::Result<Vec<PathBuf>> {
         let cm = NoiseCm::new(m, 2 * (f - 1), data)?;
         if zip {
             cm.write_zip(&path)?;
@@ -252,5 +251,5 @@ pub(crate) fn write_source_log_json(
                 .map_err(|e| PyValueError::new_err(format!("result {i}: {e}")))
         })
         .collect::<PyResult<Vec<_>>>()?;
-    py.allow_threads(|| write(&path, &results, format)).map_err(err)
+    py.released(|| write(&path, &results, format)).map_err(err)
 }

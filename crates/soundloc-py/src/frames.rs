@@ -1,5 +1,6 @@
 //! `soundloc._native.FramesLocalizer`: MUSIC / SRP on given STFT frames (`soundloc.doa`).
 
+use crate::Released;
 use crate::{err, parse};
 use numpy::{PyReadonlyArray2, PyUntypedArrayMethods};
 use pyo3::exceptions::{PyRuntimeError, PyValueError};
@@ -132,7 +133,7 @@ impl PyFrames {
             },
             ..Default::default()
         };
-        let out = py.allow_threads(|| match self.inner.lock() {
+        let out = py.released(|| match self.inner.lock() {
             Ok(mut inner) => inner.process(&config, &frames).map_err(err),
             Err(_) => Err(PyRuntimeError::new_err(
                 "frames localizer poisoned by an earlier panic",

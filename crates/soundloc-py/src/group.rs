@@ -3,6 +3,7 @@
 
 use crate::spec::PySpec;
 use crate::turns::{Turn, Turns};
+use crate::Released;
 use crate::{channel_count, directions, err, results, samples, Samples};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
@@ -87,7 +88,7 @@ impl PyGroup {
         })?;
         let g = &mut st.group;
         let b = block(&s, cf, n);
-        py.allow_threads(|| g.push(i, b, out)).map_err(err)
+        py.released(|| g.push(i, b, out)).map_err(err)
     }
 
     /// Run every waiting window of every stream (one launch per batch); returns one result
@@ -96,7 +97,7 @@ impl PyGroup {
         let mut guard = self.lock(py)?;
         let st = &mut *guard;
         let (g, outs) = (&mut st.group, &mut st.outs);
-        py.allow_threads(|| g.run(outs)).map_err(err)?;
+        py.released(|| g.run(outs)).map_err(err)?;
         take_all(py, st)
     }
 
@@ -130,7 +131,7 @@ impl PyGroup {
         }
         let views: Vec<Block<'_>> = data.iter().map(|(s, n)| block(s, cf, *n)).collect();
         let (g, outs) = (&mut st.group, &mut st.outs);
-        py.allow_threads(|| g.push_all(&views, outs)).map_err(err)?;
+        py.released(|| g.push_all(&views, outs)).map_err(err)?;
         drop(views);
         take_all(py, st)
     }
@@ -141,7 +142,7 @@ impl PyGroup {
         let mut guard = self.lock(py)?;
         let st = &mut *guard;
         let (g, outs) = (&mut st.group, &mut st.outs);
-        py.allow_threads(|| g.flush(i, outs)).map_err(err)?;
+        py.released(|| g.flush(i, outs)).map_err(err)?;
         let n = st.group.grid().len();
         let mut out = std::mem::take(&mut st.outs[i]);
         results(py, &mut out, n, st.group.config())

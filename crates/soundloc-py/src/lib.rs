@@ -18,6 +18,20 @@ mod localizer;
 mod spec;
 mod turns;
 
+/// `py.released(f)`: `f` with the GIL released, its parallel work on soundloc's pool that
+/// survives `fork` ([`soundloc::pool::install`]): a `multiprocessing` worker forked after
+/// the parent used soundloc would otherwise wait forever on rayon's inherited global pool,
+/// whose threads the child does not have. Every call into the library goes through it.
+pub(crate) trait Released {
+    fn released<T: Send, F: FnOnce() -> T + Send>(self, f: F) -> T;
+}
+
+impl Released for Python<'_> {
+    fn released<T: Send, F: FnOnce() -> T + Send>(self, f: F) -> T {
+        self.allow_threads(|| soundloc::pool::install(f))
+    }
+}
+
 pub(crate) fn err(e: soundloc::Error) -> PyErr {
     match e {
         soundloc::Error::Io { .. } => PyOSError::new_err(e.to_string()),
@@ -26,9 +40,18 @@ pub(crate) fn err(e: soundloc::Error) -> PyErr {
     }
 }
 
+/// `v` as the value of an option named by a string (an algorithm, a window type); the
+/// error lists the valid ones.
 pub(crate) fn parse<T: serde::de::DeserializeOwned>(what: &str, v: &str) -> PyResult<T> {
-    serde_json::from_value(serde_json::Value::String(v.to_string()))
-        .map_err(|_| PyValueError::new_err(format!("{what}: {v:?} is not a valid value")))
+    serde_json::from_value(serde_json::Value::String(v.to_string())).map_err(|e| {
+        // serde's "unknown variant `x`, expected one of `a`, `b`" names the valid values.
+        let e = e.to_string();
+        let valid = e
+            .split_once("expected ")
+            .map(|(_, rest)| format!(" (expected {})", rest.replace('`', "\"")))
+            .unwrap_or_default();
+        PyValueError::new_err(format!("{what}: {v:?} is not a valid value{valid}"))
+    })
 }
 
 /// Samples of a 2-D numpy array as f32 in C (row-major) order, with the array's (rows,

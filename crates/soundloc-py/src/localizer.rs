@@ -2,6 +2,7 @@
 
 use crate::spec::PySpec;
 use crate::turns::{Turn, Turns};
+use crate::Released;
 use crate::{channel_count, directions, err, results, samples, Samples};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
@@ -9,7 +10,6 @@ use pyo3::types::PyDict;
 use soundloc::audio::resample::Resampler;
 use soundloc::{Block, Localizer, Output};
 use std::path::PathBuf;
-use std::sync::atomic::{AtomicBool, Ordering};
 
 /// A stateful localizer (see `soundloc.Localizer` in Python for the arguments).
 #[pyclass(module = "soundloc._native", name = "Localizer")]
@@ -25,10 +25,6 @@ pub(crate) struct PyLocalizer {
     /// [`PySpec::rate_open`]): `localize(x, fs)` and `localize_file` rebuild the
     /// localizer for the audio's rate.
     open_rate: Option<PySpec>,
-    /// With an open rate: whether a call has named the audio's rate yet (`localize(x,
-    /// fs)`, `localize_file`'s header, `push(x, fs)`). Until then a call without `fs` is
-    /// refused instead of analysing at a guessed rate.
-    rate_named: AtomicBool,
     /// `geometry=` with `resample=True` and no `fs=`: the analysis runs at 16 kHz and the
     /// audio's rate is unknown: `localize(x)` must name it every time (it converts), a
     /// stream once (its first `push(x, fs)`; `push` does not convert).
@@ -55,7 +51,6 @@ impl PyLocalizer {
             channels_first: spec.channels_first,
             files,
             open_rate: spec.rate_open().then(|| spec.clone()),
-            rate_named: AtomicBool::new(false),
             resample_unnamed: spec.resample_rate_unnamed(),
         })
     }
@@ -78,7 +73,7 @@ impl PyLocalizer {
         let mut guard = self.lock(py)?;
         match fs {
             Some(f) => self.adopt_rate(py, &mut guard, f)?,
-            None => self.rate_known("localize(x)", "localize(x, fs)", false)?,
+            None => self.rate_known("localize(x)", "localize(x, fs)", None)?,
         }
         let loc = &mut *guard;
         let mut out = match converter(loc, &s, fs, channels_first)? {
@@ -116,32 +111,40 @@ impl PyLocalizer {
         if self.open_rate.is_some() {
             // The recording's rate, from its header, is the rate to analyse at.
             let fs = py
-                .allow_threads(|| soundloc::audio::open_source(&input).map(|s| s.format().sample_rate_hz))
+                .released(|| soundloc::audio::open_source(&input).map(|s| s.format().sample_rate_hz))
                 .map_err(err)?;
             self.adopt_rate(py, &mut inner, fs)?;
         }
         let loc = &mut *inner;
-        py.allow_threads(|| -> soundloc::Result<usize> {
-            let ins: Vec<(&std::path::Path, &str)> = std::iter::once((input.as_path(), "input"))
-                .chain(files.iter().map(|p| (p.as_path(), "a file of this localizer")))
-                .collect();
-            soundloc::output::atomic::check_outputs(&[(&output, "output")], &ins)?;
-            let mut audio = soundloc::audio::read_audio(&input)?;
-            let named = |e: soundloc::Error| soundloc::Error::Config(format!("{}: {e}", input.display()));
-            if let Some(r) = loc
-                .input_converter(audio.sample_rate_hz, audio.num_channels())
-                .map_err(named)?
-            {
-                audio = soundloc::audio::resample::resample_audio(&audio, r.rate_out()).map_err(named)?;
-            }
-            loc.reset()?;
-            let run = loc.localize(&audio.channels)?;
+        let named = |e: soundloc::Error| soundloc::Error::Config(format!("{}: {e}", input.display()));
+        let audio = py
+            .released(|| -> soundloc::Result<soundloc::audio::Audio> {
+                let ins: Vec<(&std::path::Path, &str)> = std::iter::once((input.as_path(), "input"))
+                    .chain(files.iter().map(|p| (p.as_path(), "a file of this localizer")))
+                    .collect();
+                soundloc::output::atomic::check_outputs(&[(&output, "output")], &ins)?;
+                let mut audio = soundloc::audio::read_audio(&input)?;
+                if let Some(r) = loc
+                    .input_converter(audio.sample_rate_hz, audio.num_channels())
+                    .map_err(named)?
+                {
+                    audio = soundloc::audio::resample::resample_audio(&audio, r.rate_out()).map_err(named)?;
+                }
+                loc.reset()?;
+                Ok(audio)
+            })
+            .map_err(err)?;
+        // In pieces, Ctrl-C honoured between them; interrupted, nothing is written.
+        let mut out = Output::default();
+        push_in_pieces(py, loc, Block::Planar(&audio.channels), &mut out)?;
+        py.released(|| -> soundloc::Result<usize> {
+            loc.flush(&mut out)?;
             if csv {
-                soundloc::output::csv::write_csv_file(&output, &run.results)?;
+                soundloc::output::csv::write_csv_file(&output, &out.results)?;
             } else {
-                soundloc::output::jsonl::write_jsonl_file(&output, &run.results)?;
+                soundloc::output::jsonl::write_jsonl_file(&output, &out.results)?;
             }
-            Ok(run.results.len())
+            Ok(out.results.len())
         })
         .map_err(err)
     }
@@ -175,7 +178,7 @@ impl PyLocalizer {
         let mut out = Output::default();
         let mut inner = self.lock(py)?;
         let loc = &mut *inner;
-        match py.allow_threads(|| loc.flush(&mut out)) {
+        match py.released(|| loc.flush(&mut out)) {
             Err(soundloc::Error::NoWindow(m)) => out.notes.push(format!("no results: {m}")),
             r => r.map_err(err)?,
         }
@@ -251,7 +254,7 @@ impl PyLocalizer {
         let open = self.open_rate.is_some();
         let have = loc.config().sample_rate_hz;
         match fs {
-            None => self.rate_known("push(x)", "push(x, fs)", true),
+            None => self.rate_known("push(x)", "push(x, fs)", Some(!first)),
             Some(f) if open && first => self.adopt_rate(py, loc, f),
             Some(f) if f != have => Err(PyValueError::new_err(if open {
                 format!(
@@ -264,10 +267,7 @@ impl PyLocalizer {
                      (localize(x, fs) converts whole recordings with resample=True)"
                 )
             })),
-            Some(_) => {
-                self.rate_named.store(true, Ordering::Relaxed);
-                Ok(())
-            }
+            Some(_) => Ok(()),
         }
     }
 
@@ -279,24 +279,23 @@ impl PyLocalizer {
             if loc.config().sample_rate_hz != fs {
                 *loc = spec.localizer(py)?;
             }
-            self.rate_named.store(true, Ordering::Relaxed);
         }
         Ok(())
     }
 
-    /// A call (`what`; `stream`: a push) without the audio's rate: refused while the rate is open and no
-    /// call has named it yet (`with` is the call that does), and with `resample=True` and
-    /// no `fs=` ([`PyLocalizer::resample_unnamed`]) for `localize` always, for `push` until
-    /// a push named it. Free-field transfer
-    /// functions are made for the rate, so a guess gives wrong directions silently.
-    fn rate_known(&self, what: &str, with: &str, stream: bool) -> PyResult<()> {
-        if (self.open_rate.is_none() && !self.resample_unnamed)
-            || (self.rate_named.load(Ordering::Relaxed) && (stream || !self.resample_unnamed))
-        {
+    /// A call (`what`) without the audio's rate: refused while the rate is open
+    /// ([`PySpec::rate_open`]) or with `resample=True` and no `fs=`
+    /// ([`PyLocalizer::resample_unnamed`]), except for a push that continues a stream
+    /// (`stream`: `Some(true)`; its first push named the rate). `localize(x)` starts a new
+    /// recording, so it names its rate every time (`stream`: `None`): the previous
+    /// recording's would be a guess. Free-field transfer functions are made for the rate,
+    /// so a guess gives wrong directions silently. `with` is the call that names it.
+    fn rate_known(&self, what: &str, with: &str, stream: Option<bool>) -> PyResult<()> {
+        if (self.open_rate.is_none() && !self.resample_unnamed) || stream == Some(true) {
             return Ok(());
         }
         if self.resample_unnamed {
-            let how = if stream {
+            let how = if stream.is_some() {
                 "a stream's first push names it (16000 Hz, the rate the analysis runs at: push does not convert)"
             } else {
                 "it is converted to the 16000 Hz the analysis runs at"
@@ -307,10 +306,15 @@ impl PyLocalizer {
                  directions for audio at another rate"
             )));
         }
+        let each = if stream.is_some() {
+            "a stream's first push names it"
+        } else {
+            "each recording names its own: the previous one's is not assumed"
+        };
         Err(PyValueError::new_err(format!(
             "{what}: the audio's sampling rate is not known (geometry= without fs=): pass fs= to \
-             Localizer(), or call {with} (free-field transfer functions are made for that rate; \
-             a guess would give wrong directions for audio at another)"
+             Localizer(), or call {with}; {each} (free-field transfer functions are made for that \
+             rate; a guess would give wrong directions for audio at another)"
         )))
     }
 }
@@ -345,17 +349,19 @@ fn run_converted(
     let n_ch = if channels_first { rows } else { cols };
     let block = block_of(s.data(), n_ch, channels_first);
     let mut out = Output::default();
-    py.allow_threads(|| -> soundloc::Result<()> {
-        let mut inter = Vec::new();
-        block.append_interleaved(&mut inter)?;
-        let mut conv = Vec::new();
-        r.process(&inter, &mut conv)?;
-        r.finish(&mut conv)?;
-        loc.reset()?;
-        loc.push(block_of(&conv, n_ch, false), &mut out)?;
-        loc.flush(&mut out)
-    })
-    .map_err(err)?;
+    let conv = py
+        .released(|| -> soundloc::Result<Vec<f32>> {
+            let mut inter = Vec::new();
+            block.append_interleaved(&mut inter)?;
+            let mut conv = Vec::new();
+            r.process(&inter, &mut conv)?;
+            r.finish(&mut conv)?;
+            loc.reset()?;
+            Ok(conv)
+        })
+        .map_err(err)?;
+    push_in_pieces(py, loc, block_of(&conv, n_ch, false), &mut out)?;
+    py.released(|| loc.flush(&mut out)).map_err(err)?;
     Ok(out)
 }
 
@@ -370,16 +376,43 @@ fn run(
     let fs = loc.config().sample_rate_hz;
     let n_ch = channel_count(s.shape(), channels_first, |c| loc.check_input(fs, c))?;
     let mut out = Output::default();
-    let data = s.data();
-    py.allow_threads(|| -> soundloc::Result<()> {
-        loc.push(block_of(data, n_ch, channels_first), &mut out)?;
-        if flush {
-            loc.flush(&mut out)?;
-        }
-        Ok(())
-    })
-    .map_err(err)?;
+    push_in_pieces(py, loc, block_of(s.data(), n_ch, channels_first), &mut out)?;
+    if flush {
+        py.released(|| loc.flush(&mut out)).map_err(err)?;
+    }
     Ok(out)
+}
+
+/// Wall time a piece of [`push_in_pieces`] may take before the next is not made larger.
+const PIECE_SECONDS: f64 = 0.25;
+
+/// `loc.push(block)`, in pieces with the GIL released, Ctrl-C honoured between them: a
+/// `KeyboardInterrupt` (or another signal handler's exception) stops a long call within
+/// about [`PIECE_SECONDS`] instead of after the whole block. Pieces start at one second
+/// of audio and double while one takes less than that (a device's batches stay large);
+/// the results equal one push's. The block is checked whole first, so a bad sample
+/// anywhere in it leaves the stream as it was. Interrupted, the stream holds the pieces
+/// pushed so far and their results are dropped with the call.
+fn push_in_pieces(py: Python<'_>, loc: &mut Localizer, block: Block<'_>, out: &mut Output) -> PyResult<()> {
+    loc.check_block(&block).map_err(err)?;
+    let total = block.samples().map_err(err)?;
+    let mut piece = (loc.config().sample_rate_hz as usize).max(1);
+    let mut scratch = Vec::new();
+    let mut start = 0usize;
+    loop {
+        let end = total.min(start.saturating_add(piece));
+        let t = std::time::Instant::now();
+        py.released(|| loc.push(block.range(start..end, &mut scratch), out))
+            .map_err(err)?;
+        start = end;
+        if start >= total {
+            return Ok(());
+        }
+        py.check_signals()?;
+        if t.elapsed().as_secs_f64() < PIECE_SECONDS {
+            piece = piece.saturating_mul(2);
+        }
+    }
 }
 
 /// A view of (samples, channels) or, channels first, (channels, samples) data.

@@ -2,6 +2,7 @@
 //! a noise recording as arrays). `Localizer` and `StreamGroup` are both built from one
 //! [`PySpec`], so they take the same arguments (documented on `soundloc.Localizer`).
 
+use crate::Released;
 use crate::{err, parse, points, samples};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
@@ -469,7 +470,7 @@ impl PySpec {
     fn localizer_noted(&self, py: Python<'_>) -> PyResult<Localizer> {
         self.check_fs_early()?;
         let loc = py
-            .allow_threads(|| match self.arrays()? {
+            .released(|| match self.arrays()? {
                 None => Localizer::new(&self.spec),
                 Some((tf, k, note)) => {
                     let mut loc = Localizer::with_transfer_functions(&self.spec, tf, k)?;
@@ -494,7 +495,7 @@ impl PySpec {
         }
         self.check_fs_early()?;
         let g = py
-            .allow_threads(|| match self.arrays()? {
+            .released(|| match self.arrays()? {
                 None => LocalizerGroup::new(&self.spec, streams),
                 Some((tf, k, note)) => {
                     let mut g = LocalizerGroup::with_transfer_functions(&self.spec, tf, k, streams)?;

@@ -50,6 +50,8 @@ impl<T: Send> Turns<T> {
             t.0 - 1
         };
         if self.tickets().1 != mine {
+            // Waiting, not working: outside soundloc's pool, whose threads the call being
+            // served needs (a waiter on one would leave it fewer, or none).
             py.allow_threads(|| {
                 let mut t = self.tickets();
                 while t.1 != mine {

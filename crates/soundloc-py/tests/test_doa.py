@@ -163,6 +163,17 @@ def test_ported_scripts_get_errors_in_their_own_terms():
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         d.locate_sources(X)
+    # A silent block (no peaks: num_src 0 afterwards, as pyroomacoustics sets it) does not
+    # break the next call, which looks for the number asked for again (until 2026-12-03
+    # every later call raised "num-sources ... got 0"); a batch of X is named as one.
+    want = d.src_idx.copy()
+    d.locate_sources(np.zeros_like(X))
+    assert d.num_src == 0
+    d.locate_sources(X)
+    np.testing.assert_array_equal(d.src_idx, want)
+    assert d.num_src == len(want) == 1
+    with pytest.raises(ValueError, match=r"X must be \(M, nfft/2 \+ 1, snapshots\).*for a batch"):
+        d.locate_sources(X[None])
 
 
 def test_views_and_dtypes_give_the_same_result():

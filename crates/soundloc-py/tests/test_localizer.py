@@ -169,7 +169,8 @@ def test_dtypes_layouts_and_random_blocks_give_the_same_results():
     parts, pos = [], 0
     while pos < len(x):
         n = int(rng.integers(1, 4000))
-        parts.append(loc.push(x[pos : pos + n]))
+        # A new stream's first push names the rate (geometry= without fs=).
+        parts.append(loc.push(x[pos : pos + n], FS if pos == 0 else None))
         pos += n
     parts.append(loc.flush())
     times = np.concatenate([p.times for p in parts])
@@ -190,7 +191,7 @@ def test_dtypes_layouts_and_random_blocks_give_the_same_results():
     wide = localizer(window_type="past", period=7, max_peaks=0, track=True)
     whole = wide.localize(x, FS)
     wide.reset()
-    parts = [wide.push(x[i : i + 1000]) for i in range(0, len(x), 1000)] + [wide.flush()]
+    parts = [wide.push(x[i : i + 1000], FS) for i in range(0, len(x), 1000)] + [wide.flush()]
     assert len({p.azimuth_deg.shape[1] for p in parts}) > 1
     assert soundloc.Results.concatenate(parts).to_records() == whole.to_records()
 
@@ -462,6 +463,15 @@ def test_push_needs_the_rate_where_it_is_open():
     r16 = soundloc.Results.concatenate([loc.push(x, fs=FS), loc.flush()])
     assert loc.fs == FS
     np.testing.assert_array_equal(r16.azimuth_deg, localizer(fs=FS).localize(x, FS).azimuth_deg)
+    # Each recording, and each new stream, names its rate: the previous one's is not
+    # assumed (until 2026-12-03 a second localize(x) after localize(x48, 48000) analysed
+    # 16 kHz audio as 48 kHz: a talker at 60 degrees came out at 80, no error).
+    loc.localize(x48, 48000)
+    with pytest.raises(ValueError, match="sampling rate is not known.*each recording names its own"):
+        loc.localize(x)
+    loc.reset()
+    with pytest.raises(ValueError, match="sampling rate is not known.*first push names it"):
+        loc.push(x[:1600])
     # A fixed rate (fs= given): a block named at another rate is refused.
     with pytest.raises(ValueError, match=r"push\(fs=48000\): the localizer analyses 16000 Hz"):
         localizer(fs=FS).push(x48, fs=48000)
@@ -811,3 +821,98 @@ def test_pyroomacoustics_argument_names_are_accepted():
     assert a.spec_json() != soundloc.Localizer(geometry=MICS, grid="ring:5", device="cpu").spec_json()
     with pytest.raises(TypeError, match="num_src= and num_sources= name the same argument"):
         soundloc.Localizer(geometry=MICS, grid="ring:5", num_src=1, num_sources=2)
+
+
+def _localize_in_worker(seed):
+    """A forked worker's job: its own localizer on the scene (module level: Pool pickles
+    it by name)."""
+    return localizer(period=10).localize(scene(seed=seed), FS).azimuth_deg
+
+
+@pytest.mark.skipif(not hasattr(os, "fork"), reason="fork is POSIX-only")
+def test_forked_workers_localize_after_the_parent_did():
+    """multiprocessing's fork start method (the default on Linux until Python 3.14; also
+    ProcessPoolExecutor's, and data-loader workers'): workers forked after the parent used
+    soundloc get the same results as the parent. Until 2026-12-03 every such worker waited
+    forever on rayon's global pool, which a fork copies without its threads."""
+    import multiprocessing
+
+    want = [localizer(period=10).localize(scene(seed=s), FS).azimuth_deg for s in (1, 2)]
+    pool = multiprocessing.get_context("fork").Pool(2)
+    try:
+        got = pool.map_async(_localize_in_worker, [1, 2]).get(timeout=120)
+    finally:
+        pool.terminate()
+    for g, w in zip(got, want):
+        np.testing.assert_array_equal(g, w)
+
+
+def test_ctrl_c_stops_a_long_call_and_writes_nothing(tmp_path):
+    """Ctrl-C (SIGINT) during a long localize / localize_file raises KeyboardInterrupt
+    within a fraction of the call instead of after all of it (until 2026-12-03 it came at
+    the end: 20.7 s into a 22.5 s call), localize_file then writes no file, and the
+    localizer works afterwards."""
+    import signal
+    import threading
+    import time
+
+    x = np.tile(scene(seconds=2.0), (6, 1))  # 12 s
+    loc = localizer(fs=FS, grid="sphere:2000", period=1)
+    t = time.perf_counter()
+    want = loc.localize(x, FS)
+    whole = time.perf_counter() - t
+    assert whole > 1.0, f"the call must be long enough to interrupt ({whole:.2f} s)"
+
+    def interrupted(call):
+        timer = threading.Timer(0.15 * whole, lambda: os.kill(os.getpid(), signal.SIGINT))
+        timer.start()
+        t = time.perf_counter()
+        with pytest.raises(KeyboardInterrupt):
+            call()
+        timer.join()
+        return time.perf_counter() - t
+
+    took = interrupted(lambda: loc.localize(x, FS))
+    assert took < 0.6 * whole, f"interrupted after {took:.2f} s of a {whole:.2f} s call"
+    wav = tmp_path / "long.wav"
+    write_wav(wav, x)
+    out = tmp_path / "long.jsonl"
+    took = interrupted(lambda: loc.localize_file(wav, out))
+    assert took < 0.6 * whole, f"interrupted after {took:.2f} s"
+    assert not out.exists() and list(tmp_path.iterdir()) == [wav]
+    again = loc.localize(x, FS)
+    np.testing.assert_array_equal(again.azimuth_deg, want.azimuth_deg)
+
+
+def test_array_likes_flags_and_empty_frames():
+    """What numpy pipelines pass: array-likes with __array__ (a CPU tensor's stand-in) and
+    memoryviews are taken as numpy arrays, flags as 0/1 and numpy bools; a name not among
+    an option's values lists them; a result set without rows still has its DataFrame
+    columns (a push that completed no window)."""
+
+    class Tensor:  # what torch.Tensor offers numpy
+        def __init__(self, a):
+            self.a = a
+
+        def __array__(self, dtype=None, copy=None):
+            return self.a if dtype is None else self.a.astype(dtype)
+
+    x = scene()
+    want = localizer(fs=FS).localize(x, FS)
+    loc = localizer(fs=FS)
+    got = loc.localize(Tensor(x), FS)
+    np.testing.assert_array_equal(got.azimuth_deg, want.azimuth_deg)
+    got = loc.localize(memoryview(np.ascontiguousarray(x.T)), FS, channels_first=1)
+    np.testing.assert_array_equal(got.azimuth_deg, want.azimuth_deg)
+    got = localizer(fs=FS, geometry=Tensor(MICS), channels_first=np.bool_(True)).localize(x.T.copy(), FS)
+    np.testing.assert_array_equal(got.azimuth_deg, want.azimuth_deg)
+    with pytest.raises(TypeError, match="channels_first= must be True or False, got 2"):
+        loc.localize(x, FS, channels_first=2)
+    with pytest.raises(ValueError, match='"music" is not a valid value.*expected one of.*"sevd"'):
+        localizer(fs=FS, algorithm="music")
+    pd = pytest.importorskip("pandas")
+    empty = localizer(fs=FS).push(x[:100])
+    df = empty.to_pandas()
+    assert len(df) == 0 and "power_db" in df.columns and "azimuth_deg" in df.columns
+    assert len(df[df.power_db > 10]) == 0
+    assert isinstance(df, pd.DataFrame)

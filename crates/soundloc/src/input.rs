@@ -62,6 +62,39 @@ impl<'a> Block<'a> {
         Ok(())
     }
 
+    /// Frames `range` of the block (a consistent one: [`Block::samples`]): interleaved
+    /// data is sliced, the other layouts copied into `scratch` interleaved. For pushing a
+    /// long block in pieces; the pieces' results equal the whole block's.
+    pub fn range<'b>(&self, range: Range<usize>, scratch: &'b mut Vec<f32>) -> Block<'b>
+    where
+        'a: 'b,
+    {
+        let channels = self.channels();
+        match *self {
+            Block::Interleaved { data, .. } => Block::Interleaved {
+                data: &data[range.start * channels..range.end * channels],
+                channels,
+            },
+            Block::ChannelsFirst { data, .. } => {
+                let n = data.len() / channels;
+                scratch.clear();
+                scratch.extend(range.flat_map(|i| (0..channels).map(move |c| data[c * n + i])));
+                Block::Interleaved {
+                    data: &scratch[..],
+                    channels,
+                }
+            }
+            Block::Planar(p) => {
+                scratch.clear();
+                scratch.extend(range.flat_map(|i| p.iter().map(move |c| c[i])));
+                Block::Interleaved {
+                    data: &scratch[..],
+                    channels,
+                }
+            }
+        }
+    }
+
     /// Samples per channel; an error when the layout is inconsistent (a length that is not
     /// a multiple of the channel count, channels of different lengths, no channel).
     pub fn samples(&self) -> Result<usize> {
@@ -367,6 +400,31 @@ pub fn repeated(indices: &[usize]) -> Option<(usize, usize, usize)> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_range_of_any_layout_is_the_same_interleaved_piece() {
+        let planar = vec![vec![1.0, 2.0, 3.0, 4.0], vec![10.0, 20.0, 30.0, 40.0]];
+        let inter = [1.0, 10.0, 2.0, 20.0, 3.0, 30.0, 4.0, 40.0];
+        let first = [1.0, 2.0, 3.0, 4.0, 10.0, 20.0, 30.0, 40.0];
+        for b in [
+            Block::Planar(&planar),
+            Block::Interleaved {
+                data: &inter,
+                channels: 2,
+            },
+            Block::ChannelsFirst {
+                data: &first,
+                channels: 2,
+            },
+        ] {
+            let mut scratch = Vec::new();
+            let piece = b.range(1..3, &mut scratch);
+            assert_eq!(piece.samples().unwrap(), 2);
+            let mut got = Vec::new();
+            piece.append_interleaved(&mut got).unwrap();
+            assert_eq!(got, [2.0, 20.0, 3.0, 30.0]);
+        }
+    }
 
     #[test]
     fn layouts_give_the_same_channels() {

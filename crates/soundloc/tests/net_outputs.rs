@@ -144,6 +144,41 @@ fn a_receiver_that_stops_reading_never_blocks_the_sender() {
     assert_eq!(s.sent + s.dropped, 2000, "{s:?}");
 }
 
+/// A receiver that stalls for longer than the write timeout and then reads again gets
+/// recent messages: what waited for it is bounded by the small send buffer and the
+/// queue, and the rest is dropped and counted. Until 2026-12-03 the kernel's default send
+/// buffer (up to 4 MB) held the whole stall, and ODAS/HARK receivers got a minute of
+/// stale messages after a minute's stall.
+#[test]
+fn a_receiver_back_from_a_stall_gets_recent_messages() {
+    let l = TcpListener::bind("127.0.0.1:0").unwrap();
+    let net = NetSender::start("test", &l.local_addr().unwrap().to_string()).unwrap();
+    let (conn, _) = l.accept().unwrap();
+    // 1 KiB messages, numbered, 500 per second for 4 s while the receiver reads nothing.
+    let msg = |i: usize| {
+        let mut m = format!("{i:08}").into_bytes();
+        m.resize(1023, b'.');
+        m.push(b'\n');
+        m
+    };
+    let sent = 2000;
+    for i in 0..sent {
+        net.send(msg(i));
+        std::thread::sleep(Duration::from_millis(2));
+    }
+    // Back: read what comes within a second; the first line read is not far behind.
+    conn.set_read_timeout(Some(Duration::from_secs(1))).unwrap();
+    let mut r = BufReader::new(conn);
+    let mut first = String::new();
+    let _ = r.read_line(&mut first);
+    let s = net.finish(Duration::from_millis(200));
+    assert!(s.dropped > 0, "nothing dropped during a 4 s stall: {s:?}");
+    // Delivered before the stall's end: at most ~1 MB (the buffers on both sides and the
+    // queue) instead of all 2 MB.
+    assert!(s.sent < sent as u64, "{s:?}");
+    assert!(!first.is_empty());
+}
+
 /// A receiver that closed: the next message is counted as dropped, not as sent. (TCP
 /// takes one more write after the peer closed; before, that message was lost unseen.)
 #[test]

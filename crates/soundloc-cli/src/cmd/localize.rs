@@ -134,6 +134,20 @@ pub fn drive(
             ),
         );
     }
+    if live && a.plot.is_some() {
+        // The picture needs the whole run: its spectrum rows and results stay in memory.
+        let c = loc.config();
+        let per_hour = 3600.0 * fs / (c.hop * c.period) as f64;
+        note(
+            a.quiet,
+            &format!(
+                "--plot keeps every result and spectrum row of this live session in memory for the \
+                 picture, about {:.0} MB per hour here: leave it out of long sessions (--spectrum \
+                 and the other outputs are written as they come)",
+                per_hour * (loc.grid().len() * 4 + 500) as f64 / 1e6
+            ),
+        );
+    }
     let mut sinks = Sinks::open(a, &loc, &name.display().to_string())?;
     let total = fmt.total_frames.unwrap_or(0);
     let bar = (!a.quiet && !live && total as f64 / fs > 3.0).then(|| {
@@ -319,7 +333,8 @@ pub fn drive(
     tracing::debug!("outputs written");
     drop(loc);
     tracing::debug!("localizer released");
-    if let Some(mut v) = view {
+    // Ended by Ctrl-C (or SIGTERM, SIGHUP): the view goes with the run, as it was asked.
+    if let Some(mut v) = view.filter(|_| !super::input::interrupted()) {
         v.status(Sinks::status(&progress, true), true);
         note(
             a.quiet,

@@ -203,7 +203,8 @@ pub struct RunArgs {
     /// Write the dB spectrum [result][direction] as .npy (plus FILE.json next to it, e.g. spec.npy.json, with times and directions).
     #[arg(long)]
     pub spectrum: Option<PathBuf>,
-    /// Write a plot of the spectrum over time × azimuth (.png or .svg).
+    /// Write a plot of the spectrum over time × azimuth (.png or .svg) at the end; the run's
+    /// results and spectrum rows stay in memory until then (a long live session grows).
     #[arg(long)]
     pub plot: Option<PathBuf>,
     /// Track sources (HARK SourceTracker) and add ids.

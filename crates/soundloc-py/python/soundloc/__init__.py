@@ -249,13 +249,49 @@ class Results:
                         held=bool(self.held is not None and self.held[i, j]),
                     )
                 )
-        return pd.DataFrame(rows)
+        # The columns are there without rows too (a push that completed no window,
+        # silence), so df.power_db and df[df.power_db > x] work either way.
+        columns = ["frame", "time_s", "rank", "id", "azimuth_deg", "elevation_deg", "power_db",
+                   "grid_index", "held"]
+        return pd.DataFrame(rows, columns=columns)
 
 
 # Arguments that are counts or indices (unsigned in the library).
 _COUNTS = {"num_sources", "window", "period", "nfft", "hop", "channels", "input_channels",
            "invert_channels",
            "subspace_dim", "preroll", "noise_preceding"}
+
+
+# Arguments that are flags: True/False, also as numpy bools or the integers 0 and 1.
+_FLAGS = {"track", "track_active_only", "spectrum", "channels_first", "normalize_bins", "refine",
+          "subspace_tracking", "resample", "coherence"}
+
+
+def _flag(name, v):
+    """A flag's value as bool (None stays None); anything but a bool, a numpy bool, 0 or 1
+    is a TypeError naming the argument."""
+    if v is None or isinstance(v, bool):
+        return v
+    if isinstance(v, np.bool_):
+        return bool(v)
+    if isinstance(v, (int, np.integer)) and v in (0, 1):
+        return bool(v)
+    raise TypeError(f"{name}= must be True or False, got {v!r}")
+
+
+def _array(x):
+    """x as a numpy array where it is another array-like (a CPU tensor, a memoryview, an
+    array of another library: anything with ``__array__`` or the buffer protocol), or as
+    it is (a numpy array, or something the binding will name as wrong)."""
+    if isinstance(x, np.ndarray) or x is None or isinstance(x, (str, bytes, int, float)):
+        return x
+    if hasattr(x, "__array__") or isinstance(x, memoryview):
+        return np.asarray(x)
+    return x
+
+
+# Arguments that are arrays: other array-likes are taken through numpy.
+_ARRAYS = {"noise", "geometry"}
 
 
 # pyroomacoustics' names for the same arguments (its DOA constructors' num_src and c).
@@ -268,6 +304,8 @@ def _spec_of(kwargs):
             if name in kwargs:
                 raise TypeError(f"{alias}= and {name}= name the same argument: give one")
             kwargs = {(name if k == alias else k): v for k, v in kwargs.items()}
+    kwargs = {k: (_flag(k, v) if k in _FLAGS else _array(v) if k in _ARRAYS else v)
+              for k, v in kwargs.items()}
     # A negative count or index is a bad value, not a numeric overflow.
     try:
         return _spec(**kwargs)
@@ -294,7 +332,7 @@ class Localizer:
 
     def localize(self, x, fs=None, channels_first=None) -> Results:
         """Localize a whole recording (the stream is reset first)."""
-        return Results(**self._n.localize(x, fs=fs, channels_first=channels_first))
+        return Results(**self._n.localize(_array(x), fs=fs, channels_first=_flag("channels_first", channels_first)))
 
     def localize_file(self, input, output, format="jsonl") -> int:
         """Localize a WAV/FLAC file and write its results as ``soundloc localize -o`` does
@@ -304,7 +342,7 @@ class Localizer:
     def push(self, block, fs=None, channels_first=None) -> Results:
         """Push a block of any length (at ``fs`` Hz: checked, and named on a stream's
         first push where the rate is open); returns the results it completed."""
-        return Results(**self._n.push(block, fs=fs, channels_first=channels_first))
+        return Results(**self._n.push(_array(block), fs=fs, channels_first=_flag("channels_first", channels_first)))
 
     def flush(self) -> Results:
         """End of input: the results still held."""
@@ -359,7 +397,7 @@ class StreamGroup:
 
     def push(self, i, block, channels_first=None) -> None:
         """Queue a block into stream ``i``; its windows run at the next run/push_all/flush."""
-        self._n.push(self._index(i), block, channels_first=channels_first)
+        self._n.push(self._index(i), _array(block), channels_first=_flag("channels_first", channels_first))
 
     def run(self) -> List[Results]:
         """Run every waiting window; one :class:`Results` per stream."""
@@ -367,7 +405,7 @@ class StreamGroup:
 
     def push_all(self, blocks, channels_first=None) -> List[Results]:
         """One block per stream (in stream order), then one run; one :class:`Results` per stream."""
-        return [Results(**r) for r in self._n.push_all(list(blocks), channels_first=channels_first)]
+        return [Results(**r) for r in self._n.push_all([_array(b) for b in blocks], channels_first=_flag("channels_first", channels_first))]
 
     def flush(self, i) -> Results:
         """End stream ``i``'s input: its last results."""

@@ -98,7 +98,7 @@ class _DOA:
         self.L = L if L.shape[0] == 3 else np.vstack([L, np.zeros((1, L.shape[1]))])
         self.M = L.shape[1]
         self.fs, self.nfft, self.c = int(fs), int(nfft), float(c)
-        self.num_src = int(num_src)
+        self.num_src = self._num_src = int(num_src)
         self.max_bin = self.nfft // 2 + 1
         self.dim = dim
         self.device, self.precision = device, precision
@@ -148,7 +148,7 @@ class _DOA:
         """Localize from X, the rfft of each microphone: (M, nfft/2 + 1, snapshots)."""
         if num_src is not None:
             self._algorithm_checks(int(num_src), self.M)
-            self.num_src = int(num_src)
+            self._num_src = int(num_src)
         X = np.asarray(X)
         if not np.iscomplexobj(X):
             # pyroomacoustics takes it too, but a real array has lost the STFT's phase: the
@@ -161,7 +161,11 @@ class _DOA:
         if (X.dtype != np.complex128 or not X.flags.aligned
                 or any(st < 0 or st % X.itemsize for st in X.strides)):
             X = np.ascontiguousarray(X, dtype=np.complex128)
-        if X.ndim != 3 or X.shape[0] != self.M:
+        if X.ndim != 3:
+            raise ValueError(
+                f"X must be (M, nfft/2 + 1, snapshots), got shape {X.shape}"
+                + ("; for a batch, call locate_sources on each X[i]" if X.ndim == 4 else ""))
+        if X.shape[0] != self.M:
             raise ValueError("Number of signals (rows) does not match the number of microphones.")
         if X.shape[1] != self.max_bin:
             raise ValueError("Mismatch in FFT length.")
@@ -177,12 +181,15 @@ class _DOA:
         self.freq_hz = bins * float(self.fs) / float(self.nfft)
         self.num_freq = bins.size
         self.num_snap = X.shape[2]
-        db, peaks = self._native.process(X, (lo, hi), weights, self.num_src)
+        db, peaks = self._native.process(X, (lo, hi), weights, self._num_src)
         self.grid.values = self._scale(10.0 ** (db.astype(np.float64) / 10.0) - 1.0)
         # soundloc gives them strongest first; pyroomacoustics ascending.
         self.src_idx = np.asarray(peaks[::-1], dtype=np.int64)
         # As pyroomacoustics: num_src becomes the number of peaks found (fewer where the
         # spectrum has fewer local maxima), so loops over range(num_src) stay in bounds.
+        # The next call still looks for the number asked for (the constructor's, or the
+        # last num_src= given): a block with no peaks (silence) does not make every later
+        # call fail on num_src=0, nor shrink MUSIC's signal subspace.
         self.num_src = len(self.src_idx)
         self.azimuth_recon = self.grid.azimuth[self.src_idx]
         if self.dim == 3:

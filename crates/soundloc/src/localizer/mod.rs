@@ -488,6 +488,14 @@ impl Localizer {
         dispatch!(mut self, e => e.push(block, out))
     }
 
+    /// [`Localizer::push`]'s checks of `block` (an open stream, the channel count, finite
+    /// samples within range), which change nothing: a caller that pushes a block in
+    /// pieces checks it whole first, so a bad sample late in it leaves the stream as it
+    /// was, as one push would.
+    pub fn check_block(&self, block: &Block<'_>) -> Result<()> {
+        dispatch!(self, e => e.check(block).map(|_| ()))
+    }
+
     /// See [`Engine::flush`].
     pub fn flush(&mut self, out: &mut Output) -> Result<()> {
         dispatch!(mut self, e => e.flush(out))
