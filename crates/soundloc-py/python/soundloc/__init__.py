@@ -13,6 +13,10 @@ first push must name it); ``loc.flush()`` at the end (no results and a note when
 stream ended before its first window); ``loc.reset()`` starts a new stream. Many arrays on one device:
 ``soundloc.StreamGroup(n, **same arguments)`` and ``g.push_all([block_0, ..., block_n-1])``.
 
+Long calls honour Ctrl-C (KeyboardInterrupt within a fraction of a second; an interrupted
+localize_file writes nothing). Processes forked after soundloc was used (multiprocessing's
+fork start method, ProcessPoolExecutor) work: each gets a thread pool of its own.
+
 HARK files as numpy: read_tf / write_tf (transfer-function zips), read_noise_cm /
 write_noise_cm (noise correlation matrices, zip or text pair), read_source_log /
 write_source_log (source-location logs, text or XML), read_audio (WAV/FLAC).
@@ -24,8 +28,8 @@ Arguments (HARK LocalizeMUSIC name / pyroomacoustics name):
         raw.nChannels channels) with grid: "ring:STEP_DEG[:ELEV]", "sphere:N", "hemisphere:N" (the N directions above the horizontal plane) or
         a (D, 3) array of unit directions, grid_radius (metres, default 1) and
         speed_of_sound (m/s, default 343); fs (SAMPLING_RATE, for geometry=; without it
-        the rate localize(x, fs) or localize_file's header names, or the first
-        push(x, fs) of a stream; StreamGroup needs it; with tf= the file's rate, and another one is an error). Directions are seen from the origin of
+        the rate each localize(x, fs) or localize_file's header names, or the first
+        push(x, fs) of each stream (never the previous recording's); StreamGroup needs it; with tf= the file's rate, and another one is an error). Directions are seen from the origin of
         the positions' frame, or from the microphones' centroid when that origin lies
         outside the array (room coordinates, as pyroomacoustics' ``L``).
     algorithm: "sevd" | "gevd" | "gevd-hark" | "gsvd" | "srp-phat" (MUSIC_ALGORITHM); default
