@@ -324,6 +324,9 @@ fn listen(addr: &str) -> anyhow::Result<TcpListener> {
 }
 
 fn websocket(conn: TcpStream, state: &Mutex<State>) {
+    // A page back from a stall (a hidden tab, a laptop lid) then finds a little of what
+    // it missed and is live again, instead of megabytes of stale frames in the kernel.
+    let _ = soundloc::output::netsink::limit_send_buffer(&conn);
     // Pages send nothing but control frames: a small limit on what is read from them.
     let config = tungstenite::protocol::WebSocketConfig::default()
         .max_message_size(Some(64 << 10))

@@ -236,9 +236,11 @@ fn connect(addrs: &[SocketAddr]) -> std::io::Result<TcpStream> {
     Err(last)
 }
 
-/// Sets the connection's send buffer to [`SEND_BUFFER_BYTES`] (`SO_SNDBUF`).
+/// Sets the connection's send buffer to [`SEND_BUFFER_BYTES`] (`SO_SNDBUF`): what a
+/// stalled reader finds waiting when it reads again is then a few seconds of messages,
+/// not the kernel's default of up to 4 MB. Also for the live view's WebSocket clients.
 #[cfg(unix)]
-fn limit_send_buffer(s: &TcpStream) -> std::io::Result<()> {
+pub fn limit_send_buffer(s: &TcpStream) -> std::io::Result<()> {
     use std::os::fd::AsRawFd;
     let size = SEND_BUFFER_BYTES as libc::c_int;
     // SAFETY: a valid socket descriptor (borrowed from `s`, open for the call) and a
@@ -261,7 +263,7 @@ fn limit_send_buffer(s: &TcpStream) -> std::io::Result<()> {
 
 /// Elsewhere the system's send buffer stays.
 #[cfg(not(unix))]
-fn limit_send_buffer(_: &TcpStream) -> std::io::Result<()> {
+pub fn limit_send_buffer(_: &TcpStream) -> std::io::Result<()> {
     Ok(())
 }
 
