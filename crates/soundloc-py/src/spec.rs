@@ -65,7 +65,7 @@ impl PySpec {
     window=50, period=50, window_type="future", freq_range=None, nfft=None, hop=None, fs=None,
     noise=None, noise_range=None, noise_cm=None, noise_segments=None, noise_preceding=None,
     track=false, tracker_thresh_db=0.0, tracker_pause_length=None, tracker_min_src_interval_deg=None,
-    tracker_min_id=None, preroll=0, track_active_only=None, device="auto", precision="f32", channels=None,
+    tracker_min_id=None, tracker_confirm_frames=None, preroll=0, track_active_only=None, device="auto", precision="f32", channels=None,
     input_channels=None, invert_channels=None, spectrum=true, grid_radius=None, speed_of_sound=None, channels_first=false,
     subspace_dim=None, normalize_bins=None, refine=None, subspace_tracking=false, resample=false,
     diagonal_loading=0.0, coherence=None, numerator=None))]
@@ -94,6 +94,7 @@ pub(crate) fn spec(
     tracker_pause_length: Option<f64>,
     tracker_min_src_interval_deg: Option<f64>,
     tracker_min_id: Option<i64>,
+    tracker_confirm_frames: Option<usize>,
     preroll: usize,
     track_active_only: Option<bool>,
     device: &str,
@@ -247,6 +248,7 @@ pub(crate) fn spec(
     let given = tracker_pause_length.is_some()
         || tracker_min_src_interval_deg.is_some()
         || tracker_min_id.is_some()
+        || tracker_confirm_frames.is_some()
         || preroll > 0
         || track_active_only.is_some()
         || tracker_thresh_db != 0.0;
@@ -261,6 +263,7 @@ pub(crate) fn spec(
         pause_length: tracker_pause_length.unwrap_or(d.pause_length),
         min_src_interval_deg: tracker_min_src_interval_deg.unwrap_or(d.min_src_interval_deg),
         min_id: tracker_min_id.unwrap_or(d.min_id),
+        confirm_frames: tracker_confirm_frames,
     };
     tracker.validate().map_err(err)?;
     spec.tracking = track.then_some(TrackingSpec {

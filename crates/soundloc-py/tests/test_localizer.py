@@ -39,7 +39,8 @@ def scene(seconds=2.0, seed=1, snr_db=20.0, fs=FS):
 
 
 def test_tracker_options_equal_the_cli(tmp_path):
-    """The tracker's options from Python give what the CLI's flags give (ids, preroll)."""
+    """The tracker's options from Python give what the CLI's flags give (ids, preroll,
+    confirmation)."""
     x = scene(seconds=2.0, seed=7)
     wav = tmp_path / "rec.wav"
     write_wav(wav, x)
@@ -47,12 +48,13 @@ def test_tracker_options_equal_the_cli(tmp_path):
     out = subprocess.run(
         [str(cli()), "localize", str(wav), "--geometry", str(geo), "--grid", "ring:5", "--device", "cpu", "-q",
          "--period", "10", "--track", "--thresh", "3", "--pause-length", "300", "--min-src-interval", "15",
-         "--min-id", "7", "--preroll", "20"],
+         "--min-id", "7", "--preroll", "20", "--confirm", "30"],
         check=True, capture_output=True, text=True,
     ).stdout
     lines = [json.loads(l) for l in out.splitlines()]
     r = localizer(period=10, track=True, tracker_thresh_db=3.0, tracker_pause_length=300.0,
-                  tracker_min_src_interval_deg=15.0, tracker_min_id=7, preroll=20).localize(x, FS)
+                  tracker_min_src_interval_deg=15.0, tracker_min_id=7, preroll=20,
+                  tracker_confirm_frames=30).localize(x, FS)
     assert len(lines) == len(r) > 0
     ids = [[s["id"] for s in l["sources"]] for l in lines]
     assert min(i for row in ids for i in row) == 7
@@ -62,7 +64,8 @@ def test_tracker_options_equal_the_cli(tmp_path):
     # Pushed in 20 ms blocks: each push's spectrum rows are those of the results it
     # returns (the preroll holds results back; their rows wait with them).
     loc = localizer(fs=FS, period=10, track=True, tracker_thresh_db=3.0, tracker_pause_length=300.0,
-                    tracker_min_src_interval_deg=15.0, tracker_min_id=7, preroll=20)
+                    tracker_min_src_interval_deg=15.0, tracker_min_id=7, preroll=20,
+                  tracker_confirm_frames=30)
     row = {f: i for i, f in enumerate(r.frames)}
     parts = [loc.push(x[i : i + 320]) for i in range(0, len(x), 320)] + [loc.flush()]
     assert sum(len(p) for p in parts) == len(r)
@@ -71,6 +74,8 @@ def test_tracker_options_equal_the_cli(tmp_path):
             np.testing.assert_array_equal(p.spectrum_db, r.spectrum_db[[row[f] for f in p.frames]])
     with pytest.raises(ValueError, match="track=True"):
         localizer(preroll=10)
+    with pytest.raises(ValueError, match="track=True"):
+        localizer(tracker_confirm_frames=10)
     with pytest.raises(ValueError, match="MIN_ID"):
         localizer(track=True, tracker_min_id=2**31)
     with pytest.raises(TypeError, match=r"Localizer\(\) got an unexpected keyword argument 'thresh'"):
@@ -203,6 +208,11 @@ def test_noise_array_selects_gevd_and_tracking_gives_ids():
     assert loc.algorithm == "gevd"
     assert any("textbook GEVD" in n for n in loc.notes)
     r = loc.localize(x, FS)
+    # New tracks are confirmed over a window (W = 50 frames) first, then both talkers
+    # are tracked in every result.
+    assert np.all(r.ids[r.frames < 50] < 0)
+    assert np.all(r.ids[r.frames >= 50, :2] >= 0)
+    r = localizer(noise=noise, track=True, tracker_confirm_frames=0).localize(x, FS)
     assert np.all(r.ids[:, :2] >= 0)
     loc = localizer(noise_range=(0.0, 0.5), algorithm="gsvd")
     assert loc.algorithm == "gsvd"
@@ -555,7 +565,8 @@ def test_geometry_by_columns_and_a_hop_past_the_frame_are_named():
 def test_room_default_tracks_start_only_where_sources_are_active():
     """track=True in the room default: a second of sensor noise before the talkers feeds
     the tracker nothing (num_active 0 there), so no track starts in it; with
-    track_active_only=False (HARK's tracker, every window) tracks start in the silence."""
+    track_active_only=False and tracker_confirm_frames=0 (HARK's tracker, every window)
+    tracks start in the silence."""
     rng = np.random.default_rng(5)
     quiet = np.round(rng.standard_normal((FS, 8)) * 30).astype(np.int16)
     x = np.concatenate([quiet, scene(seconds=2.0, seed=9)])
@@ -568,7 +579,7 @@ def test_room_default_tracks_start_only_where_sources_are_active():
     talk = gated.times >= 1.6
     for t in TALKERS:
         assert np.mean([min(angle(a, t) for a in row if a == a) <= 5.0 for row in gated.azimuth_deg[talk]]) >= 0.8
-    hark = localizer(track_active_only=False, **kw).localize(x, FS)
+    hark = localizer(track_active_only=False, tracker_confirm_frames=0, **kw).localize(x, FS)
     assert np.mean(~np.isnan(hark.azimuth_deg[silent][:, 0])) >= 0.5
     # After the talkers stop, their tracks are carried through the pause (0.8 s), marked
     # held; while they talk, the tracked sources are observed.

@@ -514,3 +514,100 @@ fn a_step_of_exactly_min_src_interval_is_the_same_everywhere_on_the_ring() {
     }
     assert!(wobbly > 0, "the rounding this test is about did not occur");
 }
+
+fn confirming(frames: usize) -> SourceTracker {
+    SourceTracker::new(TrackerConfig {
+        confirm_frames: Some(frames),
+        ..TrackerConfig::default()
+    })
+}
+
+/// Confirmation: a steady source at PERIOD 10 with confirm_frames 50 is tentative (not
+/// output) until it has been seen over 50 frames, then keeps id MIN_ID; a blip seen in
+/// three results only never gets an id and uses none up.
+#[test]
+fn confirmation_holds_back_new_sources_until_seen_over_its_frames() {
+    let mut t = confirming(50);
+    for f in (0..50).step_by(10) {
+        let mut peaks = vec![peak(30.0, 0.0, 10.0)];
+        if f <= 20 {
+            peaks.push(peak(-120.0, 0.0, 12.0));
+        }
+        let out = t.update(&result(f, peaks));
+        assert!(out.sources.is_empty(), "frame {f}: {:?}", out.sources);
+        assert_eq!(t.num_alive(), 0);
+    }
+    for f in (50..200).step_by(10) {
+        let out = t.update(&result(f, vec![peak(30.0, 0.0, 10.0)]));
+        assert_eq!(ids(&out), vec![0], "frame {f}");
+        assert!(!out.sources[0].held);
+    }
+    // Confirmation off (0, and the default None): the first sighting has an id at once,
+    // and the blip takes one.
+    for cfg in [Some(0), None] {
+        let mut hark = SourceTracker::new(TrackerConfig {
+            confirm_frames: cfg,
+            ..TrackerConfig::default()
+        });
+        let out = hark.update(&result(0, vec![peak(30.0, 0.0, 10.0), peak(-120.0, 0.0, 12.0)]));
+        assert_eq!(ids(&out), vec![0, 1]);
+    }
+}
+
+/// A tentative source must be seen again within confirm_frames, or at the very next result
+/// when results are further apart (PERIOD 50 with confirm_frames 25): seen at 0 and 50 it is
+/// confirmed at 50; missed at one result, it starts over.
+#[test]
+fn confirmation_across_results_further_apart_than_its_frames() {
+    let mut t = confirming(25);
+    assert!(t.update(&result(0, vec![peak(0.0, 0.0, 5.0)])).sources.is_empty());
+    assert_eq!(ids(&t.update(&result(50, vec![peak(2.0, 0.0, 5.0)]))), vec![0]);
+
+    let mut t = confirming(25);
+    assert!(t
+        .update(&result(0, vec![peak(90.0, 0.0, 5.0)]))
+        .sources
+        .is_empty());
+    assert!(t.update(&result(50, vec![])).sources.is_empty());
+    // Seen again at 100: a new sighting, not a confirmation.
+    assert!(t
+        .update(&result(100, vec![peak(90.0, 0.0, 5.0)]))
+        .sources
+        .is_empty());
+    assert_eq!(ids(&t.update(&result(150, vec![peak(90.0, 0.0, 5.0)]))), vec![0]);
+
+    // Within the frames, a missed result is allowed: PERIOD 10, confirm 50, seen at 0, 30
+    // and 50 (missed at 10, 20 and 40).
+    let mut t = confirming(50);
+    for (f, seen) in [(0, true), (10, false), (20, false), (30, true), (40, false)] {
+        let p = if seen { vec![peak(-45.0, 0.0, 5.0)] } else { vec![] };
+        assert!(t.update(&result(f, p)).sources.is_empty(), "frame {f}");
+    }
+    assert_eq!(ids(&t.update(&result(50, vec![peak(-45.0, 0.0, 5.0)]))), vec![0]);
+}
+
+/// A confirmed source claims its peak before a tentative one does, the two never share a
+/// peak, and a confirmed source's PAUSE_LENGTH is unchanged by confirmation; with the
+/// interval extender the confirmed source is copied back over PREROLL_LENGTH, so its onset
+/// is not lost.
+#[test]
+fn confirmation_with_pause_and_preroll() {
+    let mut t = confirming(20);
+    let mut out = Vec::new();
+    for f in (0..=40).step_by(10) {
+        out.push(t.update(&result(f, vec![peak(60.0, 0.0, 5.0)])));
+    }
+    assert_eq!(ids(&out[2]), vec![0]);
+    // Silent from 50: carried (held) until PAUSE_LENGTH 800 = 80 frames have run out.
+    for f in (50..=120).step_by(10) {
+        let r = t.update(&result(f, vec![]));
+        assert_eq!(ids(&r), vec![0], "frame {f}");
+        assert!(r.sources[0].held);
+    }
+    assert!(t.update(&result(130, vec![])).sources.is_empty());
+    let extended = extend(&out, IntervalExtenderConfig { preroll_length: 50 });
+    for r in &extended {
+        assert_eq!(ids(r), vec![0], "frame {}", r.frame);
+    }
+    assert!(extended[0].sources[0].held && extended[1].sources[0].held);
+}

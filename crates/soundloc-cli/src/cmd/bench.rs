@@ -5,7 +5,8 @@ use soundloc::bench::{run as run_bench, BenchConfig, BenchReport};
 use std::process::ExitCode;
 
 #[derive(clap::Args, Debug)]
-#[command(group(clap::ArgGroup::new("stream_or_study").args(["stream", "accuracy", "e2e"]).multiple(true)))]
+#[command(group(clap::ArgGroup::new("stream_or_study").args(["stream", "accuracy", "e2e", "tracks"]).multiple(true)))]
+#[command(group(clap::ArgGroup::new("study").args(["accuracy", "tracks"])))]
 pub struct Args {
     /// Algorithms to run (repeatable; default: gsvd and gevd).
     #[arg(long = "algorithm", value_enum)]
@@ -96,10 +97,10 @@ pub struct Args {
     #[arg(long, conflicts_with_all = ["stream", "e2e"])]
     pub accuracy: bool,
     /// With --accuracy: seeds per condition.
-    #[arg(long, default_value_t = 2, requires = "accuracy", conflicts_with_all = ["stream", "e2e"])]
+    #[arg(long, default_value_t = 2, requires = "study", conflicts_with_all = ["stream", "e2e"])]
     pub scenes: usize,
     /// With --accuracy: which seeds, the tuning split or the held-out test split.
-    #[arg(long, value_enum, default_value = "test", requires = "accuracy", conflicts_with_all = ["stream", "e2e"])]
+    #[arg(long, value_enum, default_value = "test", requires = "study", conflicts_with_all = ["stream", "e2e"])]
     pub split: SplitArg,
     /// With --accuracy: only the conditions with at most this SNR (dB).
     #[arg(long, allow_negative_numbers = true, requires = "accuracy", conflicts_with_all = ["stream", "e2e"])]
@@ -113,7 +114,7 @@ pub struct Args {
     /// With --accuracy: what else sounds besides the talkers — drone rotors 25 cm from
     /// the array (the GEVD family, K from the first second), or broadband sources spread
     /// over the room (the algorithms that need no noise recording).
-    #[arg(long, value_enum, default_value = "drone", requires = "accuracy", conflicts_with_all = ["stream", "e2e"])]
+    #[arg(long, value_enum, default_value = "drone", requires = "study", conflicts_with_all = ["stream", "e2e"])]
     pub scene: SceneArg,
     /// With --accuracy: render with an array that differs from its model, as a real array
     /// differs from its geometry or measured TFs: each microphone's position off by this
@@ -123,6 +124,13 @@ pub struct Args {
     /// ... and each channel's gain by this much (standard deviation, dB).
     #[arg(long, default_value_t = 0.0, requires = "accuracy", conflicts_with_all = ["stream", "e2e"])]
     pub gain_error_db: f64,
+    /// Tracking with ids: 12 s scenes (each talker speaking 4–7 s; 1–2 talkers, RT60
+    /// 0–0.6 s) through the defaults with tracking, the tracker's confirmation off and
+    /// at W/2, W and 2W frames, with and without --preroll 50; prints the true ids per talker, the false ids per minute
+    /// and the coverage of the talkers' speech. Uses --scene (drone or room), --split,
+    /// --scenes, --period.
+    #[arg(long, conflicts_with_all = ["stream", "e2e", "accuracy"])]
+    pub tracks: bool,
 }
 
 #[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
@@ -325,6 +333,50 @@ fn run_e2e(a: &Args, alg: AlgorithmArg) -> anyhow::Result<ExitCode> {
     Ok(ExitCode::SUCCESS)
 }
 
+fn run_tracks(a: &Args) -> anyhow::Result<ExitCode> {
+    use soundloc::bench::accuracy::{StudyNoise, TEST_SEED0};
+    use soundloc::bench::track_ids::{markdown, run, TrackVariant};
+    let (noise, snrs) = match a.scene {
+        SceneArg::Drone => (StudyNoise::Rotors, [0.0, -5.0]),
+        SceneArg::Room => (StudyNoise::Room, [10.0, 0.0]),
+        SceneArg::Interferer => anyhow::bail!("--tracks: --scene drone or room"),
+    };
+    let seed0 = match a.split {
+        SplitArg::Tune => 0,
+        SplitArg::Test => TEST_SEED0,
+    };
+    let w = soundloc::LocalizeConfig::default().window;
+    let v = |name: String, confirm_frames: Option<usize>, preroll: usize| TrackVariant {
+        name,
+        confirm_frames,
+        preroll,
+    };
+    let variants = [
+        v("confirmation off (HARK)".into(), Some(0), 0),
+        v(format!("confirm over {} frames (W/2)", w / 2), Some(w / 2), 0),
+        v(format!("confirm over {w} frames (W)"), Some(w), 0),
+        v(format!("confirm over {} frames (2W)", 2 * w), Some(2 * w), 0),
+        v("the default".into(), None, 0),
+        v("confirmation off, --preroll 50".into(), Some(0), 50),
+        v("the default, --preroll 50".into(), None, 50),
+    ];
+    let t = std::time::Instant::now();
+    let scores = run(noise, &snrs, a.period, seed0, a.scenes.max(1), &variants)?;
+    outln!(
+        "tracking study: Ring8, {noise:?} noise, SNR {snrs:?} dB, {:?} split, {} scene(s) per condition, PERIOD {}, {:.0} s",
+        a.split,
+        a.scenes.max(1),
+        a.period,
+        t.elapsed().as_secs_f64()
+    );
+    if a.json {
+        outln!("{}", serde_json::to_string(&scores)?);
+    } else {
+        out!("{}", markdown(&scores));
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
 fn run_accuracy(a: &Args) -> anyhow::Result<ExitCode> {
     use soundloc::bench::accuracy::{
         run, variants_for, variants_without_noise, SceneKind, StudyArray, StudyNoise, TEST_SEED0,
@@ -461,6 +513,9 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     }
     if a.accuracy {
         return run_accuracy(&a);
+    }
+    if a.tracks {
+        return run_tracks(&a);
     }
     for alg in algs {
         let cfg = BenchConfig {

@@ -227,6 +227,13 @@ pub struct RunArgs {
     /// SourceIntervalExtender PREROLL_LENGTH (frames); 0 = off.
     #[arg(long, requires = "track", default_value_t = 0)]
     pub preroll: usize,
+    /// Not in HARK: a new source gets its id only after it has been seen over this many
+    /// STFT frames (tentative until then, each sighting within MIN_SRC_INTERVAL of the last
+    /// and at most this many frames after it), so a peak of a few windows (a reflection, a
+    /// noise burst) starts no track; 0 = at once, as HARK. Default: the window length
+    /// (--window) when no --algorithm is named, 0 with a named algorithm.
+    #[arg(long, value_name = "FRAMES", requires = "track")]
+    pub confirm: Option<usize>,
     /// Each window feeds the tracker only its strongest num_active peaks (the source
     /// count's estimate): silence (num_active 0) starts no tracks, and one talker's second
     /// peak starts none either. Default: on in the room default (no algorithm, no noise
@@ -419,6 +426,7 @@ impl RunArgs {
                 pause_length: self.pause_length,
                 min_src_interval_deg: self.min_src_interval,
                 min_id: self.min_id,
+                confirm_frames: self.confirm,
             };
             tracker.validate()?;
             Some(TrackingSpec {

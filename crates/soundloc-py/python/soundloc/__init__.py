@@ -66,8 +66,10 @@ Arguments (HARK LocalizeMUSIC name / pyroomacoustics name):
         track_active_only (each window feeds the tracker its strongest num_active peaks,
         none when 0, so silence
         starts no tracks; None: on in the room default, whose powers do not tell silence from
-        talkers, off otherwise as HARK); as the CLI's --thresh, --pause-length,
-        --min-src-interval, --min-id, --preroll, --active-only/--no-active-only.
+        talkers, off otherwise as HARK); tracker_confirm_frames (a new source gets its id
+        once seen over this many frames; None: the window length when no algorithm is
+        named, 0 = at once, as HARK, with one); as the CLI's --thresh, --pause-length,
+        --min-src-interval, --min-id, --preroll, --active-only/--no-active-only, --confirm.
     device: "auto"|"cpu"|"cuda"; precision: "f32"|"f64".
     channels (TF_CHANNEL_SELECTION), input_channels (ChannelSelector); diagonal_loading: K + δ·(tr K / M)·I
         (a K that is not positive definite is otherwise an error).
@@ -263,7 +265,7 @@ class Results:
 # Arguments that are counts or indices (unsigned in the library).
 _COUNTS = {"num_sources", "window", "period", "nfft", "hop", "channels", "input_channels",
            "invert_channels",
-           "subspace_dim", "preroll", "noise_preceding"}
+           "subspace_dim", "preroll", "noise_preceding", "tracker_confirm_frames"}
 
 
 # Arguments that are flags: True/False, also as numpy bools or the integers 0 and 1.

@@ -12,6 +12,7 @@
 pub mod accuracy;
 pub mod e2e;
 pub mod stream;
+pub mod track_ids;
 pub mod tracking;
 
 use crate::array::{Grid, TransferFunctions};

@@ -230,8 +230,19 @@ pub(crate) fn prepare(
             ));
         }
     }
+    // A new source's confirmation (not in HARK): over one window length in the defaults
+    // (no algorithm named), off for a named algorithm.
+    let confirm = if spec.algorithm.is_none() {
+        config.window
+    } else {
+        0
+    };
     let tracking = spec.tracking.map(|t| TrackingSpec {
         active_only: Some(t.active_only.unwrap_or(room_default && config.counts_sources())),
+        tracker: crate::tracking::TrackerConfig {
+            confirm_frames: Some(t.tracker.confirm_frames.unwrap_or(confirm)),
+            ..t.tracker
+        },
         ..t
     });
     let options = StreamOptions {
