@@ -135,16 +135,13 @@ pub fn drive(
         );
     }
     if live && a.plot.is_some() {
-        // The picture needs the whole run: its spectrum rows and results stay in memory.
-        let c = loc.config();
-        let per_hour = 3600.0 * fs / (c.hop * c.period) as f64;
+        let keep = soundloc::output::plot_keep::PlotKeep::new(loc.grid().len());
         note(
             a.quiet,
             &format!(
-                "--plot keeps every result and spectrum row of this live session in memory for the \
-                 picture, about {:.0} MB per hour here: leave it out of long sessions (--spectrum \
-                 and the other outputs are written as they come)",
-                per_hour * (loc.grid().len() * 4 + 500) as f64 / 1e6
+                "--plot is written when this live session ends; until then it keeps at most about {:.0} MB                  (past {} results, neighbouring ones merge by their maximum, finer than the picture's pixels)",
+                (keep.max_groups() * (loc.grid().len() * 4 + 600)) as f64 / 1e6,
+                keep.max_groups()
             ),
         );
     }

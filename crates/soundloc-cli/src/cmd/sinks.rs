@@ -25,7 +25,8 @@ use anyhow::{bail, Context};
 use soundloc::formats::source_log::{SourceLogFormat, SourceLogWriter};
 use soundloc::output::atomic::{write_atomically, AtomicFile};
 use soundloc::output::hark_stream::HarkStreamSender;
-use soundloc::output::plot::{plot_spectrum, SpectrumPlot};
+use soundloc::output::plot::plot_spectrum;
+use soundloc::output::plot_keep::PlotKeep;
 use soundloc::output::{csv::CsvWriter, jsonl::JsonlWriter};
 use soundloc::{LocalizationResult, Localizer, Output};
 use std::io::Write;
@@ -116,13 +117,13 @@ pub struct Sinks {
     ssl: Option<OdasOut>,
     sst: Option<(OdasOut, SstSlots)>,
     quiet: bool,
-    /// Every result, when the plot needs them.
-    keep: Option<Vec<LocalizationResult>>,
+    /// What `--plot` draws, in bounded memory.
+    keep: Option<PlotKeep>,
     /// `--summary`, taken in as results come.
     summary: Option<soundloc::tracking::Summarizer>,
     /// `--log-text`, `--log-xml`: written as results come.
     logs: Vec<(SourceLogWriter<AtomicFile>, PathBuf)>,
-    /// `--spectrum`, and the table `--plot` needs.
+    /// `--spectrum`.
     spectrum: SpectrumSink,
     count: usize,
     pots: usize,
@@ -369,10 +370,10 @@ impl Sinks {
             ssl,
             sst,
             quiet: a.quiet,
-            keep: keep_all.then(Vec::new),
+            keep: keep_all.then(|| PlotKeep::new(loc.grid().len())),
             summary: a.summary.is_some().then(Default::default),
             logs,
-            spectrum: SpectrumSink::new(a.spectrum.as_deref(), a.plot.is_some()),
+            spectrum: SpectrumSink::new(a.spectrum.as_deref()),
             count: 0,
             pots: a.live.odas_pots,
             tracking: a.track,
@@ -430,6 +431,9 @@ impl Sinks {
                 v.result(live::result(r), spectrum);
             }
             v.status(status(progress, false), false);
+        }
+        if let (Some(k), Some(t)) = (&mut self.keep, &table) {
+            k.add_rows(t);
         }
         if let Some(t) = table.filter(|_| self.spectrum.wanted()) {
             self.spectrum.take(t)?;
@@ -513,7 +517,7 @@ impl Sinks {
         }
         self.count += results.len();
         if let Some(k) = &mut self.keep {
-            k.extend(results);
+            k.add_results(&results);
         }
         Ok(())
     }
@@ -556,7 +560,6 @@ impl Sinks {
         if let Some((o, _)) = self.sst {
             o.finish(a.quiet)?;
         }
-        let results = self.keep.unwrap_or_default();
         if let (Some(p), Some(s)) = (&a.summary, self.summary) {
             let s = s.finish();
             write_atomically(p, |w| {
@@ -574,25 +577,9 @@ impl Sinks {
         let grid = loc.grid();
         let az: Vec<f64> = (0..grid.len()).map(|d| grid.azimuth_deg(d)).collect();
         let el: Vec<f64> = (0..grid.len()).map(|d| grid.elevation_deg(d)).collect();
-        if let Some(table) = self.spectrum.table() {
-            if let Some(p) = &a.plot {
-                let plot = SpectrumPlot {
-                    times_s: table.times_s.clone(),
-                    azimuth_deg: az.clone(),
-                    elevation_deg: el.clone(),
-                    db: table.db.clone(),
-                    peaks: results
-                        .iter()
-                        .map(|r| r.sources.iter().map(|s| (s.azimuth_deg, s.power_db)).collect())
-                        .collect(),
-                    peak_ids: results
-                        .iter()
-                        .map(|r| r.sources.iter().map(|s| s.id).collect())
-                        .collect(),
-                    truth_azimuths_deg: Vec::new(),
-                    title: title.to_string(),
-                };
-                plot_spectrum(p, &plot)?;
+        if let (Some(p), Some(k)) = (&a.plot, self.keep) {
+            if !k.is_empty() {
+                plot_spectrum(p, &k.plot(az.clone(), el.clone(), title.to_string()))?;
                 super::localize::note(a.quiet, &format!("plot written to {}", p.display()));
             }
         }

@@ -16,7 +16,7 @@ use std::path::{Path, PathBuf};
 pub struct SpectrumSink {
     /// `--spectrum`.
     path: Option<PathBuf>,
-    /// Keep the whole table (for `--plot`, or a target that cannot seek).
+    /// Keep the whole table (a target that cannot seek, written at the end).
     keep_table: bool,
     /// Write the `.npy` as the rows come (a plain file).
     stream: bool,
@@ -28,13 +28,13 @@ pub struct SpectrumSink {
 }
 
 impl SpectrumSink {
-    /// For `--spectrum path` and whether `--plot` is asked for.
-    pub fn new(path: Option<&Path>, plot: bool) -> Self {
+    /// For `--spectrum path`.
+    pub fn new(path: Option<&Path>) -> Self {
         // A device, FIFO or socket is written in place and cannot seek.
         let special = path.is_some_and(|p| std::fs::metadata(p).is_ok_and(|m| !m.is_file()));
         SpectrumSink {
             path: path.map(Path::to_path_buf),
-            keep_table: plot || special,
+            keep_table: special,
             stream: path.is_some() && !special,
             table: None,
             streamed: None,
@@ -72,11 +72,6 @@ impl SpectrumSink {
             }
         }
         Ok(())
-    }
-
-    /// The whole table, where kept (for `--plot`).
-    pub fn table(&self) -> Option<&SpectrumTable> {
-        self.table.as_ref()
     }
 
     /// Write the `.npy` (finishing a streamed one) and its sidecar; `az`/`el` the grid's

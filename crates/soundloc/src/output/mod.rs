@@ -10,4 +10,5 @@ pub mod netsink;
 pub mod npy;
 pub mod odas;
 pub mod plot;
+pub mod plot_keep;
 pub mod style;

@@ -323,18 +323,27 @@ fn draw<DB: DrawingBackend>(
     groups.sort_unstable();
     groups.dedup();
     let listed = legend_groups(&marks, &groups);
+    // A long run's peaks, drawn as marks, would cover its spectrum: past four per pixel
+    // column on average they are dots without the outline.
+    let (radius, outline) = if marks.len() > 4 * PLOT_SIZE.0 as usize {
+        (1, false)
+    } else {
+        (3, true)
+    };
     for g in &groups {
         let [r, gr, b] = g.map_or(style::PEAK_RGB, style::track_rgb);
         let c = RGBColor(r, gr, b);
         let pts: Vec<(f64, f64)> = marks.iter().filter(|m| m.0 == *g).map(|m| m.1).collect();
-        let s = chart.draw_series(pts.iter().map(|&q| Circle::new(q, 3, c.filled())))?;
+        let s = chart.draw_series(pts.iter().map(|&q| Circle::new(q, radius, c.filled())))?;
         if listed.contains(g) {
             let label = g.map_or("detected peak".to_string(), |id| format!("source {id}"));
             s.label(label)
                 .legend(move |(x, y)| Circle::new((x + 10, y), 3, c.filled()));
         }
-        let ring = if g.is_some() { BLACK } else { WHITE };
-        chart.draw_series(pts.iter().map(|&q| Circle::new(q, 3, ring.stroke_width(1))))?;
+        if outline {
+            let ring = if g.is_some() { BLACK } else { WHITE };
+            chart.draw_series(pts.iter().map(|&q| Circle::new(q, 3, ring.stroke_width(1))))?;
+        }
     }
     if groups.len() > listed.len() {
         let more = groups.len() - listed.len();
