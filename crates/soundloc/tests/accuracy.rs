@@ -462,3 +462,57 @@ fn robust_default_keeps_half_a_small_array_for_the_noise() {
         );
     }
 }
+
+/// Two microphones 10 cm apart on the y axis, one talker at 40° in free field: the
+/// defaults (and a named MUSIC algorithm) take HARK's NUM_SOURCE default 2 as 1 on a pair,
+/// say so, and find the talker or its mirror image across the pair's line (140°: a line
+/// array tells only the angle to its line); another count is still the user's and refused;
+/// SRP-PHAT keeps 2.
+#[test]
+fn two_microphones_report_one_source_by_default() {
+    use soundloc::array::grid::GridSpec;
+    use soundloc::LocalizerSpec;
+    let mics = vec![[0.0, -0.05, 0.0], [0.0, 0.05, 0.0]];
+    let scene = Scene {
+        sensor_noise_std: 0.01,
+        ..Scene::new()
+    }
+    .with_source(SceneSource::new(position_from_az_el(40.0, 0.0, 2.0), Signal::Speech).with_gain(0.5));
+    let audio = soundloc::sim::render(&scene, &Geometry { mics: mics.clone() }, 16000, 2.0, 3);
+    let spec = |algorithm: Option<Algorithm>, num_sources: usize| {
+        let mut s = LocalizerSpec::free_field(
+            mics.clone(),
+            GridSpec::Ring {
+                step_deg: 5.0,
+                elevation_deg: 0.0,
+            },
+        );
+        s.algorithm = algorithm;
+        s.analysis.num_sources = num_sources;
+        s.analysis.period = 25;
+        s
+    };
+    for alg in [None, Some(Algorithm::Sevd), Some(Algorithm::SrpPhat)] {
+        let mut loc = Localizer::new(&spec(alg, 2)).unwrap();
+        let srp = alg == Some(Algorithm::SrpPhat);
+        assert_eq!(loc.config().num_sources, if srp { 2 } else { 1 }, "{alg:?}");
+        assert_eq!(
+            loc.notes()
+                .iter()
+                .any(|n| n.contains("2 microphones: MUSIC resolves one source")),
+            !srp,
+            "{alg:?} {:?}",
+            loc.notes()
+        );
+        let r = loc.localize(&audio.channels).unwrap().results;
+        assert!(r.len() >= 4);
+        for w in &r {
+            assert_eq!(w.sources.len(), if srp { 2 } else { 1 }, "{alg:?}");
+            let a = w.sources[0].azimuth_deg;
+            let off = (a - 40.0).abs().min((a - 140.0).abs());
+            assert!(off <= 5.0, "{alg:?}: {a}");
+        }
+    }
+    let e = Localizer::new(&spec(None, 3)).err().unwrap().to_string();
+    assert!(e.contains("between 1 and M-1 = 1 for 2 microphones"), "{e}");
+}

@@ -43,13 +43,42 @@ impl LocalizerSpec {
     ///   `coherence` says otherwise, and sub-grid refinement.
     ///
     /// An explicit `subspace_dim` is kept. An algorithm named explicitly runs as asked
-    /// (HARK-faithful).
+    /// (HARK-faithful). On 2 microphones the default `num_sources` (2) becomes 1 for the
+    /// MUSIC family (one signal dimension is all they leave), with a note.
     pub fn resolved_analysis(&self, num_mics: usize) -> (LocalizeConfig, Option<String>) {
         let (algorithm, note) = self.resolved_algorithm();
         let mut c = LocalizeConfig {
             algorithm,
             ..self.analysis.clone()
         };
+        // Two microphones leave MUSIC one signal dimension: HARK's NUM_SOURCE default (2)
+        // becomes 1 there, with a note, instead of refusing the run (any other count is
+        // the user's and is checked by the plan).
+        let pair =
+            num_mics == 2 && c.num_sources == LocalizeConfig::default().num_sources && c.algorithm.is_music();
+        if pair {
+            c.num_sources = 1;
+        }
+        let pair_note = pair.then(|| {
+            "2 microphones: MUSIC resolves one source, so one peak per window is reported \
+             (--num-sources 1, num_sources=1 in Python; srp-phat reports more)"
+                .to_string()
+        });
+        let (analysis, note) = self.resolved_defaults(c, num_mics, note);
+        let note = match (note, pair_note) {
+            (Some(a), Some(b)) => Some(format!("{a}; {b}")),
+            (a, b) => a.or(b),
+        };
+        (analysis, note)
+    }
+
+    /// [`LocalizerSpec::resolved_analysis`] after the algorithm and the source count.
+    fn resolved_defaults(
+        &self,
+        mut c: LocalizeConfig,
+        num_mics: usize,
+        note: Option<String>,
+    ) -> (LocalizeConfig, Option<String>) {
         let (named, noise) = (self.algorithm.is_some(), self.noise_given());
         c.coherence = self.coherence.unwrap_or(c.coherence || (!named && !noise));
         if !named {
