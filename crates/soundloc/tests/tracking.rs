@@ -611,3 +611,22 @@ fn confirmation_with_pause_and_preroll() {
     }
     assert!(extended[0].sources[0].held && extended[1].sources[0].held);
 }
+
+/// Confirmation needs a matching angle: with MIN_SRC_INTERVAL 0 no later peak could
+/// confirm a new source, so every id would silently be lost; refused, naming the fix.
+#[test]
+fn confirmation_with_a_zero_interval_is_refused() {
+    let c = TrackerConfig {
+        min_src_interval_deg: 0.0,
+        confirm_frames: Some(50),
+        ..TrackerConfig::default()
+    };
+    let e = c.validate().unwrap_err().to_string();
+    assert!(e.contains("MIN_SRC_INTERVAL") && e.contains("--confirm 0"), "{e}");
+    assert!(TrackerConfig {
+        confirm_frames: Some(0),
+        ..c
+    }
+    .validate()
+    .is_ok());
+}

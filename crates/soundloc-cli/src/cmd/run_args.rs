@@ -230,7 +230,8 @@ pub struct RunArgs {
     pub preroll: usize,
     /// Not in HARK: a new source gets its id only after it has been seen over this many
     /// STFT frames (tentative until then, each sighting within MIN_SRC_INTERVAL of the last
-    /// and at most this many frames after it), so a peak of a few windows (a reflection, a
+    /// and at most this many frames after it, or at the next result when --period is
+    /// longer: then 1 … PERIOD all mean two consecutive results), so a peak of a few windows (a reflection, a
     /// noise burst) starts no track; 0 = at once, as HARK. Default: the window length
     /// (--window) when no --algorithm is named, 0 with a named algorithm.
     #[arg(long, value_name = "FRAMES", requires = "track")]

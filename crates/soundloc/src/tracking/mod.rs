@@ -167,6 +167,13 @@ impl TrackerConfig {
                 self.min_src_interval_deg
             )));
         }
+        if self.confirm_frames.is_some_and(|c| c > 0) && self.min_src_interval_deg == 0.0 {
+            return Err(Error::Config(
+                "tracker confirmation (confirm_frames > 0) needs MIN_SRC_INTERVAL > 0 degrees: \
+                 a new source is confirmed by a later peak within that angle (or set it to 0: --confirm 0, tracker_confirm_frames=0)"
+                    .into(),
+            ));
+        }
         // Ids go out as 32-bit integers (HARK's streams and logs, ODAS): room for 10⁹ more.
         // HARK's logs and stream, and Python's arrays, write −1 for "no id", so ids start at
         // 0 or above.
