@@ -68,7 +68,7 @@ impl PySpec {
     tracker_min_id=None, tracker_confirm_frames=None, preroll=0, track_active_only=None, device="auto", precision="f32", channels=None,
     input_channels=None, invert_channels=None, spectrum=true, grid_radius=None, speed_of_sound=None, channels_first=false,
     subspace_dim=None, normalize_bins=None, refine=None, subspace_tracking=false, resample=false,
-    diagonal_loading=0.0, coherence=None, numerator=None))]
+    diagonal_loading=0.0, coherence=None, numerator=None, onset_frames=None))]
 #[allow(clippy::too_many_arguments)] // mirrors the Python keywords
 pub(crate) fn spec(
     tf: Option<PathBuf>,
@@ -114,6 +114,7 @@ pub(crate) fn spec(
     diagonal_loading: f64,
     coherence: Option<bool>,
     numerator: Option<&str>,
+    onset_frames: Option<usize>,
 ) -> PyResult<PySpec> {
     // Defaults: HARK's band (500–2800 Hz) and 16 kHz.
     let freq_range = freq_range.map_or(Ok((500.0, 2800.0)), |r| pair(r, "freq_range"))?;
@@ -204,6 +205,8 @@ pub(crate) fn spec(
     spec.numerator = numerator
         .map(|n| parse::<soundloc::config::Numerator>("numerator", n))
         .transpose()?;
+    // None: the default's choice (on when no algorithm is named).
+    spec.onset_frames = onset_frames;
     let a = &mut spec.analysis;
     a.num_sources = num_sources;
     a.subspace_dim = subspace_dim;

@@ -248,6 +248,20 @@ pub struct LocalizeConfig {
     /// failed check and once per ⌈W / PERIOD⌉ windows. Pays off at small PERIOD and small
     /// `signal_dim`; CPU only; no source count. Off (exact) by default.
     pub subspace_tracking: bool,
+    /// Onset weighting of the correlation ([`crate::correlation::onset`]): the memory T in
+    /// frames of each bin's recent average power; a frame enters R with the weight
+    /// w = (max(0, p − q)/p)², the squared share of its power (whitened by K for the
+    /// noise-aware algorithms) that is new against that average, so a talker's onsets
+    /// count and the reverberation after them does not. 0 = off (HARK); the defaults
+    /// without a named algorithm use 10 (docs/accuracy.md, "Onset weighting"). Refused
+    /// for SRP-PHAT, whose phase transform would discard the weights. Left out of JSON
+    /// when 0.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub onset_frames: usize,
+}
+
+fn is_zero(n: &usize) -> bool {
+    *n == 0
 }
 
 impl Default for LocalizeConfig {
@@ -277,6 +291,7 @@ impl Default for LocalizeConfig {
             coherence: false,
             numerator: Numerator::Raw,
             subspace_tracking: false,
+            onset_frames: 0,
         }
     }
 }

@@ -107,6 +107,10 @@ pub struct Plan<T: Real> {
     /// The source count's floor relative to each bin's largest value
     /// ([`crate::subspace::count::model_floor`], from the TFs' microphone positions).
     pub count_floor: f64,
+    /// The source count's independent snapshots per frame of a window: hop/N_fft
+    /// (overlapping frames), times [`crate::correlation::onset::snapshot_fraction`] with
+    /// onset weighting. MDL's N = max(1, round(W × this)) on the CPU and the GPU.
+    pub count_snapshots_per_frame: f64,
 }
 
 impl<T: Real> Plan<T> {
@@ -321,9 +325,20 @@ impl<T: Real> Plan<T> {
                 config.sample_rate_hz,
                 config.nfft,
             ),
+            count_snapshots_per_frame: Self::snapshots_per_frame(config, m),
         };
         plan.planar = plan.planar_steering();
         Ok(plan)
+    }
+
+    /// [`Plan::count_snapshots_per_frame`] for `config` on `num_mics` microphones.
+    fn snapshots_per_frame(config: &LocalizeConfig, num_mics: usize) -> f64 {
+        let overlap = config.hop.min(config.nfft) as f64 / config.nfft as f64;
+        if config.onset_frames == 0 {
+            return overlap;
+        }
+        let whitened = config.algorithm.uses_noise();
+        overlap * crate::correlation::onset::snapshot_fraction(config.onset_frames, num_mics, whitened)
     }
 
     /// The same plan with a new noise matrix K (online K updates: iGSVD / iGEVD). Only the
@@ -480,6 +495,13 @@ fn validate_config(c: &LocalizeConfig) -> Result<()> {
             "diagonal loading must be >= 0, got {}",
             c.diagonal_loading
         ));
+    }
+    if c.onset_frames > 0 && c.algorithm == Algorithm::SrpPhat {
+        return bad(
+            "onset weighting is not defined for srp-phat: its phase transform reduces every frame to \
+             its phase and would discard the weights (use onset 0, or a MUSIC algorithm)"
+                .into(),
+        );
     }
     if c.subspace_tracking {
         if !c.algorithm.is_music() {

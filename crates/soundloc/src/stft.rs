@@ -373,6 +373,11 @@ impl<T: Real> FrameRing<T> {
         &self.spectra
     }
 
+    /// The frames held, to change in place (the correlation's onset weighting).
+    pub(crate) fn spectra_mut(&mut self) -> &mut Spectra<T> {
+        &mut self.spectra
+    }
+
     /// Append `n` zeroed frames and return them for filling.
     pub(crate) fn grow(&mut self, n: usize) -> &mut [C<T>] {
         let fl = self.spectra.num_bins * self.spectra.num_mics;

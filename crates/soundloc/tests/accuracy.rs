@@ -392,6 +392,12 @@ fn a_loud_noise_source_in_k_is_not_taken_for_a_talker() {
         let audio = sc.render();
         let mut spec = drone_spec(&sc);
         spec.analysis.max_peaks = 2;
+        // The numerators compared on unweighted frames. With the defaults' onset
+        // weighting (2026-12-03) seed 6, whose interferer is speech, has one window of six
+        // whose top peak is neither the talker nor the interferer (the interferer stays
+        // 0.8 dB below it); over the study's interferer scenes the weighting is neutral
+        // to better (docs/accuracy.md, "Onset weighting").
+        spec.onset_frames = Some(0);
         // Per talk window: whether the strongest peak is the talker's, and how far the
         // interferer's peak lies below it (dB; +∞ without a peak within 5° of it).
         let mut run = |numerator: Option<Numerator>| {
@@ -449,6 +455,8 @@ fn robust_default_keeps_half_a_small_array_for_the_noise() {
         let sc = scene_with(StudyArray::Ring4, kind, c, seed).unwrap();
         let audio = sc.render();
         let mut spec = drone_spec(&sc);
+        // The subspace rule alone (onset weighting lifts the former rule to 2 of 6 here).
+        spec.onset_frames = Some(0);
         let mut robust = Localizer::new(&spec).unwrap();
         assert_eq!(robust.config().signal_dim(), 2);
         let r = robust.localize(&audio.channels).unwrap();

@@ -126,6 +126,14 @@ pub struct AnalysisArgs {
     /// default (a noise source, no algorithm named), raw with --algorithm gevd.
     #[arg(long, value_enum)]
     pub numerator: Option<NumeratorArg>,
+    /// Onset weighting: each frame of each bin enters the correlation with the weight
+    /// (max(0, p − q)/p)², the squared share of its power p (whitened by K with a noise
+    /// source) that is new against q, its average over about FRAMES frames before it, so a
+    /// talker's onsets count and the reverberation after them does not. 0 = off (HARK).
+    /// Default: 10 when no algorithm is named (not with --noise-preceding), else 0.
+    /// Not for srp-phat.
+    #[arg(long, value_name = "FRAMES")]
+    pub onset: Option<usize>,
     /// Approximate streaming mode (CPU): leading vectors tracked between windows, residual-
     /// checked; for large arrays at small --period and --num-sources; no source count.
     #[arg(long)]
@@ -341,6 +349,8 @@ impl AnalysisArgs {
             coherence: false,
             numerator: Default::default(),
             subspace_tracking: self.subspace_tracking,
+            // The spec's `onset_frames` carries the choice (None: the default's).
+            onset_frames: 0,
         }
     }
 }
@@ -470,6 +480,7 @@ impl RunArgs {
             refine: choice(self.analysis.refine, self.analysis.no_refine),
             normalize_bins: choice(self.analysis.normalize_bins, self.analysis.no_normalize_bins),
             numerator: self.analysis.numerator.map(Into::into),
+            onset_frames: self.analysis.onset,
         })
     }
 }

@@ -49,7 +49,13 @@ Arguments (HARK LocalizeMUSIC name / pyroomacoustics name):
         with geometric transfer functions), numerator (the textbook gevd's spectrum numerator:
         "raw" ‖a‖² as spec §5, where a loud noise source that K holds shows as a peak at
         its own strength; "whitened" ‖a_w‖² = aᴴK⁻¹a, which flattens it; "geometric"
-        ‖a‖·‖a_w‖; None: geometric in the robust default, raw with algorithm="gevd").
+        ‖a‖·‖a_w‖; None: geometric in the robust default, raw with algorithm="gevd"),
+        onset_frames (onset weighting: each frame of each bin counts in the correlation by
+        (max(0, p − q)/p)², the squared share of its power p — whitened by K with a noise
+        source — that is new against q, its average over about that many frames before it,
+        so a talker's onsets count and the reverberation after them does not; 0 = off as in
+        HARK; None: 10 when no algorithm is named, except with noise_preceding; not for
+        srp-phat).
     num_sources (NUM_SOURCE; num_src= is accepted as pyroomacoustics' name), max_peaks (MAXNUM_OUT_PEAKS), window (WINDOW, frames),
     period (PERIOD), window_type "past"|"middle"|"future" (WINDOW_TYPE), freq_range
         (LOWER/UPPER_BOUND_FREQUENCY, Hz; pyroomacoustics' freq_range), nfft (LENGTH),
@@ -265,7 +271,7 @@ class Results:
 # Arguments that are counts or indices (unsigned in the library).
 _COUNTS = {"num_sources", "window", "period", "nfft", "hop", "channels", "input_channels",
            "invert_channels",
-           "subspace_dim", "preroll", "noise_preceding", "tracker_confirm_frames"}
+           "subspace_dim", "preroll", "noise_preceding", "tracker_confirm_frames", "onset_frames"}
 
 
 # Arguments that are flags: True/False, also as numpy bools or the integers 0 and 1.

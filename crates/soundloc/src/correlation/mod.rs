@@ -13,6 +13,7 @@
 //!
 //! Scaling (HARK quirk, keeps single precision well conditioned): R ← R / (max_ij |Re R_ij| + 1).
 
+pub mod onset;
 pub mod running;
 
 use crate::backend::{Job, Spectra, WindowSpec};

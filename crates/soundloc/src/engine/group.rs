@@ -174,6 +174,9 @@ impl<T: Real> StreamGroup<T> {
             if take.is_empty() {
                 return Ok(());
             }
+            for (i, w) in &take {
+                self.streams[*i].weigh_frames(w);
+            }
             let want = self.streams.iter().any(|s| s.wants_spectrum());
             let jobs: Vec<Job<'_, T>> = take.iter().map(|(i, w)| self.streams[*i].job(w)).collect();
             self.backend.process(&jobs, want, &mut self.batch)?;

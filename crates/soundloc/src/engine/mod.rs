@@ -23,6 +23,7 @@
 
 use crate::audio::health::ChannelHealth;
 use crate::backend::{Backend, BatchOutput, DeviceChoice, StageTimes, StreamId, WindowSpec};
+use crate::correlation::onset::OnsetWeights;
 use crate::correlation::WindowScheduler;
 use crate::input::{Block, ChannelMap};
 use crate::noise::policy::{InitialNoise, KSource, NoisePolicy, NoiseUpdate};
@@ -88,6 +89,9 @@ pub struct Engine<T: Real> {
     last_start: Option<usize>,
     /// Whether a device error moves the stream to the CPU (device `auto`).
     cpu_fallback: bool,
+    /// Onset weighting of the frames ([`crate::correlation::onset`]), when the plan's
+    /// `onset_frames` asks for it.
+    onset: Option<OnsetWeights>,
 }
 
 impl<T: Real> Engine<T> {
@@ -112,6 +116,16 @@ impl<T: Real> Engine<T> {
             options.noise_update.clone(),
         )?;
         let current = noise.initial().map(|_| KSource::Initial);
+        if c.onset_frames > 0 && matches!(options.noise_update, NoiseUpdate::Preceding { .. }) {
+            return Err(Error::Config(
+                "onset weighting changes the frames that a noise matrix from the frames before each \
+                 window (--noise-preceding) would be estimated from: use onset weighting 0 (--onset 0, onset_frames=0 in \
+                 Python) with a noise update from preceding frames"
+                    .into(),
+            ));
+        }
+        let onset =
+            (c.onset_frames > 0).then(|| OnsetWeights::new(c.onset_frames, plan.num_bins(), plan.num_mics));
         Ok(Engine {
             stft: StftStream::new(stft, plan.num_mics),
             ring: FrameRing::new(plan.num_bins(), plan.num_mics),
@@ -137,6 +151,7 @@ impl<T: Real> Engine<T> {
             stream: StreamId::fresh(),
             last_start: None,
             cpu_fallback: false,
+            onset,
             plan,
             backend: Some(backend),
         })
@@ -261,6 +276,9 @@ impl<T: Real> Engine<T> {
         self.ring.reset();
         self.scheduler.reset();
         self.pending.clear();
+        if let Some(o) = &mut self.onset {
+            o.reset();
+        }
         self.new_stream_id();
         out.notes.push(format!(
             "input gap: {:.3} s of audio lost at {at:.3} s (the input came faster than it was handled); \
@@ -476,6 +494,9 @@ impl<T: Real> Engine<T> {
     pub fn reset(&mut self) -> Result<()> {
         self.stft.reset();
         self.ring.reset();
+        if let Some(o) = &mut self.onset {
+            o.reset();
+        }
         self.scheduler.reset();
         self.pending.clear();
         self.noise.reset(&self.plan.config.clone())?;

@@ -39,6 +39,9 @@ impl<T: Real> Engine<T> {
         if let Some(s) = self.last_start.filter(|_| 2 * c.period < c.window) {
             next = next.min(s);
         }
+        if let Some(o) = &self.onset {
+            next = next.min(o.next_frame());
+        }
         self.ring.drop_before(self.noise.keep_frames_from(next));
     }
 
@@ -73,7 +76,22 @@ impl<T: Real> Engine<T> {
         Ok(())
     }
 
+    /// Onset-weight the frames not weighted yet up to the end of `windows` (absolute
+    /// starts), with the K installed for them, before a backend reads them (the GPU
+    /// uploads only the frames a call's windows read). Every frame is weighted once, in
+    /// order, with the K of the first batch that reaches it, so the weights do not
+    /// depend on how the input was split into blocks ([`Engine::release_frames`] keeps
+    /// the frames not weighted yet). A no-op without onset weighting.
+    pub(super) fn weigh_frames(&mut self, windows: &[WindowSpec]) {
+        let upto = windows.iter().map(|w| w.start + w.len).max().unwrap_or(0);
+        if let Some(o) = &mut self.onset {
+            let first = self.ring.first();
+            o.apply(&self.plan, self.ring.spectra_mut(), first, upto);
+        }
+    }
+
     fn run_windows(&mut self, windows: &[WindowSpec], out: &mut Output) -> Result<()> {
+        self.weigh_frames(windows);
         let want = self.wants_spectrum();
         let mut batch = std::mem::take(&mut self.batch);
         let job = Job {

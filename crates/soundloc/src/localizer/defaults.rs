@@ -101,6 +101,11 @@ impl LocalizerSpec {
         c.normalize_bins = self.normalize_bins.unwrap_or(c.normalize_bins);
         c.refine = self.refine.unwrap_or(c.refine);
         c.numerator = self.numerator.unwrap_or(c.numerator);
+        let preceding = matches!(self.noise_update, NoiseUpdate::Preceding { .. });
+        if !named && !preceding && c.algorithm != Algorithm::SrpPhat {
+            c.onset_frames = super::ONSET_FRAMES;
+        }
+        c.onset_frames = self.onset_frames.unwrap_or(c.onset_frames);
         if !named {
             let refined = if c.refine {
                 "sub-grid refinement"
@@ -114,6 +119,15 @@ impl LocalizerSpec {
                 "coherence normalisation (the microphones' gain mismatch cancels; off: --no-coherence, coherence=False in Python)"
             } else {
                 "no coherence normalisation"
+            };
+            let onset = if c.onset_frames > 0 {
+                format!(
+                    ", onset weighting over {} frames (each frame counts by how much of its power \
+                     is new, so reverberation counts less; off: --onset 0, onset_frames=0 in Python)",
+                    c.onset_frames
+                )
+            } else {
+                ", no onset weighting".to_string()
             };
             let note = if noise {
                 // Coherence stays opt-in here (docs/accuracy.md, "Imperfect arrays in rotor
@@ -142,8 +156,8 @@ impl LocalizerSpec {
                 format!(
                     "a noise source was given: using the robust default, the textbook GEVD with a \
                      signal subspace of {dim} of {num_mics} (max(--num-sources, M/2) unless \
-                     --subspace-dim){normalised}, {numerator}, {gains} and {refined} (HARK's: name \
-                     --algorithm)"
+                     --subspace-dim){normalised}, {numerator}, {gains}{onset} and {refined} (HARK's: \
+                     name --algorithm)"
                 )
             } else {
                 let music = if c.normalize_bins {
@@ -155,7 +169,7 @@ impl LocalizerSpec {
                 format!(
                     "no noise source: using the room default, {music} with a \
                      signal subspace of {dim} of {num_mics} (min(M/2, round(2√M)) unless \
-                     --subspace-dim), {coherence} and {refined} (HARK's plain SEVD: \
+                     --subspace-dim), {coherence}{onset} and {refined} (HARK's plain SEVD: \
                      --algorithm sevd; with a noise source, the GEVD)"
                 )
             };

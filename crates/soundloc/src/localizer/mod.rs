@@ -211,7 +211,17 @@ pub struct LocalizerSpec {
     /// Some(n) = n (refused by the algorithms other than the textbook GEVD).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub numerator: Option<crate::config::Numerator>,
+    /// Onset weighting ([`LocalizeConfig::onset_frames`]): None = the default's choice
+    /// ([`ONSET_FRAMES`] when no algorithm is named and the noise matrix does not come
+    /// from the frames before each window, else `analysis.onset_frames`); Some(n) = n,
+    /// 0 = off.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub onset_frames: Option<usize>,
 }
+
+/// The defaults' onset-weighting memory in frames (0.1 s at HARK's 10 ms hop;
+/// docs/accuracy.md, "Onset weighting").
+pub const ONSET_FRAMES: usize = 10;
 
 impl LocalizerSpec {
     /// Defaults with a transfer-function file.
@@ -272,6 +282,7 @@ impl LocalizerSpec {
             refine: None,
             normalize_bins: None,
             numerator: None,
+            onset_frames: None,
         }
     }
 

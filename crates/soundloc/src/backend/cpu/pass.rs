@@ -297,9 +297,9 @@ impl<T: Real> Ctx<'_, '_, T> {
         let t = nanos.add(2, t);
 
         // 4. k̂ per window and bin (MDL; overlapping frames are not independent
-        // snapshots: N = W·hop/N_fft of them).
+        // snapshots: N = W·hop/N_fft of them, fewer with onset weighting).
         if c.counts_sources() {
-            let overlap = c.hop.min(c.nfft) as f64 / c.nfft as f64;
+            let overlap = plan.count_snapshots_per_frame;
             for (i, b) in bins.clone().enumerate() {
                 if plan.weights[b] == T::zero() {
                     continue; // not used: the median skips bins without weight

@@ -188,9 +188,9 @@ impl<T: Real> CudaBackend<T> {
             )?;
         if l.count {
             // k̂ per matrix from T's eigenvalues (count.cu), the CPU's MDL
-            // (subspace::count::mdl) with N = W·hop/N_fft snapshots.
-            let c = &self.plan.config;
-            let overlap = c.hop.min(c.nfft) as f64 / c.nfft as f64;
+            // (subspace::count::mdl) with N = W·hop/N_fft snapshots (fewer with onset
+            // weighting: Plan::count_snapshots_per_frame).
+            let overlap = self.plan.count_snapshots_per_frame;
             Args::new()
                 .p(self.d_tri.ptr)
                 .i(l.m)

@@ -2,6 +2,7 @@
 
 use super::scenes::StudyArray;
 use crate::config::{Algorithm, LocalizeConfig, Numerator};
+use crate::localizer::ONSET_FRAMES;
 
 /// A named configuration to compare.
 #[derive(Debug, Clone, serde::Serialize)]
@@ -109,6 +110,7 @@ pub fn variants_for(array: StudyArray, period: usize) -> Vec<Variant> {
         c.refine = true;
         if name.starts_with("robust") {
             c.numerator = Numerator::Geometric;
+            c.onset_frames = ONSET_FRAMES;
         }
         f(&mut c);
         vs.push(Variant { name, config: c });
@@ -125,6 +127,16 @@ pub fn variants_for(array: StudyArray, period: usize) -> Vec<Variant> {
     }
     push(format!("robust default (subspace {robust} refined)"), &|c| {
         c.subspace_dim = Some(robust)
+    });
+    // Onset weighting (docs/accuracy.md, "Onset weighting"): the robust default before
+    // 2026-12-03 had none.
+    push("robust no onset".into(), &|c| {
+        c.subspace_dim = Some(robust);
+        c.onset_frames = 0
+    });
+    push("robust onset 20".into(), &|c| {
+        c.subspace_dim = Some(robust);
+        c.onset_frames = 20
     });
     // The spectrum's numerator (docs/accuracy.md, "The spectrum's numerator"): the robust
     // default before 2026-11-29 (raw ‖a‖²), the whitened ‖a_w‖², and the textbook GEVD
@@ -233,8 +245,12 @@ pub fn variants_without_noise(array: StudyArray, period: usize) -> Vec<Variant> 
         ..Default::default()
     };
     let mut vs = Vec::new();
+    // The defaults as they run (with onset weighting since 2026-12-03).
     let mut push = |name: String, f: &dyn Fn(&mut LocalizeConfig)| {
         let mut c = base.clone();
+        if name.starts_with("room default") || name.starts_with("gevd robust default") {
+            c.onset_frames = ONSET_FRAMES;
+        }
         f(&mut c);
         vs.push(Variant { name, config: c });
     };
@@ -286,6 +302,26 @@ pub fn variants_without_noise(array: StudyArray, period: usize) -> Vec<Variant> 
             c.subspace_dim = Some(room);
             c.refine = true;
             c.coherence = true
+        },
+    );
+    push(
+        format!("room default no onset (coherence normmusic subspace {room} refined)"),
+        &|c| {
+            c.normalize_bins = true;
+            c.subspace_dim = Some(room);
+            c.refine = true;
+            c.coherence = true;
+            c.onset_frames = 0
+        },
+    );
+    push(
+        format!("room default onset 20 (coherence normmusic subspace {room} refined)"),
+        &|c| {
+            c.normalize_bins = true;
+            c.subspace_dim = Some(room);
+            c.refine = true;
+            c.coherence = true;
+            c.onset_frames = 20
         },
     );
     push(format!("sevd subspace {room} coherence refined"), &|c| {
