@@ -586,6 +586,41 @@ fn confirmation_across_results_further_apart_than_its_frames() {
     assert_eq!(ids(&t.update(&result(50, vec![peak(-45.0, 0.0, 5.0)]))), vec![0]);
 }
 
+/// At a gap in the input (`Engine::skip` calls `drop_tentative`) a tentative source starts
+/// over, a confirmed one stays: seen at 0 and 10 before the gap and at 20 after it, the
+/// source is not confirmed at 20 (it is without the gap) but at 40, 20 frames after its
+/// new first sighting.
+#[test]
+fn a_gap_forgets_tentative_sources_only() {
+    let mut t = confirming(20);
+    assert_eq!(
+        ids(&t.update(&result(0, vec![peak(60.0, 0.0, 5.0)]))),
+        Vec::<i64>::new()
+    );
+    assert_eq!(
+        ids(&t.update(&result(10, vec![peak(60.0, 0.0, 5.0)]))),
+        Vec::<i64>::new()
+    );
+    let mut no_gap = t.clone();
+    assert_eq!(
+        ids(&no_gap.update(&result(20, vec![peak(60.0, 0.0, 5.0)]))),
+        vec![0]
+    );
+    t.drop_tentative();
+    assert_eq!(
+        ids(&t.update(&result(20, vec![peak(60.0, 0.0, 5.0)]))),
+        Vec::<i64>::new()
+    );
+    assert_eq!(
+        ids(&t.update(&result(30, vec![peak(60.0, 0.0, 5.0)]))),
+        Vec::<i64>::new()
+    );
+    assert_eq!(ids(&t.update(&result(40, vec![peak(60.0, 0.0, 5.0)]))), vec![0]);
+    // A confirmed source outlives the gap and keeps its id.
+    t.drop_tentative();
+    assert_eq!(ids(&t.update(&result(50, vec![peak(61.0, 0.0, 5.0)]))), vec![0]);
+}
+
 /// A confirmed source claims its peak before a tentative one does, the two never share a
 /// peak, and a confirmed source's PAUSE_LENGTH is unchanged by confirmation; with the
 /// interval extender the confirmed source is copied back over PREROLL_LENGTH, so its onset

@@ -279,6 +279,10 @@ impl<T: Real> Engine<T> {
         if let Some(o) = &mut self.onset {
             o.reset();
         }
+        // A tentative track is not confirmed across frames that were never analysed.
+        if let Some(t) = &mut self.tracker {
+            t.drop_tentative();
+        }
         self.new_stream_id();
         out.notes.push(format!(
             "input gap: {:.3} s of audio lost at {at:.3} s (the input came faster than it was handled); \

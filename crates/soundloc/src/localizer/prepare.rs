@@ -223,10 +223,16 @@ pub(crate) fn prepare(
             } else {
                 ""
             };
+            let confirmed = spec.algorithm.is_none() && t.tracker.confirm_frames != Some(0);
+            let which = if confirmed {
+                "noise peaks that stay over the confirmation (--confirm) start tracks too"
+            } else {
+                "noise peaks start tracks too"
+            };
             notes.push(format!(
-                "the tracker takes every peak at THRESH 0 dB, as HARK's does, so noise peaks start \
-                 tracks too: set the tracker threshold (--thresh, tracker_thresh_db=) above the power of \
-                 the windows without a talker{gate}"
+                "the tracker takes every peak at THRESH 0 dB, as HARK's does, so {which}: set the \
+                 tracker threshold (--thresh, tracker_thresh_db=) above the power of the windows \
+                 without a talker{gate}"
             ));
         }
     }

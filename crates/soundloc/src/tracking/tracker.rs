@@ -76,6 +76,13 @@ impl SourceTracker {
         self.last_frame = None;
     }
 
+    /// Forgets the tentative sources (confirmation), keeping the confirmed ones: at a gap
+    /// in the input, a source seen before it must be seen anew over the confirmation
+    /// after it (the frames between were never analysed).
+    pub fn drop_tentative(&mut self) {
+        self.tracks.retain(|t| t.id.is_some());
+    }
+
     /// Number of sources currently alive (tentative ones not counted).
     pub fn num_alive(&self) -> usize {
         self.tracks.iter().filter(|t| t.id.is_some()).count()
