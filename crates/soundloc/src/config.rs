@@ -250,8 +250,8 @@ pub struct LocalizeConfig {
     pub subspace_tracking: bool,
     /// Onset weighting of the correlation ([`crate::correlation::onset`]): the memory T in
     /// frames of each bin's recent average power; a frame enters R with the weight
-    /// w = (max(0, p − q)/p)², the squared share of its power (whitened by K for the
-    /// noise-aware algorithms) that is new against that average, so a talker's onsets
+    /// w = ((r − 1)/r)² for r > 1, else 0, r its power against that average (whitened by
+    /// K for the noise-aware algorithms, per microphone otherwise), so a talker's onsets
     /// count and the reverberation after them does not. 0 = off (HARK); the defaults
     /// without a named algorithm use 10 (docs/accuracy.md, "Onset weighting"). Refused
     /// for SRP-PHAT, whose phase transform would discard the weights. Left out of JSON

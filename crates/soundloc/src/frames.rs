@@ -97,6 +97,13 @@ fn check(config: &LocalizeConfig, x: &FramesView<'_>) -> Result<()> {
     if s == 0 {
         return Err(Error::TooShort("frames: no snapshots".into()));
     }
+    if config.onset_frames > 0 {
+        return Err(Error::Config(
+            "onset weighting (onset_frames) runs in the stream engine over an STFT it made; \
+             frames given whole are localized unweighted: set onset_frames to 0"
+                .into(),
+        ));
+    }
     Ok(())
 }
 

@@ -127,9 +127,11 @@ pub struct AnalysisArgs {
     #[arg(long, value_enum)]
     pub numerator: Option<NumeratorArg>,
     /// Onset weighting: each frame of each bin enters the correlation with the weight
-    /// (max(0, p − q)/p)², the squared share of its power p (whitened by K with a noise
-    /// source) that is new against q, its average over about FRAMES frames before it, so a
-    /// talker's onsets count and the reverberation after them does not. 0 = off (HARK).
+    /// ((r − 1)/r)² for r > 1, else 0, where r is how much louder the frame is than its
+    /// average over about FRAMES frames before it: the whitened power xᴴK⁻¹x for gevd,
+    /// gevd-hark and gsvd, else the mean over the microphones of each one's power against
+    /// its own average (a channel's gain cancels). A talker's onsets count and the
+    /// reverberation after them does not. 0 = off (HARK).
     /// Default: 10 when no algorithm is named (not with --noise-preceding), else 0.
     /// Not for srp-phat.
     #[arg(long, value_name = "FRAMES")]

@@ -51,9 +51,10 @@ Arguments (HARK LocalizeMUSIC name / pyroomacoustics name):
         its own strength; "whitened" ‖a_w‖² = aᴴK⁻¹a, which flattens it; "geometric"
         ‖a‖·‖a_w‖; None: geometric in the robust default, raw with algorithm="gevd"),
         onset_frames (onset weighting: each frame of each bin counts in the correlation by
-        (max(0, p − q)/p)², the squared share of its power p — whitened by K with a noise
-        source — that is new against q, its average over about that many frames before it,
-        so a talker's onsets count and the reverberation after them does not; 0 = off as in
+        ((r − 1)/r)² for r > 1, else 0, r its power against its average over about that many
+        frames before it — the whitened power xᴴK⁻¹x for gevd, gevd-hark and gsvd, else each
+        microphone's against its own, averaged, so gains cancel — so a talker's onsets
+        count and the reverberation after them does not; 0 = off as in
         HARK; None: 10 when no algorithm is named, except with noise_preceding; not for
         srp-phat).
     num_sources (NUM_SOURCE; num_src= is accepted as pyroomacoustics' name), max_peaks (MAXNUM_OUT_PEAKS), window (WINDOW, frames),

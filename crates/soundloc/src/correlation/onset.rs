@@ -97,13 +97,18 @@ impl OnsetWeights {
                         let (mut sum, mut n) = (0.0, 0usize);
                         for (v, q) in x.iter().zip(qs.iter_mut()) {
                             let p = v.re.to_f64().powi(2) + v.im.to_f64().powi(2);
-                            if let Some(q) = step(q, p, keep).filter(|&q| q > 0.0) {
-                                sum += p / q;
-                                n += 1;
+                            match step(q, p, keep) {
+                                // Sound after digital silence: new, as in `weight`.
+                                Some(q) if q <= 0.0 && p > 0.0 => sum = f64::INFINITY,
+                                Some(q) if q > 0.0 => sum += p / q,
+                                _ => continue,
                             }
+                            n += 1;
                         }
                         if n == 0 {
                             0.0
+                        } else if sum.is_infinite() {
+                            1.0
                         } else {
                             weight(sum / n as f64, 1.0)
                         }
@@ -129,7 +134,10 @@ impl OnsetWeights {
 /// unweighted frames; weighted ones carry fewer, and with the nominal N it counted noise
 /// as sources (silent windows of the room default). Computed once per plan from 20 000
 /// frames of a fixed pseudo-random sequence (deterministic; within about 1 % of the
-/// limit).
+/// limit). A model: it takes the microphones' noise as independent and the frames as
+/// independent, where real noise is partly coherent across a small array at low
+/// frequencies and overlapping frames are not, so a bin's actual share can differ (by up
+/// to about 2× in a coherent field).
 pub fn snapshot_fraction(frames: usize, num_mics: usize, whitened: bool) -> f64 {
     let keep = 1.0 - 1.0 / frames.max(1) as f64;
     let m = num_mics.max(1);

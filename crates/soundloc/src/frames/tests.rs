@@ -220,3 +220,23 @@ fn views_past_the_data_are_refused() {
     assert!(FramesView::new(&x, [0, 5, 10], [usize::MAX, 10, 1]).is_ok());
     assert!(FramesView::contiguous(&x, [2, 5, 9]).is_err());
 }
+
+/// Frames given whole are localized unweighted, so onset weighting is refused there
+/// instead of shrinking the source count's snapshots without weighting.
+#[test]
+fn onset_weighting_is_refused_for_frames_given_whole() {
+    let (geo, x, shape) = plane_wave(40);
+    let mut fl = FramesLocalizer::new(
+        geo,
+        Grid::ring(5.0, 0.0, 1e4),
+        343.0,
+        DeviceChoice::Cpu,
+        Precision::F64,
+    );
+    let mut c = config(crate::Algorithm::Sevd);
+    let view = FramesView::contiguous(&x, shape).unwrap();
+    assert!(fl.process(&c, &view).is_ok());
+    c.onset_frames = 10;
+    let e = fl.process(&c, &view).unwrap_err().to_string();
+    assert!(e.contains("onset"), "{e}");
+}

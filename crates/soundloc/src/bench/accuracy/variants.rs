@@ -110,6 +110,10 @@ pub fn variants_for(array: StudyArray, period: usize) -> Vec<Variant> {
         c.refine = true;
         if name.starts_with("robust") {
             c.numerator = Numerator::Geometric;
+        }
+        // Onset weighting (2026-12-03) in the current default's rows only: the other
+        // "robust …" rows keep the change they were measured with.
+        if name.starts_with("robust default") || name.starts_with("robust onset") {
             c.onset_frames = ONSET_FRAMES;
         }
         f(&mut c);
@@ -248,7 +252,7 @@ pub fn variants_without_noise(array: StudyArray, period: usize) -> Vec<Variant> 
     // The defaults as they run (with onset weighting since 2026-12-03).
     let mut push = |name: String, f: &dyn Fn(&mut LocalizeConfig)| {
         let mut c = base.clone();
-        if name.starts_with("room default") || name.starts_with("gevd robust default") {
+        if name.starts_with("room default coherence") || name.starts_with("room default onset") {
             c.onset_frames = ONSET_FRAMES;
         }
         f(&mut c);
