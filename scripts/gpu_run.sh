@@ -5,7 +5,7 @@
 #   cargo build --release && cargo test --release -p soundloc --test gpu_parity --no-run
 #   scripts/gpu_run.sh --stage        # copies the binaries and the peer into .devcarry/
 # On the device (repo root, $OUT set by the device tool):
-#   scripts/gpu_run.sh [parity] [bench] [stream] [streams] [peer] [bigbatch] [f64] [e2e] [multi] [newalg]   (default: parity bench peer)
+#   scripts/gpu_run.sh [parity] [bench] [stream] [streams] [peer] [bigbatch] [f64] [e2e] [robust] [multi] [newalg]   (default: parity bench peer)
 set -uo pipefail
 root="$(cd "$(dirname "$0")/.." && pwd)"
 C="$root/.devcarry"
@@ -84,6 +84,21 @@ print(sys.argv[1] + ': %.2f s wall, %d KB max RSS, exit %d' % (time.time() - t, 
       done 2>&1 | tee "$OUT/e2e.txt"
       "$C/soundloc" bench --e2e --tf $W/tf.zip --input $W/rec.wav --algorithm gsvd --period 1 --device cuda 2>&1 | tee -a "$OUT/e2e.txt"
       "$C/soundloc" bench --e2e --tf $W/tf.zip --input $W/rec.wav --algorithm gsvd --period 50 --device cpu 2>&1 | tee -a "$OUT/e2e.txt" ;;
+    robust)
+      # The robust default (no --algorithm: textbook GEVD, subspace M/2, onset weighting on
+      # the host) on the e2e files, PERIOD 1 on the GPU, against --onset 0 and the textbook
+      # GEVD; run `e2e` first (it makes the files and warms the caches).
+      W=${E2E_DIR:-/tmp/sl_e2e}; W=$(cd $W && pwd); export SOUNDLOC_CACHE_DIR=$W/cache
+      for round in 1 2; do
+        for extra in "" "--onset 0" "--algorithm gevd"; do
+          python3 -c "
+import resource, subprocess, sys, time
+t = time.time(); r = subprocess.run(sys.argv[2:], stdout=open('$W/robust.jsonl', 'w'))
+print(sys.argv[1] + ': %.2f s wall, %d KB max RSS, exit %d' % (time.time() - t, resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss, r.returncode))
+" "robust [$extra] round $round" "$C/soundloc" localize $W/rec.wav --tf $W/tf.zip --noise-range 0:1 --period ${ROBUST_PERIOD:-1} --device cuda -q $extra
+          wc -l < $W/robust.jsonl
+        done
+      done 2>&1 | tee "$OUT/robust.txt" ;;
     multi)
       # Several GPUs (issue 14): throughput on 1, 2, 4 GPUs in one call, and a recording
       # localized on one GPU and on all of them (results must be identical).

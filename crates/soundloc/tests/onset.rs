@@ -125,3 +125,27 @@ fn onset_weighting_changes_the_results_and_streams_like_the_whole_run() {
         assert_ne!(off.spectrum, whole.spectrum, "PERIOD {period}");
     }
 }
+
+/// Without a noise matrix (the room default) each microphone is weighed against its own
+/// past: that path streams like the whole run too, and changes the results.
+#[test]
+fn the_room_defaults_weighting_streams_like_the_whole_run() {
+    let sc = two_talker_drone(0.4, 6);
+    let audio = sc.render();
+    let mut spec = ring_spec(&sc);
+    spec.analysis.period = 10;
+    spec.spectrum = true;
+    let loc = Localizer::new(&spec).unwrap();
+    assert_eq!(loc.config().onset_frames, ONSET_FRAMES);
+    let whole = Localizer::new(&spec).unwrap().localize(&audio.channels).unwrap();
+    assert!(whole.results.len() >= 10);
+    for seed in 0..3 {
+        let mut loc = Localizer::new(&spec).unwrap();
+        let out = common::stream(&mut loc, &audio.channels, 3000, seed);
+        assert_eq!(out.results, whole.results, "seed {seed}");
+        assert_eq!(out.spectrum, whole.spectrum, "seed {seed}");
+    }
+    spec.onset_frames = Some(0);
+    let off = Localizer::new(&spec).unwrap().localize(&audio.channels).unwrap();
+    assert_ne!(off.spectrum, whole.spectrum);
+}

@@ -35,10 +35,13 @@ fn a_group_gives_every_stream_its_own_results_bit_for_bit() {
         .iter()
         .map(|s| render(&s.scene, &s.geometry, fs, 2.0, s.seed).channels)
         .collect();
-    for (window_type, period, tracking) in [
-        (WindowType::Past, 1, false),
-        (WindowType::Future, 50, true),
-        (WindowType::Middle, 7, true),
+    // (window type, PERIOD, tracking, onset weighting's memory in frames)
+    for (window_type, period, tracking, onset_frames) in [
+        (WindowType::Past, 1, false, 0),
+        (WindowType::Future, 50, true, 0),
+        (WindowType::Middle, 7, true, 0),
+        (WindowType::Past, 1, false, 10),
+        (WindowType::Future, 50, true, 10),
     ] {
         let config = LocalizeConfig {
             algorithm: Algorithm::Gevd,
@@ -46,6 +49,7 @@ fn a_group_gives_every_stream_its_own_results_bit_for_bit() {
             period,
             window: 30,
             num_sources: 2,
+            onset_frames,
             ..LocalizeConfig::default()
         };
         let tf = free_field(&sc.geometry, &sc.grid, config.nfft, fs, config.bin_range(), 343.0).unwrap();
@@ -100,7 +104,7 @@ fn a_group_gives_every_stream_its_own_results_bit_for_bit() {
             g.flush(i, &mut outs).unwrap();
         }
         for i in 0..3 {
-            let what = format!("{window_type:?} PERIOD {period} stream {i}");
+            let what = format!("{window_type:?} PERIOD {period} onset {onset_frames} stream {i}");
             assert!(alone[i].results.len() >= 3, "{what}");
             assert!(outs[i].results == alone[i].results, "{what}: results differ");
             let (a, b) = (

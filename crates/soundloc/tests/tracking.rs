@@ -647,6 +647,33 @@ fn confirmation_with_pause_and_preroll() {
     assert!(extended[0].sources[0].held && extended[1].sources[0].held);
 }
 
+/// A peak within MIN_SRC_INTERVAL of a confirmed source and of a tentative one goes to
+/// the confirmed source even where the tentative one is closer: a source being confirmed
+/// does not take the peak of one already reported (which would then be carried, held, at
+/// its old direction while the peak went unreported).
+#[test]
+fn a_confirmed_source_keeps_a_peak_a_tentative_one_is_closer_to() {
+    let mut t = confirming(20);
+    for f in (0..=20).step_by(10) {
+        t.update(&result(f, vec![peak(60.0, 0.0, 5.0)]));
+    }
+    // A second source appears at 90°: tentative (30° from the first).
+    let r = t.update(&result(30, vec![peak(60.0, 0.0, 5.0), peak(90.0, 0.0, 5.0)]));
+    assert_eq!(ids(&r), vec![0]);
+    // One peak at 76°: 16° from the confirmed source, 14° from the tentative one.
+    let r = t.update(&result(40, vec![peak(76.0, 0.0, 5.0)]));
+    assert_eq!(ids(&r), vec![0]);
+    let s = &r.sources[0];
+    assert!(!s.held && s.azimuth_deg == 76.0, "{s:?}");
+    // Without confirmation both are sources and the closer one takes the peak (HARK's rule).
+    let mut t = SourceTracker::new(TrackerConfig::default());
+    t.update(&result(0, vec![peak(60.0, 0.0, 5.0), peak(90.0, 0.0, 5.0)]));
+    let r = t.update(&result(10, vec![peak(76.0, 0.0, 5.0)]));
+    let fresh: Vec<&Source> = r.sources.iter().filter(|s| !s.held).collect();
+    assert_eq!(fresh.len(), 1);
+    assert_eq!((fresh[0].id, fresh[0].azimuth_deg), (Some(1), 76.0));
+}
+
 /// Confirmation needs a matching angle: with MIN_SRC_INTERVAL 0 no later peak could
 /// confirm a new source, so every id would silently be lost; refused, naming the fix.
 #[test]

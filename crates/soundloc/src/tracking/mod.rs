@@ -65,8 +65,9 @@
 //!
 //! **Confirmation** (not in HARK; [`TrackerConfig::confirm_frames`]). With
 //! `confirm_frames` = C > 0, step 3 starts a *tentative* source instead: it claims peaks
-//! in steps 1–2 as a source does (after every tracked source with the same angle, so
-//! tracked sources come first in ties) but has no id and is not output. It gets the next
+//! in steps 1–2 after every tracked source (a peak within MIN_SRC_INTERVAL of both goes
+//! to the tracked source, even where the tentative one is closer) but has no id and is
+//! not output. It gets the next
 //! id, and is output from that result on, at the first result that claims a peak for it at
 //! least C frames after its first sighting. It is dropped when it claims nothing for C
 //! frames (or, when results are further apart than C frames, at the next result that

@@ -117,7 +117,7 @@ impl SourceTracker {
             .collect();
 
         // Step 1: candidate pairs closer than MIN_SRC_INTERVAL, closest first (ties:
-        // confirmed sources by id, then tentative ones by age).
+        // sources by id, then tentative ones by age).
         self.tracks.sort_by_key(|t| (t.id.is_none(), t.id, t.first_frame));
         let mut pairs: Vec<(f64, usize, usize)> = Vec::new();
         for (ti, t) in self.tracks.iter().enumerate() {
@@ -129,7 +129,16 @@ impl SourceTracker {
                 }
             }
         }
-        pairs.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)).then(a.2.cmp(&b.2)));
+        // Confirmed sources claim first (with confirmation a source being confirmed never
+        // takes the peak of one already reported); without it every source is confirmed
+        // and the closest pair wins, as in HARK.
+        let tentative = |ti: usize| self.tracks[ti].id.is_none();
+        pairs.sort_by(|a, b| {
+            (tentative(a.1).cmp(&tentative(b.1)))
+                .then(a.0.total_cmp(&b.0))
+                .then(a.1.cmp(&b.1))
+                .then(a.2.cmp(&b.2))
+        });
         let mut track_claim: Vec<Option<usize>> = vec![None; self.tracks.len()];
         let mut peak_claimed = vec![false; peaks.len()];
         for &(_, ti, pi) in &pairs {

@@ -138,6 +138,12 @@ pub fn variants_for(array: StudyArray, period: usize) -> Vec<Variant> {
         c.subspace_dim = Some(robust);
         c.onset_frames = 0
     });
+    // The robust default with a window twice HARK's (docs/accuracy.md, "Onset weighting":
+    // a latency trade, not the default).
+    push("robust onset W=100".into(), &|c| {
+        c.subspace_dim = Some(robust);
+        c.window = 100
+    });
     push("robust onset 20".into(), &|c| {
         c.subspace_dim = Some(robust);
         c.onset_frames = 20
