@@ -674,6 +674,23 @@ fn a_confirmed_source_keeps_a_peak_a_tentative_one_is_closer_to() {
     assert_eq!((fresh[0].id, fresh[0].azimuth_deg), (Some(1), 76.0));
 }
 
+/// A run whose sources were all tentative (a --confirm longer than the input) says so
+/// (the engine turns it into a note); once one is confirmed, or without confirmation, not.
+#[test]
+fn a_run_with_no_confirmed_source_is_told() {
+    let mut t = confirming(20);
+    t.update(&result(0, vec![peak(60.0, 0.0, 5.0), peak(150.0, 0.0, 5.0)]));
+    t.update(&result(10, vec![peak(60.0, 0.0, 5.0)]));
+    assert_eq!(t.none_confirmed(), Some(2));
+    t.update(&result(20, vec![peak(60.0, 0.0, 5.0)]));
+    assert_eq!(t.none_confirmed(), None);
+    t.reset();
+    assert_eq!(t.none_confirmed(), None);
+    let mut hark = SourceTracker::new(TrackerConfig::default());
+    hark.update(&result(0, vec![peak(60.0, 0.0, 5.0)]));
+    assert_eq!(hark.none_confirmed(), None);
+}
+
 /// Confirmation needs a matching angle: with MIN_SRC_INTERVAL 0 no later peak could
 /// confirm a new source, so every id would silently be lost; refused, naming the fix.
 #[test]

@@ -478,6 +478,20 @@ impl<T: Real> Engine<T> {
         if let Some(h) = &mut self.health {
             out.notes.extend(h.notes(true));
         }
+        if let Some(n) = self.tracker.as_ref().and_then(|t| t.none_confirmed()) {
+            let c = &self.plan.config;
+            let confirm = self
+                .tracker
+                .as_ref()
+                .map_or(0, |t| t.config().confirm_frames.unwrap_or(0));
+            out.notes.push(format!(
+                "tracking: {n} new source(s) seen, none confirmed, so no source was output: a new source is \
+                 confirmed when a peak within MIN_SRC_INTERVAL is seen again {confirm} frames ({:.2} s) after its \
+                 first sighting, each sighting within that time of the last; lower --confirm \
+                 (tracker_confirm_frames= in Python; 0: HARK's tracker, an id at the first sighting)",
+                confirm as f64 * c.hop as f64 / c.sample_rate_hz as f64
+            ));
+        }
         if self.windows_run == 0 {
             let c = &self.plan.config;
             let len = self.stft.samples_received();

@@ -41,6 +41,8 @@ pub struct SourceTracker {
     next_id: i64,
     last_frame: Option<usize>,
     predict_motion: bool,
+    /// Tentative sources started since the last reset (confirmation).
+    tentative_started: usize,
 }
 
 impl SourceTracker {
@@ -52,6 +54,7 @@ impl SourceTracker {
             next_id: cfg.min_id,
             last_frame: None,
             predict_motion: false,
+            tentative_started: 0,
         }
     }
 
@@ -74,6 +77,16 @@ impl SourceTracker {
         self.tracks.clear();
         self.next_id = self.cfg.min_id;
         self.last_frame = None;
+        self.tentative_started = 0;
+    }
+
+    /// With confirmation, where sources were seen but none was ever confirmed (no id was
+    /// given, so a tracked run output no source at all): how many tentative sources there
+    /// were. None otherwise.
+    pub fn none_confirmed(&self) -> Option<usize> {
+        let confirming = self.cfg.confirm_frames.unwrap_or(0) > 0;
+        (confirming && self.tentative_started > 0 && self.next_id == self.cfg.min_id)
+            .then_some(self.tentative_started)
     }
 
     /// Forgets the tentative sources (confirmation), keeping the confirmed ones: at a gap
@@ -204,6 +217,9 @@ impl SourceTracker {
             });
             if far {
                 let id = (confirm == 0).then(|| self.take_id());
+                if id.is_none() {
+                    self.tentative_started += 1;
+                }
                 let mut s = result.sources[peaks[pi].0].clone();
                 s.id = id;
                 self.tracks.push(Track {
