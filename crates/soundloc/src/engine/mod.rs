@@ -569,3 +569,6 @@ impl<T: Real> Drop for Engine<T> {
         }
     }
 }
+
+#[cfg(test)]
+mod tests;

@@ -4,6 +4,7 @@
 
 use super::{Engine, Output};
 use crate::backend::{cpu::CpuBackend, Backend, Job, WindowSpec};
+use crate::noise::policy::KSource;
 use crate::real::Real;
 use crate::{Error, Result};
 
@@ -39,7 +40,15 @@ impl<T: Real> Engine<T> {
         if let Some(s) = self.last_start.filter(|_| 2 * c.period < c.window) {
             next = next.min(s);
         }
-        if let Some(o) = &self.onset {
+        if let Some(o) = &mut self.onset {
+            // Frames no window reads (PERIOD > W) still pass through the onset average.
+            // With one K for the whole stream, installed, they are weighed now, with the
+            // K any later batch would use, instead of being kept until the next window
+            // runs (up to PERIOD frames); else they wait for that window's K.
+            if o.next_frame() < next && self.noise.fixed() && self.current == Some(KSource::Initial) {
+                let first = self.ring.first();
+                o.apply(&self.plan, self.ring.spectra_mut(), first, next);
+            }
             next = next.min(o.next_frame());
         }
         self.ring.drop_before(self.noise.keep_frames_from(next));

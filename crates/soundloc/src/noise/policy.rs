@@ -279,6 +279,12 @@ impl NoisePolicy {
         self.initial.as_ref()
     }
 
+    /// One K for the whole stream (the initial one, once known): no segments, no
+    /// preceding frames.
+    pub fn fixed(&self) -> bool {
+        matches!(self.update, NoiseUpdate::Fixed)
+    }
+
     /// Replace the initial K (kept across resets).
     pub fn set_initial(&mut self, k: NoiseMatrices) {
         self.initial_given = InitialNoise::Given(Some(k.clone()));
