@@ -39,10 +39,11 @@ pub struct Whitening<T: Real> {
     /// W_k per used bin in f64, `[bin][i][j]` row-major M × M: the CPU and the GPU whiten
     /// R in double precision whatever T is.
     pub matrix64: Vec<c64>,
-    /// GEVD only: whitened steering a_w = L⁻¹ a, `[bin][dir][mic]` (else empty).
-    pub steering: Vec<C<T>>,
-    /// GEVD only: ‖a_w‖², `[bin][dir]` (else empty).
-    pub steering_norm2: Vec<T>,
+    /// GEVD only: whitened steering a_w = L⁻¹ a, `[bin][dir][mic]` (else empty). Shared
+    /// by clones, and with the plan's own steering where K is the identity (a_w = a).
+    pub steering: Arc<Vec<C<T>>>,
+    /// GEVD only: ‖a_w‖², `[bin][dir]` (else empty); shared like `steering`.
+    pub steering_norm2: Arc<Vec<T>>,
     /// GEVD with a [`crate::config::Numerator`] other than the raw ‖a‖²: the spectrum's numerator from
     /// ‖a‖² and ‖a_w‖², `[bin][dir]` (else empty). See [`Plan::numerator_norm2`].
     pub numerator_norm2: Vec<T>,
@@ -53,7 +54,7 @@ fn numerator_norm2<T: Real>(config: &LocalizeConfig, raw: &[T], w: &mut Whitenin
     w.numerator_norm2 = match (config.algorithm, config.numerator) {
         (Algorithm::Gevd, n) if !n.is_raw() => raw
             .iter()
-            .zip(&w.steering_norm2)
+            .zip(w.steering_norm2.iter())
             .map(|(&r, &aw)| T::of_f64(n.of(r.to_f64(), aw.to_f64())))
             .collect(),
         _ => Vec::new(),
@@ -283,6 +284,7 @@ impl<T: Real> Plan<T> {
             });
         }
         let weights = spectrum_weights::<T>(config, &bins)?;
+        let (steering, norm2) = (Arc::new(steering), Arc::new(norm2));
         let whitening = if config.algorithm.uses_noise() {
             let identity;
             let k = match noise {
@@ -292,7 +294,11 @@ impl<T: Real> Plan<T> {
                     &identity
                 }
             };
-            let mut w = whitening(config, k, &bins, m, d, &steering)?;
+            // Without K, a_w = a: the plan's own steering serves (bit for bit; with
+            // coherence normalisation its norms are those of the unrounded phase-only
+            // values, a rounding apart, so the whitened ones are computed).
+            let shared = (noise.is_none() && !config.coherence).then_some((&steering, &norm2));
+            let mut w = whitening(config, k, &bins, m, d, &steering, shared)?;
             numerator_norm2(config, &norm2, &mut w);
             Some(w)
         } else {
@@ -306,8 +312,8 @@ impl<T: Real> Plan<T> {
             bins,
             grid: tf.grid.clone(),
             window: window_function::<T>(config.window_function, config.nfft),
-            steering: Arc::new(steering),
-            steering_norm2: Arc::new(norm2),
+            steering,
+            steering_norm2: norm2,
             weights,
             whitening,
             peak_table,
@@ -354,6 +360,7 @@ impl<T: Real> Plan<T> {
                 self.num_mics,
                 self.num_dirs,
                 &self.steering,
+                None,
             )?;
             numerator_norm2(&self.config, &self.steering_norm2, &mut w);
             p.whitening = Some(w);
@@ -375,8 +382,8 @@ impl<T: Real> Plan<T> {
     /// for the textbook GEVD, the raw ones otherwise. `[bin][dir][mic]`, `[bin][dir]`.
     pub fn denominator_steering(&self) -> (&[C<T>], &[T]) {
         match (&self.whitening, self.config.algorithm) {
-            (Some(w), Algorithm::Gevd) => (&w.steering, &w.steering_norm2),
-            _ => (&self.steering, &self.steering_norm2),
+            (Some(w), Algorithm::Gevd) => (&w.steering[..], &w.steering_norm2[..]),
+            _ => (&self.steering[..], &self.steering_norm2[..]),
         }
     }
 

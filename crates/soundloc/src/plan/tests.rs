@@ -41,6 +41,44 @@ fn a_k_update_shares_the_steering_and_rebuilds_only_the_whitening() {
     assert_eq!(p.whitening_matrix64(0).unwrap()[5].re, 1.0);
 }
 
+/// A textbook-GEVD plan built before its K is known (the identity) shares its steering
+/// as the whitened steering, which is exact: the same plan given the identity K computes
+/// a_w = L⁻¹a = a and ‖a_w‖² = ‖a‖² to the bit. A real K gets its own. (With coherence
+/// normalisation the norms of the phase-only steering are those of its unrounded values,
+/// so nothing is shared there.)
+#[test]
+fn the_identity_whitening_shares_the_steering_exactly() {
+    let config = LocalizeConfig {
+        algorithm: Algorithm::Gevd,
+        ..LocalizeConfig::default()
+    };
+    let tf = circle_tf(6, 10.0, config.bin_range());
+    let p = Plan::<f32>::new(&config, &tf, None).unwrap();
+    let w = p.whitening.as_ref().unwrap();
+    assert!(Arc::ptr_eq(&w.steering, &p.steering) && Arc::ptr_eq(&w.steering_norm2, &p.steering_norm2));
+    let q = p
+        .with_noise(&NoiseMatrices::identity(6, config.bin_range()))
+        .unwrap();
+    let v = q.whitening.as_ref().unwrap();
+    assert!(!Arc::ptr_eq(&v.steering, &p.steering));
+    assert_eq!(v.steering.len(), p.steering.len());
+    for (a, b) in v.steering.iter().zip(p.steering.iter()) {
+        assert_eq!((a.re, a.im), (b.re, b.im));
+    }
+    assert!(
+        v.steering_norm2.as_slice() == p.steering_norm2.as_slice(),
+        "norms differ"
+    );
+    assert!(q.numerator_norm2() == p.numerator_norm2(), "numerators differ");
+    // With coherence normalisation the identity plan computes its own.
+    let coherent = LocalizeConfig {
+        coherence: true,
+        ..config
+    };
+    let p = Plan::<f32>::new(&coherent, &tf, None).unwrap();
+    assert!(!Arc::ptr_eq(&p.whitening.as_ref().unwrap().steering, &p.steering));
+}
+
 /// The textbook GEVD's W = L⁻¹ is exactly lower triangular (the GPU's products skip
 /// the zeros above its diagonal, eigh.cu) and whitens K: W K Wᴴ = I after HARK's scaling.
 #[test]
