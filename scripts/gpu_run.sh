@@ -95,7 +95,7 @@ print(sys.argv[1] + ': %.2f s wall, %d KB max RSS, exit %d' % (time.time() - t, 
 import resource, subprocess, sys, time
 t = time.time(); r = subprocess.run(sys.argv[2:], stdout=open('$W/robust.jsonl', 'w'))
 print(sys.argv[1] + ': %.2f s wall, %d KB max RSS, exit %d' % (time.time() - t, resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss, r.returncode))
-" "robust [$extra] round $round" "$C/soundloc" localize $W/rec.wav --tf $W/tf.zip --noise-range 0:1 --period ${ROBUST_PERIOD:-1} --device cuda -q $extra
+" "robust [$extra] round $round" env SOUNDLOC_LOG=debug "$C/soundloc" localize $W/rec.wav --tf $W/tf.zip --noise-range 0:1 --period ${ROBUST_PERIOD:-1} --device cuda -q $extra 2>&1 | grep -E "round|input done"
           wc -l < $W/robust.jsonl
         done
       done 2>&1 | tee "$OUT/robust.txt" ;;
