@@ -174,8 +174,22 @@ impl<T: Real> StreamGroup<T> {
             if take.is_empty() {
                 return Ok(());
             }
-            for (i, w) in &take {
-                self.streams[*i].weigh_frames(w);
+            // Onset weighting, each stream's frames by its own state: the streams in
+            // parallel (each stream appears once in `take`).
+            {
+                use rayon::prelude::*;
+                let mut windows: Vec<Option<&[WindowSpec]>> = vec![None; self.streams.len()];
+                for (i, w) in &take {
+                    windows[*i] = Some(w);
+                }
+                self.streams
+                    .par_iter_mut()
+                    .zip(windows.into_par_iter())
+                    .for_each(|(s, w)| {
+                        if let Some(w) = w {
+                            s.weigh_frames(w);
+                        }
+                    });
             }
             let want = self.streams.iter().any(|s| s.wants_spectrum());
             let jobs: Vec<Job<'_, T>> = take.iter().map(|(i, w)| self.streams[*i].job(w)).collect();
