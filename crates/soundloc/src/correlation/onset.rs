@@ -100,7 +100,7 @@ impl OnsetWeights {
         self.weights.resize(nb * nf, 0.0);
         let data = &spectra.data[f0 * nb * m..(f0 + nf) * nb * m];
         let bin = |b: usize, q: &mut [Option<f64>], w: &mut [f64]| match plan.whitening_matrix64(b) {
-            Some(wm) => whitened_weights(plan.config.algorithm, wm, data, nb, b, &mut q[0], keep, w),
+            Some(wm) => whitened_weights(plan.config.algorithm, wm, data, nb, m, b, &mut q[0], keep, w),
             None => microphone_weights(data, nb, m, b, q, keep, w),
         };
         let work = nf
@@ -154,12 +154,12 @@ fn whitened_weights<T: Real>(
     wm: &[c64],
     data: &[C<T>],
     nb: usize,
+    m: usize,
     b: usize,
     q: &mut Option<f64>,
     keep: f64,
     w: &mut [f64],
 ) {
-    let m = (wm.len() as f64).sqrt().round() as usize;
     let (mut xr, mut xi) = (vec![0.0; m * LANES], vec![0.0; m * LANES]);
     let mut p = [0.0; LANES];
     for (c, wc) in w.chunks_mut(LANES).enumerate() {
@@ -294,9 +294,9 @@ pub fn weight(p: f64, q: f64) -> f64 {
 /// lower triangle is read) or K^{-1/2} for HARK's GEVD, Re(xᴴ W x) with W = K⁻¹ for GSVD
 /// (`quadratic`). `xr`, `xi`: the frames' parts, microphone-major (`x[j * LANES + l]`:
 /// microphone j of frame l). K's scale (HARK's normalisation) is a constant per bin and
-/// cancels in p/q. Compiled for AVX-512 and AVX2 (chosen at run time) and as it is; each
-/// lane's sums run in the same order in all three and whatever the other lanes hold, so
-/// the bits are the same.
+/// cancels in p/q. Runs on AVX-512 where the CPU has it, else [`whitened_powers_generic`];
+/// each lane's sums run in the same order in every build and whatever the other lanes
+/// hold, so the bits are the same.
 fn whitened_powers(
     w: &[c64],
     m: usize,
@@ -307,77 +307,70 @@ fn whitened_powers(
     p: &mut [f64; LANES],
 ) {
     #[cfg(target_arch = "x86_64")]
-    {
-        /// The same sums with the eight lanes in one register: multiplies, adds and
-        /// subtractions in the scalar form's order (no fused multiply-add).
-        #[target_feature(enable = "avx512f")]
-        unsafe fn avx512(
-            w: &[c64],
-            m: usize,
-            lower: bool,
-            quadratic: bool,
-            xr: &[f64],
-            xi: &[f64],
-            p: &mut [f64; LANES],
-        ) {
-            use std::arch::x86_64::*;
-            assert!(w.len() >= m * m && xr.len() >= m * LANES && xi.len() >= m * LANES);
-            let (xr, xi) = (xr.as_ptr(), xi.as_ptr());
-            let mut acc = _mm512_setzero_pd();
-            for i in 0..m {
-                let (mut re, mut im) = (_mm512_setzero_pd(), _mm512_setzero_pd());
-                for (j, wij) in w[i * m..i * m + if lower { i + 1 } else { m }].iter().enumerate() {
-                    // SAFETY: j < m, so lanes j·8 .. j·8 + 8 lie within xr and xi (asserted).
-                    let (a, c) = unsafe {
-                        (
-                            _mm512_loadu_pd(xr.add(j * LANES)),
-                            _mm512_loadu_pd(xi.add(j * LANES)),
-                        )
-                    };
-                    let (wr, wi) = (_mm512_set1_pd(wij.re), _mm512_set1_pd(wij.im));
-                    re = _mm512_add_pd(re, _mm512_sub_pd(_mm512_mul_pd(wr, a), _mm512_mul_pd(wi, c)));
-                    im = _mm512_add_pd(im, _mm512_add_pd(_mm512_mul_pd(wr, c), _mm512_mul_pd(wi, a)));
-                }
-                let term = if quadratic {
-                    // SAFETY: i < m, as above.
-                    let (a, c) = unsafe {
-                        (
-                            _mm512_loadu_pd(xr.add(i * LANES)),
-                            _mm512_loadu_pd(xi.add(i * LANES)),
-                        )
-                    };
-                    _mm512_add_pd(_mm512_mul_pd(a, re), _mm512_mul_pd(c, im))
-                } else {
-                    _mm512_add_pd(_mm512_mul_pd(re, re), _mm512_mul_pd(im, im))
-                };
-                acc = _mm512_add_pd(acc, term);
-            }
-            let acc = _mm512_max_pd(acc, _mm512_setzero_pd());
-            // SAFETY: p holds LANES = 8 doubles.
-            unsafe { _mm512_storeu_pd(p.as_mut_ptr(), acc) };
-        }
-        #[target_feature(enable = "avx2")]
-        unsafe fn avx2(
-            w: &[c64],
-            m: usize,
-            lower: bool,
-            quadratic: bool,
-            xr: &[f64],
-            xi: &[f64],
-            p: &mut [f64; LANES],
-        ) {
-            whitened_powers_in(w, m, lower, quadratic, xr, xi, p)
-        }
-        if std::arch::is_x86_feature_detected!("avx512f") {
-            // SAFETY: the CPU supports AVX-512F (checked just above).
-            return unsafe { avx512(w, m, lower, quadratic, xr, xi, p) };
-        }
-        if std::arch::is_x86_feature_detected!("avx2") {
-            // SAFETY: the CPU supports AVX2 (checked just above).
-            return unsafe { avx2(w, m, lower, quadratic, xr, xi, p) };
-        }
+    if std::arch::is_x86_feature_detected!("avx512f") {
+        // SAFETY: the CPU supports AVX-512F (checked just above).
+        return unsafe { whitened_powers_avx512(w, m, lower, quadratic, xr, xi, p) };
     }
-    whitened_powers_in(w, m, lower, quadratic, xr, xi, p)
+    whitened_powers_generic(w, m, lower, quadratic, xr, xi, p)
+}
+
+crate::subspace::simd::dispatch!(
+    /// [`whitened_powers_in`] built for AVX2 where the CPU has it, else as it is.
+    fn whitened_powers_generic(
+        w: &[c64],
+        m: usize,
+        lower: bool,
+        quadratic: bool,
+        xr: &[f64],
+        xi: &[f64],
+        p: &mut [f64; LANES],
+    ) => whitened_powers_in
+);
+
+/// [`whitened_powers_in`] with the eight lanes in one register: multiplies, adds and
+/// subtractions in its order (no fused multiply-add).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f")]
+unsafe fn whitened_powers_avx512(
+    w: &[c64],
+    m: usize,
+    lower: bool,
+    quadratic: bool,
+    xr: &[f64],
+    xi: &[f64],
+    p: &mut [f64; LANES],
+) {
+    use std::arch::x86_64::*;
+    assert!(w.len() >= m * m && xr.len() >= m * LANES && xi.len() >= m * LANES);
+    let (xr, xi) = (xr.as_ptr(), xi.as_ptr());
+    // SAFETY (every load): row i < m and column j < m, so lanes i·8 .. i·8 + 8 and
+    // j·8 .. j·8 + 8 lie within xr and xi (asserted above).
+    let load = |k: usize| unsafe {
+        (
+            _mm512_loadu_pd(xr.add(k * LANES)),
+            _mm512_loadu_pd(xi.add(k * LANES)),
+        )
+    };
+    let mut acc = _mm512_setzero_pd();
+    for i in 0..m {
+        let (mut re, mut im) = (_mm512_setzero_pd(), _mm512_setzero_pd());
+        for (j, wij) in w[i * m..i * m + if lower { i + 1 } else { m }].iter().enumerate() {
+            let (a, c) = load(j);
+            let (wr, wi) = (_mm512_set1_pd(wij.re), _mm512_set1_pd(wij.im));
+            re = _mm512_add_pd(re, _mm512_sub_pd(_mm512_mul_pd(wr, a), _mm512_mul_pd(wi, c)));
+            im = _mm512_add_pd(im, _mm512_add_pd(_mm512_mul_pd(wr, c), _mm512_mul_pd(wi, a)));
+        }
+        let term = if quadratic {
+            let (a, c) = load(i);
+            _mm512_add_pd(_mm512_mul_pd(a, re), _mm512_mul_pd(c, im))
+        } else {
+            _mm512_add_pd(_mm512_mul_pd(re, re), _mm512_mul_pd(im, im))
+        };
+        acc = _mm512_add_pd(acc, term);
+    }
+    let acc = _mm512_max_pd(acc, _mm512_setzero_pd());
+    // SAFETY: p holds LANES = 8 doubles.
+    unsafe { _mm512_storeu_pd(p.as_mut_ptr(), acc) };
 }
 
 #[inline(always)]
@@ -470,35 +463,25 @@ mod tests {
                     xi[j * LANES + l] = v.im;
                 }
             }
+            type Powers = fn(&[c64], usize, bool, bool, &[f64], &[f64], &mut [f64; LANES]);
+            let builds: [(&str, Powers); 3] = [
+                ("dispatched", whitened_powers),
+                ("AVX2 or baseline", whitened_powers_generic),
+                ("baseline", whitened_powers_in),
+            ];
             for alg in [Algorithm::Gevd, Algorithm::GevdHark, Algorithm::Gsvd] {
-                let mut p = [0.0; LANES];
-                whitened_powers(
-                    &w,
-                    m,
-                    alg == Algorithm::Gevd,
-                    alg == Algorithm::Gsvd,
-                    &xr,
-                    &xi,
-                    &mut p,
-                );
-                let mut q = [0.0; LANES];
-                whitened_powers_in(
-                    &w,
-                    m,
-                    alg == Algorithm::Gevd,
-                    alg == Algorithm::Gsvd,
-                    &xr,
-                    &xi,
-                    &mut q,
-                );
-                for l in 0..LANES {
-                    let want = scalar_power(alg, &w, &frames[l]);
-                    assert_eq!(p[l].to_bits(), want.to_bits(), "{alg:?}, {m} mics, lane {l}");
-                    assert_eq!(
-                        q[l].to_bits(),
-                        want.to_bits(),
-                        "{alg:?}, {m} mics, lane {l} (baseline build)"
-                    );
+                let (lower, quadratic) = (alg == Algorithm::Gevd, alg == Algorithm::Gsvd);
+                for (build, powers) in builds {
+                    let mut p = [0.0; LANES];
+                    powers(&w, m, lower, quadratic, &xr, &xi, &mut p);
+                    for (l, frame) in frames.iter().enumerate() {
+                        let want = scalar_power(alg, &w, frame);
+                        assert_eq!(
+                            p[l].to_bits(),
+                            want.to_bits(),
+                            "{alg:?}, {m} mics, lane {l}, {build}"
+                        );
+                    }
                 }
             }
         }

@@ -478,12 +478,12 @@ impl<T: Real> Engine<T> {
         if let Some(h) = &mut self.health {
             out.notes.extend(h.notes(true));
         }
-        if let Some(n) = self.tracker.as_ref().and_then(|t| t.none_confirmed()) {
+        let unconfirmed = self
+            .tracker
+            .as_ref()
+            .and_then(|t| Some((t.none_confirmed()?, t.config().confirm_frames.unwrap_or(0))));
+        if let Some((n, confirm)) = unconfirmed {
             let c = &self.plan.config;
-            let confirm = self
-                .tracker
-                .as_ref()
-                .map_or(0, |t| t.config().confirm_frames.unwrap_or(0));
             out.notes.push(format!(
                 "tracking: {n} new source(s) seen, none confirmed, so no source was output: a new source is \
                  confirmed when a peak within MIN_SRC_INTERVAL is seen again {confirm} frames ({:.2} s) after its \
