@@ -212,6 +212,7 @@ pub fn run(mut a: Args) -> anyhow::Result<ExitCode> {
             rate: None,
             max_buffer: 10.0,
             realtime: false,
+            keep_listening: false,
         };
         let res = input.open(true).and_then(|inp| {
             let (fmt, rx) = spawn_reader(inp.source, false, input.max_buffer, false, false);

@@ -76,6 +76,11 @@ pub struct InputArgs {
     /// in the live view (--serve); without it files are read as fast as they are localized.
     #[arg(long)]
     pub realtime: bool,
+    /// With `tcp-listen:`: when a sender ends, wait for the next one instead of ending the
+    /// run (Ctrl-C ends it). Each sender must send the first one's rate and channels; the
+    /// time between senders is a pause (results keep their true times).
+    #[arg(long)]
+    pub keep_listening: bool,
 }
 
 /// An open input.
@@ -140,11 +145,32 @@ impl InputArgs {
                 name,
             });
         }
+        if self.keep_listening && !self.input.starts_with("tcp-listen:") {
+            bail!("--keep-listening is for a tcp-listen: input (it waits for the next sender)");
+        }
         if let Some(addr) = self.input.strip_prefix("tcp-listen:") {
             let l =
                 std::net::TcpListener::bind(addr).with_context(|| format!("{}: listening", self.input))?;
             if !quiet {
                 eprintln!("soundloc: waiting for a sender on tcp:{}", l.local_addr()?);
+            }
+            if self.keep_listening {
+                let me = self.clone();
+                let open: super::senders::Opener = Box::new(move |s, name| {
+                    let r: Box<dyn std::io::Read + Send> = Box::new(s);
+                    match (me.raw, me.raw_channels, me.rate) {
+                        (Some(enc), Some(ch), Some(rate)) => {
+                            Ok(Box::new(RawSource::new(r, enc.into(), ch, rate, name)?))
+                        }
+                        _ => Ok(open_stream(r, name)?),
+                    }
+                });
+                let senders = super::senders::Senders::first(l, open, name.clone(), quiet)?;
+                return Ok(Input {
+                    source: Box::new(senders),
+                    live: true,
+                    name,
+                });
             }
             let (s, peer) = l.accept().with_context(|| format!("{}: accepting", self.input))?;
             if !quiet {
@@ -176,6 +202,9 @@ pub enum Msg {
     Block { data: Vec<f32>, gap: u64 },
     /// The input ended (after `gap` more dropped frames).
     End { gap: u64 },
+    /// `frames` frames of time passed with no input (between two senders), after `lost`
+    /// more dropped frames.
+    Pause { lost: u64, frames: u64 },
     /// The input failed.
     Failed(soundloc::Error),
     /// Something the user should know about the input.
@@ -488,6 +517,21 @@ fn reader_loop(
             if tx.send(Msg::Note(n)).is_err() {
                 return;
             }
+        }
+        let pause = source.take_pause();
+        if pause > 0 {
+            if tx
+                .send(Msg::Pause {
+                    lost: gap,
+                    frames: pause,
+                })
+                .is_err()
+            {
+                return;
+            }
+            // Real time went on: the lead over it (`faster_than_real_time`) counts it.
+            frames += pause;
+            gap = 0;
         }
         match r {
             Ok(0) => {

@@ -173,9 +173,10 @@ pub fn drive(
                 .map_err(|_| anyhow!("{}: the reader stopped", name.display()))?,
         };
         let t = Instant::now();
-        let (mut data, gap, end) = match msg {
-            Msg::Block { data, gap } => (data, gap, false),
-            Msg::End { gap } => (Vec::new(), gap, true),
+        let (mut data, gap, end, pause) = match msg {
+            Msg::Block { data, gap } => (data, gap, false, 0),
+            Msg::End { gap } => (Vec::new(), gap, true, 0),
+            Msg::Pause { lost, frames } => (Vec::new(), lost, false, frames),
             Msg::Failed(e) => return Err(e.into()),
             Msg::Note(n) => {
                 note(a.quiet, &n);
@@ -185,13 +186,16 @@ pub fn drive(
         if live && !end {
             super::input::catch_up(&rx, &mut data, catch_up, &mut held);
         }
-        let mut gap = gap;
+        let (mut gap, mut pause) = (gap, pause);
         if let Some(r) = &mut resampler {
             // Before a gap or the end the converter's last samples go in; a gap becomes
             // the output frames that keep later samples at their true times.
             converted.clear();
             if gap > 0 {
                 gap = r.gap(gap, &mut converted).map_err(ctx)?;
+            }
+            if pause > 0 {
+                pause = r.gap(pause, &mut converted).map_err(ctx)?;
             }
             if end {
                 r.finish(&mut converted).map_err(ctx)?;
@@ -215,6 +219,9 @@ pub fn drive(
             lost_frames += gap;
             gaps += 1;
         }
+        if pause > 0 {
+            loc.pause(pause, &mut out).map_err(ctx)?;
+        }
         if end {
             match loc.flush(&mut out) {
                 // A live session stopped before its first window: no results, no error
@@ -224,7 +231,7 @@ pub fn drive(
                 }
                 r => r.map_err(ctx)?,
             }
-        } else {
+        } else if !data.is_empty() {
             loc.push(
                 Block::Interleaved {
                     data: &data,

@@ -29,6 +29,7 @@ mod live_out;
 pub mod localize;
 pub mod noisecm;
 pub mod run_args;
+mod senders;
 pub mod sinks;
 pub mod spectrum_out;
 pub mod tf;

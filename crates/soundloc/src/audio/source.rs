@@ -54,6 +54,12 @@ pub trait AudioSource: Send {
     fn take_notes(&mut self) -> Vec<String> {
         Vec::new()
     }
+    /// Frames of real time that passed with no input at all before the block just read
+    /// (a listening input between one sender and the next), counted once: the reader
+    /// keeps later results at their true times. 0 for every source that never pauses.
+    fn take_pause(&mut self) -> u64 {
+        0
+    }
 }
 
 /// Open a WAV or FLAC file, recognised by its first bytes.

@@ -260,6 +260,22 @@ impl<T: Real> Engine<T> {
     /// times stay true (`time_s` counts the lost samples), the tracker and the K in use
     /// are kept; a noise estimate still arriving is finished with what it had.
     pub fn skip(&mut self, samples: u64, out: &mut Output) -> Result<()> {
+        self.restart_after(
+            samples,
+            out,
+            "of audio lost",
+            "(the input came faster than it was handled)",
+        )
+    }
+
+    /// A pause in the input: `samples` samples per channel of time passed with no audio
+    /// at all (a listening input between one sender and the next). Handled as a
+    /// [`skip`](Self::skip), with a note that says what happened.
+    pub fn pause(&mut self, samples: u64, out: &mut Output) -> Result<()> {
+        self.restart_after(samples, out, "without input", "(between two senders)")
+    }
+
+    fn restart_after(&mut self, samples: u64, out: &mut Output, what: &str, why: &str) -> Result<()> {
         if self.finished {
             return Err(Error::State(
                 "skip after flush: call reset to start a new stream".into(),
@@ -285,8 +301,7 @@ impl<T: Real> Engine<T> {
         }
         self.new_stream_id();
         out.notes.push(format!(
-            "input gap: {:.3} s of audio lost at {at:.3} s (the input came faster than it was handled); \
-             windows across it skipped{}",
+            "input gap: {:.3} s {what} at {at:.3} s {why}; windows across it skipped{}",
             samples as f64 / fs,
             if held > 0 {
                 format!(", {held} held windows dropped")

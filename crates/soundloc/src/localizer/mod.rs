@@ -522,6 +522,11 @@ impl Localizer {
         dispatch!(mut self, e => e.skip(samples, out))
     }
 
+    /// See [`Engine::pause`].
+    pub fn pause(&mut self, samples: u64, out: &mut Output) -> Result<()> {
+        dispatch!(mut self, e => e.pause(samples, out))
+    }
+
     /// See [`Engine::set_noise`].
     pub fn set_noise(&mut self, noise: &NoiseMatrices) -> Result<()> {
         dispatch!(mut self, e => e.set_noise(noise))
