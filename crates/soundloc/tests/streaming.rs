@@ -486,3 +486,41 @@ fn a_gap_skips_the_windows_across_it_and_keeps_times_true() {
     }
     assert!(after.len() >= 5);
 }
+
+/// Audio too short for any result says how much the first result needs for the window
+/// type and PERIOD in use (a result frame c is a multiple of PERIOD whose window starts
+/// at frame 0 or later: PAST's first is c = PERIOD, MIDDLE's ends ⌊W/2⌋ after c), and exactly that much gives a result. Until 2026-12-07 the message
+/// gave one window's length, which PAST and MIDDLE runs longer than that still failed.
+#[test]
+fn too_short_audio_names_what_the_first_result_needs() {
+    let scene = ring8_drone(0.0, 5).unwrap();
+    let audio = scene.render();
+    let (nfft, hop) = (512, 160);
+    for (window_type, period, last) in [
+        (WindowType::Future, 50, 49),
+        (WindowType::Past, 200, 200),
+        (WindowType::Past, 1, 49),
+        (WindowType::Middle, 50, 75),
+        (WindowType::Middle, 1, 49),
+    ] {
+        let config = LocalizeConfig {
+            algorithm: Algorithm::Sevd,
+            period,
+            window_type,
+            ..LocalizeConfig::default()
+        };
+        let spec = spec_for(&scene, &config);
+        let need = nfft + last * hop;
+        let part = |n: usize| -> Vec<Vec<f32>> { audio.channels.iter().map(|c| c[..n].to_vec()).collect() };
+        let mut loc = Localizer::new(&spec).unwrap();
+        let e = loc.localize(&part(need - 1)).unwrap_err();
+        assert!(
+            matches!(e, soundloc::Error::NoWindow(_))
+                && e.to_string().contains(&format!("needs at least {need} ")),
+            "{window_type:?} PERIOD {period}: {e}"
+        );
+        loc.reset().unwrap();
+        let run = loc.localize(&part(need)).unwrap();
+        assert_eq!(run.results.len(), 1, "{window_type:?} PERIOD {period}");
+    }
+}

@@ -2,7 +2,8 @@
 //! or pipes, and raw PCM (a sound card's or a network peer's bytes). A source never needs
 //! to seek, so standard input and sockets work as well as files.
 //!
-//! **WAV**: RIFF chunks are walked in order; `fmt ` must precede `data`. PCM 8-bit
+//! **WAV**: RIFF chunks are walked in order; `fmt ` must precede `data`. RF64 and BW64
+//! (WAV past 4 GiB) are read too: their `ds64` chunk gives the data's 64-bit size. PCM 8-bit
 //! (unsigned; delivered as value − 128), 16/24/32-bit integer, and 32/64-bit IEEE float
 //! (64-bit is what numpy's `scipy.io.wavfile.write` writes for float64 arrays), also as
 //! WAVE_FORMAT_EXTENSIBLE. Samples keep their raw values (a 24-bit sample is not rescaled
@@ -22,7 +23,9 @@
 //! (0-based, counted from the start) and the channel.
 
 mod flac;
+mod wav;
 pub use flac::FlacSource;
+pub use wav::WavSource;
 
 use crate::{Error, Result};
 use std::io::{BufReader, ErrorKind, Read};
@@ -90,7 +93,7 @@ fn open_reader<R: Read + Send + 'static>(
         return Err(Error::format(name, what));
     }
     let r = std::io::Cursor::new(magic[..got].to_vec()).chain(r);
-    if got == 4 && &magic == b"RIFF" {
+    if got == 4 && matches!(&magic, b"RIFF" | b"RF64" | b"BW64") {
         Ok(Box::new(WavSource::new(r, name, greedy)?))
     } else if got == 4 && &magic == b"fLaC" {
         Ok(Box::new(FlacSource::new(r, name)?))
@@ -444,182 +447,6 @@ impl<R: Read + Send> AudioSource for RawSource<R> {
     }
     fn read_interleaved(&mut self, max_frames: usize, buf: &mut Vec<f32>) -> Result<usize> {
         self.pcm.read(&self.name, max_frames, buf, false)
-    }
-    fn take_notes(&mut self) -> Vec<String> {
-        std::mem::take(&mut self.pcm.notes)
-    }
-}
-
-/// A WAV stream (see the [module docs](self)).
-pub struct WavSource<R> {
-    pcm: PcmReader<R>,
-    rate: u32,
-    name: PathBuf,
-    total: Option<u64>,
-}
-
-fn u16_at(b: &[u8], i: usize) -> u16 {
-    u16::from_le_bytes([b[i], b[i + 1]])
-}
-fn u32_at(b: &[u8], i: usize) -> u32 {
-    u32::from_le_bytes([b[i], b[i + 1], b[i + 2], b[i + 3]])
-}
-
-impl<R: Read + Send> WavSource<R> {
-    /// Parse the header up to the `data` chunk. `greedy`: reads fill whole blocks (a
-    /// file) instead of returning what has arrived (a pipe).
-    pub fn new(mut r: R, name: &Path, greedy: bool) -> Result<Self> {
-        let truncated = || Error::format(name, "truncated WAV file");
-        let mut head = [0u8; 12];
-        if read_full(&mut r, &mut head).map_err(|e| Error::io(name, e))? < 12 {
-            return Err(truncated());
-        }
-        if &head[0..4] != b"RIFF" || &head[8..12] != b"WAVE" {
-            return Err(Error::format(name, "bad WAV file: no RIFF/WAVE header"));
-        }
-        let mut fmt: Option<(RawEncoding, usize, u32)> = None;
-        let mut header_notes = Vec::new();
-        loop {
-            let mut ch = [0u8; 8];
-            if read_full(&mut r, &mut ch).map_err(|e| Error::io(name, e))? < 8 {
-                return Err(match fmt {
-                    None => Error::format(name, "bad WAV file: no fmt chunk"),
-                    Some(_) => Error::format(name, "no audio frames (zero samples): no data chunk"),
-                });
-            }
-            let size = u32_at(&ch, 4);
-            match &ch[0..4] {
-                b"fmt " => {
-                    if !(16..=1024).contains(&size) {
-                        return Err(Error::format(
-                            name,
-                            format!("bad WAV file: fmt chunk of {size} bytes"),
-                        ));
-                    }
-                    let mut f = vec![0u8; size as usize + (size as usize & 1)];
-                    if read_full(&mut r, &mut f).map_err(|e| Error::io(name, e))? < f.len() {
-                        return Err(truncated());
-                    }
-                    let mut tag = u16_at(&f, 0);
-                    let channels = u16_at(&f, 2) as usize;
-                    let rate = u32_at(&f, 4);
-                    let bits = u16_at(&f, 14);
-                    if tag == 0xFFFE && size >= 26 {
-                        tag = u16_at(&f, 24); // the sub-format GUID's first two bytes
-                    }
-                    if channels == 0 {
-                        return Err(Error::format(name, "WAV header declares 0 channels"));
-                    }
-                    if rate == 0 {
-                        return Err(Error::format(name, "WAV header declares a sample rate of 0 Hz"));
-                    }
-                    let unsupported = |what: String| {
-                        Error::format(
-                            name,
-                            format!(
-                                "unsupported bit depth: {what} (supported: 8-, 16-, 24-, 32-bit integer and 32-, 64-bit float WAV; 16- and 24-bit FLAC)"
-                            ),
-                        )
-                    };
-                    let enc = match (tag, bits) {
-                        (1, 8) => RawEncoding::U8,
-                        (1, 16) => RawEncoding::S16le,
-                        (1, 24) => RawEncoding::S24le,
-                        (1, 32) => RawEncoding::S32le,
-                        (3, 32) => RawEncoding::F32le,
-                        (3, 64) => RawEncoding::F64le,
-                        (1, b) => return Err(unsupported(format!("{b}-bit integer PCM"))),
-                        (3, b) => return Err(unsupported(format!("{b}-bit float"))),
-                        _ => {
-                            return Err(Error::format(
-                                name,
-                                "unsupported WAV encoding (supported: 8-, 16-, 24-, 32-bit integer PCM and 32-, 64-bit float)",
-                            ))
-                        }
-                    };
-                    // Block align is redundant for packed samples: a wrong one (0, or one
-                    // channel's size, as some hand-written headers have) is noted and the
-                    // samples read packed; a larger one (24-bit samples in 4-byte slots,
-                    // say) would be misread as packed, so it is refused.
-                    let align = u16_at(&f, 12) as usize;
-                    let packed = channels * enc.bytes();
-                    let contradicts = format!(
-                        "WAV header contradicts itself: block align {align} bytes, but {channels} channels of {bits}-bit samples make {packed} bytes per frame"
-                    );
-                    if align > packed {
-                        return Err(Error::format(
-                            name,
-                            format!("{contradicts} (samples in wider slots are not supported)"),
-                        ));
-                    }
-                    if align != packed {
-                        header_notes.push(format!(
-                            "{}: {contradicts}; read as packed {bits}-bit samples",
-                            name.display()
-                        ));
-                    }
-                    if u16_at(&f, 0) == 0xFFFE && size >= 24 && u16_at(&f, 18) > bits {
-                        header_notes.push(format!(
-                            "{}: WAV header contradicts itself: {} valid bits in {bits}-bit samples; read as {bits}-bit samples",
-                            name.display(),
-                            u16_at(&f, 18)
-                        ));
-                    }
-                    fmt = Some((enc, channels, rate));
-                }
-                b"data" => {
-                    let Some((enc, channels, rate)) = fmt else {
-                        return Err(Error::format(name, "bad WAV file: data chunk before fmt chunk"));
-                    };
-                    let fb = (enc.bytes() * channels) as u64;
-                    let left = (size != 0 && size < 0x7FFF_F000).then_some(size as u64);
-                    return Ok(WavSource {
-                        pcm: PcmReader {
-                            r,
-                            enc,
-                            channels,
-                            left,
-                            bytes: Vec::new(),
-                            carry: 0,
-                            frames_read: 0,
-                            ended: false,
-                            greedy,
-                            notes: header_notes,
-                            cut: None,
-                            non_finite: 0,
-                        },
-                        rate,
-                        name: name.to_path_buf(),
-                        total: left.map(|l| l / fb),
-                    });
-                }
-                _ => {
-                    // Skip the chunk (and its pad byte).
-                    let skip = size as u64 + (size as u64 & 1);
-                    let n = std::io::copy(&mut (&mut r).take(skip), &mut std::io::sink())
-                        .map_err(|e| Error::io(name, e))?;
-                    if n < skip {
-                        return Err(truncated());
-                    }
-                }
-            }
-        }
-    }
-}
-
-impl<R: Read + Send> AudioSource for WavSource<R> {
-    fn format(&self) -> AudioFormat {
-        AudioFormat {
-            sample_rate_hz: self.rate,
-            channels: self.pcm.channels,
-            total_frames: self.total,
-        }
-    }
-    fn name(&self) -> &Path {
-        &self.name
-    }
-    fn read_interleaved(&mut self, max_frames: usize, buf: &mut Vec<f32>) -> Result<usize> {
-        self.pcm.read(&self.name, max_frames, buf, true)
     }
     fn take_notes(&mut self) -> Vec<String> {
         std::mem::take(&mut self.pcm.notes)

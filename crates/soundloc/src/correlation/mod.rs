@@ -90,10 +90,15 @@ impl WindowScheduler {
     /// The first frame of the next window to complete. Result frames that produce no
     /// window are skipped.
     pub fn next_start(&self) -> usize {
+        self.next_window().1
+    }
+
+    /// The result frame of the next window to complete, and the window's first frame.
+    pub fn next_window(&self) -> (usize, usize) {
         let mut c = self.next_c;
         loop {
             if let Some(start) = self.start_of(c) {
-                return start;
+                return (c, start);
             }
             c += self.period.max(1);
         }

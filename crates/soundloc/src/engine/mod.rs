@@ -510,10 +510,15 @@ impl<T: Real> Engine<T> {
         if self.windows_run == 0 {
             let c = &self.plan.config;
             let len = self.stft.samples_received();
-            let need = c.nfft + (c.window.max(1) - 1) * c.hop;
+            // The first result's window (with PAST it is at frame PERIOD, with MIDDLE it
+            // ends ⌊W/2⌋ after its frame).
+            let (frame, start) = self.scheduler.next_window();
+            let last = self.scheduler.next_last_frame();
+            let need = c.nfft + last * c.hop;
             let fs = c.sample_rate_hz as f64;
             return Err(Error::NoWindow(format!(
-                "the audio has {len} samples ({:.3} s); one correlation window of {} frames needs at least {need} ({:.3} s)",
+                "the audio has {len} samples ({:.3} s); the first result (frame {frame}, its window of {} frames \
+                 being frames {start}–{last}) needs at least {need} ({:.3} s)",
                 len as f64 / fs,
                 c.window,
                 need as f64 / fs
