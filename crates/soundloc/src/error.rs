@@ -28,6 +28,15 @@ pub enum Error {
         /// What is wrong with it, and where.
         message: String,
     },
+    /// A WAV or FLAC stream ended before the length its header declares (a file cut
+    /// short, a recorder stopped early); the frames before the cut were delivered.
+    #[error("{}: {message}", path.display())]
+    Truncated {
+        /// The file.
+        path: PathBuf,
+        /// How much is missing.
+        message: String,
+    },
     /// A configuration value is out of range or inconsistent with the others.
     #[error("invalid configuration: {0}")]
     Config(String),
@@ -69,6 +78,13 @@ impl Error {
     /// A content error in `path`.
     pub fn format(path: impl Into<PathBuf>, message: impl Into<String>) -> Self {
         Error::Format {
+            path: path.into(),
+            message: message.into(),
+        }
+    }
+    /// A stream cut short (see [`Error::Truncated`]).
+    pub fn truncated(path: impl Into<PathBuf>, message: impl Into<String>) -> Self {
+        Error::Truncated {
             path: path.into(),
             message: message.into(),
         }

@@ -32,6 +32,10 @@ pub struct Args {
     /// rerun resumes where an interrupted one stopped; files are written whole or not at all).
     #[arg(long)]
     pub overwrite: bool,
+    /// A recording cut short (it ends before the length its header declares) is localized
+    /// up to the cut, with a warning, instead of failing.
+    #[arg(long)]
+    pub allow_truncated: bool,
     #[command(flatten)]
     pub run: RunArgs,
 }
@@ -213,9 +217,10 @@ pub fn run(mut a: Args) -> anyhow::Result<ExitCode> {
             max_buffer: 10.0,
             realtime: false,
             keep_listening: false,
+            allow_truncated: a.allow_truncated,
         };
         let res = input.open(true).and_then(|inp| {
-            let (fmt, rx) = spawn_reader(inp.source, false, input.max_buffer, false, false);
+            let (fmt, rx) = spawn_reader(inp.source, false, &input, false);
             drive(&a.run, &inp.name, false, fmt, rx, None)
         });
         match res {

@@ -81,6 +81,11 @@ pub struct InputArgs {
     /// time between senders is a pause (results keep their true times).
     #[arg(long)]
     pub keep_listening: bool,
+    /// A WAV/FLAC file cut short (it ends before the length its header declares) is
+    /// localized up to the cut, with a warning, instead of failing. Streams (a pipe, a
+    /// socket) always are: a recorder stopped early.
+    #[arg(long)]
+    pub allow_truncated: bool,
 }
 
 /// An open input.
@@ -323,10 +328,11 @@ pub fn check_max_buffer(seconds: f64) -> anyhow::Result<()> {
 pub fn spawn_reader(
     mut source: Box<dyn AudioSource>,
     live: bool,
-    max_buffer_s: f64,
-    realtime: bool,
+    args: &InputArgs,
     serving: bool,
 ) -> (AudioFormat, Queue) {
+    let (max_buffer_s, realtime) = (args.max_buffer, args.realtime);
+    let keep_cut = live || args.allow_truncated;
     let fmt = source.format();
     let block = if live || realtime {
         // ~20 ms blocks: results as soon as their window is complete.
@@ -351,7 +357,7 @@ pub fn spawn_reader(
     };
     let pace = (realtime && !live).then_some(fmt.sample_rate_hz as f64);
     let live = live.then_some(max_buffer_s);
-    std::thread::spawn(move || reader_loop(&mut *source, &tx, block, live, pace));
+    std::thread::spawn(move || reader_loop(&mut *source, &tx, block, live, pace, keep_cut));
     (
         fmt,
         Queue {
@@ -487,13 +493,15 @@ pub fn stop_on_ctrl_c(tx: EndInput) {
     *STOP.lock().unwrap_or_else(|e| e.into_inner()) = Some(tx);
 }
 
-/// `live`: the input's `--max-buffer` (seconds) where it is live.
+/// `live`: the input's `--max-buffer` (seconds) where it is live. `keep_cut`: a stream
+/// cut short ends with a warning (what arrived is localized) instead of an error.
 fn reader_loop(
     source: &mut dyn AudioSource,
     tx: &QueueTx,
     block: usize,
     live: Option<f64>,
     pace_hz: Option<f64>,
+    keep_cut: bool,
 ) {
     let rate = source.format().sample_rate_hz;
     // A pipe, socket or device (even once read like a file).
@@ -573,6 +581,16 @@ fn reader_loop(
                     return;
                 }
                 gap = 0;
+            }
+            Err(e @ soundloc::Error::Truncated { .. }) if keep_cut && frames > 0 => {
+                let note = format!(
+                    "warning: {e}; the {:.2} s before the cut are localized",
+                    frames as f64 / rate.max(1) as f64
+                );
+                if tx.send(Msg::Note(note)).is_ok() {
+                    let _ = tx.send(Msg::End { gap });
+                }
+                return;
             }
             // A sender that goes away abruptly (a reset connection, a crashed writer) ends a
             // stream as a close would: what arrived is localized and every output completed.

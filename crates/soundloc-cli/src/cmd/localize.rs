@@ -54,8 +54,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     let (fmt, rx) = spawn_reader(
         input.source,
         input.live,
-        args.input.max_buffer,
-        args.input.realtime,
+        &args.input,
         args.run.live.serve.is_some(),
     );
     drive(&args.run, &input.name, input.live, fmt, rx, ready)
@@ -177,6 +176,9 @@ pub fn drive(
             Msg::Block { data, gap } => (data, gap, false, 0),
             Msg::End { gap } => (Vec::new(), gap, true, 0),
             Msg::Pause { lost, frames } => (Vec::new(), lost, false, frames),
+            Msg::Failed(e @ soundloc::Error::Truncated { .. }) => {
+                bail!("{e} (--allow-truncated localizes the audio before the cut)")
+            }
             Msg::Failed(e) => return Err(e.into()),
             Msg::Note(n) => {
                 note(a.quiet, &n);

@@ -10,7 +10,8 @@
 //! to 16 bits). A `data` size of 0 or
 //! ≥ 0x7FFF_F000 is a streaming placeholder (what `arecord` and other pipes write before
 //! they know the length): the data then runs to the end of the input. Otherwise the data
-//! ends at its declared size, and a file that ends earlier is an error ("truncated"). An
+//! ends at its declared size, and a file that ends earlier is an error ([`Error::Truncated`],
+//! after the whole frames before the cut: a caller may keep those). An
 //! incomplete trailing frame is dropped.
 //!
 //! **FLAC**: 16- and 24-bit, decoded frame by frame; a stream that ends before the total
@@ -266,7 +267,7 @@ impl<R: Read> PcmReader<R> {
         match self.left {
             Some(0) => self.ended = true,
             Some(l) if self.ended && truncated_is_error => {
-                let e = Error::format(
+                let e = Error::truncated(
                     name,
                     format!(
                         "truncated WAV file: {l} bytes ({} samples per channel) of the audio data \

@@ -53,9 +53,10 @@ impl<R: Read + Send> FlacSource<R> {
 
 fn flac_err(name: &Path, e: claxon::Error) -> Error {
     match e {
-        claxon::Error::IoError(io) if io.kind() == ErrorKind::UnexpectedEof => {
-            Error::format(name, "truncated FLAC file")
-        }
+        claxon::Error::IoError(io) if io.kind() == ErrorKind::UnexpectedEof => Error::truncated(
+            name,
+            "truncated FLAC file: it ends inside a frame (an interrupted copy or download)",
+        ),
         claxon::Error::IoError(io) => Error::io(name, io),
         other => Error::format(name, format!("bad FLAC file: {other}")),
     }
@@ -94,7 +95,7 @@ impl<R: Read + Send> AudioSource for FlacSource<R> {
                 // that ends at a frame boundary before it was cut short, not a short file.
                 let decoded = self.frames_read + ((self.pending.len() - self.at) / nch) as u64;
                 if let Some(total) = self.info.samples.filter(|&t| t > decoded) {
-                    self.cut = Some(Error::format(
+                    self.cut = Some(Error::truncated(
                         &self.name,
                         format!(
                             "truncated FLAC file: its header declares {total} samples per channel, the frames hold {decoded}: the file was cut short (an interrupted copy or download)"

@@ -214,7 +214,7 @@ impl<R: Read + Send> AudioSource for WavSource<R> {
 
 #[cfg(test)]
 mod tests {
-    use super::super::{open_stream, AudioSource};
+    use super::super::open_stream;
     use std::path::Path;
 
     /// A 16-bit WAV of `frames` (interleaved, `channels`), as RIFF, or as RF64 with
