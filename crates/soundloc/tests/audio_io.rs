@@ -116,7 +116,32 @@ fn a_streams_non_finite_samples_become_zero_with_a_warning() {
         "{notes:?}"
     );
     assert!(
-        notes[1].contains("2 non-finite samples were replaced by 0"),
+        notes[1].contains("2 non-finite or out-of-range samples were replaced by 0"),
+        "{notes:?}"
+    );
+    // A finite sample beyond any converter's range (1e20: an uninitialised buffer, or
+    // s16 read as f32le) is such a glitch too; 1e14 itself is kept.
+    let mut y = x.clone();
+    y[1001] = 0.0;
+    y[2500] = 1e14;
+    y[2701] = -1e20;
+    let bytes: Vec<u8> = y.iter().flat_map(|v| v.to_le_bytes()).collect();
+    let mut src = RawSource::new(std::io::Cursor::new(bytes), RawEncoding::F32le, 2, 16000, name).unwrap();
+    let (mut got, mut notes) = (Vec::new(), Vec::new());
+    loop {
+        let n = src.read_interleaved(256, &mut buf).unwrap();
+        notes.extend(src.take_notes());
+        if n == 0 {
+            break;
+        }
+        got.extend_from_slice(&buf);
+    }
+    y[2701] = 0.0;
+    assert_eq!(got, y);
+    assert!(
+        notes.len() == 2
+            && notes[0].starts_with("warning: -: sample 1350 of channel 1 is -1e20, beyond ±1e14")
+            && notes[1].contains("1 non-finite or out-of-range samples"),
         "{notes:?}"
     );
     // A WAV file with a NaN is still an error.

@@ -112,6 +112,11 @@ fn open_reader<R: Read + Send + 'static>(
     }
 }
 
+/// The largest sample magnitude a stream (a pipe, a socket) delivers as it is; beyond it
+/// a sample is a glitch, replaced by 0 like a non-finite one. It is what single-precision
+/// correlations hold ([`crate::real::Real::MAX_SAMPLE`]), far beyond any converter's range.
+pub const MAX_STREAM_SAMPLE: f32 = 1e14;
+
 /// Read until `buf` is full or the end; returns the bytes read.
 fn read_full<R: Read + ?Sized>(r: &mut R, buf: &mut [u8]) -> std::io::Result<usize> {
     let mut got = 0;
@@ -312,6 +317,26 @@ impl<R: Read> PcmReader<R> {
             }
             self.non_finite += bad;
         }
+        // A stream's finite samples beyond what any converter gives (s32 reaches 2.1e9) are
+        // glitches too: an uninitialised buffer, or another encoding than --raw names.
+        if !self.greedy {
+            if let Some(i) = buf.iter().position(|v| v.abs() > MAX_STREAM_SAMPLE) {
+                if self.non_finite == 0 {
+                    self.notes.push(format!(
+                        "warning: {}: sample {} of channel {} is {:e}, beyond ±{MAX_STREAM_SAMPLE:e} (is the \
+                         encoding the sender's? --raw names it): this stream's samples beyond that and \
+                         non-finite ones are replaced by 0 (the windows holding them are less reliable); a \
+                         count follows at its end",
+                        name.display(),
+                        self.frames_read + (i / self.channels) as u64,
+                        i % self.channels,
+                        buf[i]
+                    ));
+                }
+                let bad = buf.iter_mut().filter(|v| v.abs() > MAX_STREAM_SAMPLE);
+                self.non_finite += bad.map(|v| *v = 0.0).count() as u64;
+            }
+        }
         self.bytes.copy_within(used..have, 0);
         self.carry = have - used;
         if self.ended && frames == 0 && self.carry > 0 {
@@ -325,7 +350,7 @@ impl<R: Read> PcmReader<R> {
         self.frames_read += frames as u64;
         if self.ended && frames == 0 && self.non_finite > 0 {
             self.notes.push(format!(
-                "{}: {} non-finite samples were replaced by 0 in all",
+                "{}: {} non-finite or out-of-range samples were replaced by 0 in all",
                 name.display(),
                 self.non_finite
             ));
