@@ -87,6 +87,40 @@ def test_finds_known_directions_in_3d():
         assert abs(np.degrees(d.colatitude_recon[0]) - 70.0) <= 5.0, name
 
 
+def test_two_sources_on_an_anisotropic_product_grid_as_pyroomacoustics_finds_them():
+    """dim=3 on a 2 deg x 4 deg azimuth x colatitude grid: the peaks are local maxima across
+    the rings too. Until 2026-12-07 a point's 6 nearest all lay on its own ring, a ridge
+    across the rings counted as peaks, and SRP-PHAT reported (-98, 34) beside (-98, 58)
+    and missed (26, 78)."""
+    rng = np.random.default_rng(2)
+    R2 = pra.circular_2D_array([0, 0], 6, 0.0, 0.06)
+    L = np.hstack([np.vstack([R2, np.zeros(6)]), np.vstack([R2 * 0.5, 0.05 * np.ones(6)])])
+    room = pra.AnechoicRoom(3, fs=FS, sigma2_awgn=1e-4)
+    a, c = np.radians(-100), np.radians(60)
+    room.add_source(5 * np.array([np.sin(c) * np.cos(a), np.sin(c) * np.sin(a), np.cos(c)]),
+                    signal=rng.standard_normal(FS))
+    room.add_source(5 * np.array([1, 0.5, 0.2]) / np.linalg.norm([1, 0.5, 0.2]),
+                    signal=0.7 * rng.standard_normal(FS))
+    room.add_microphone_array(pra.MicrophoneArray(L, FS))
+    seed_simulation(2)
+    room.simulate()
+    X = pra.transform.stft.analysis(room.mic_array.signals.T, NFFT, NFFT // 2).transpose([2, 1, 0])
+    kw = dict(num_src=2, dim=3, azimuth=np.radians(np.arange(-180, 180, 2.0)),
+              colatitude=np.radians(np.arange(2, 180, 4.0)))
+    for name in ["SRP", "MUSIC", "NormMUSIC"]:
+        found = {}
+        for mod in (pra.doa, soundloc.doa):
+            d = mod.algorithms[name](L, FS, NFFT, **kw)
+            d.locate_sources(X, freq_range=[300.0, 3500.0])
+            found[mod.__name__] = sorted(zip(np.round(np.degrees(d.azimuth_recon)),
+                                             np.round(np.degrees(d.colatitude_recon))))
+        got = found["soundloc.doa"]
+        assert found["pyroomacoustics.doa"] == got, (name, found)
+        # The sources' own directions, within a grid step.
+        assert abs(got[0][0] + 100) <= 2 and abs(got[0][1] - 60) <= 4, (name, got)
+        assert abs(got[1][0] - 26.6) <= 2 and abs(got[1][1] - 79.7) <= 4, (name, got)
+
+
 def test_sphere_grid_angles_are_pyroomacoustics_own():
     """dim=3 without angles: the Fibonacci sphere's points and angles as pyroomacoustics'
     GridSphere gives them (azimuth in (-pi, pi]), so azimuth_recon can be compared."""

@@ -19,7 +19,7 @@
 
 pub(crate) use super::neighbors::angle_between;
 use super::neighbors::{is_ring_order, norm, unit};
-pub use super::neighbors::{nearest_neighbors, ring_neighbors};
+pub use super::neighbors::{nearest_neighbors, ring_neighbors, with_every_quarter};
 use crate::{Error, Result};
 use std::fmt;
 use std::str::FromStr;
@@ -64,6 +64,11 @@ pub struct Grid {
 /// Number of nearest points (by angle) taken as neighbours of a sphere or table-less
 /// irregular grid, before symmetrisation.
 pub const SPHERE_NEIGHBORS: usize = 6;
+
+/// How far (times its farthest of the [`SPHERE_NEIGHBORS`] nearest) a point of a grid
+/// given as points looks for a neighbour in a quarter those miss
+/// ([`super::neighbors::with_every_quarter`]): a 1° × 10° product grid's next ring.
+pub const QUARTER_REACH: f64 = 4.0;
 
 /// Points whose elevations differ by less than this (degrees) count as one ring (HARK
 /// files store 3–4 decimals: tamago_rectf's ring spans 30.96°–30.97°).
@@ -212,7 +217,7 @@ impl Grid {
             return Grid::with_neighbors(points, GridKind::Ring, ring);
         }
         let units: Vec<[f64; 3]> = points.iter().map(|p| unit(*p)).collect();
-        let nb = nearest_neighbors(&units, SPHERE_NEIGHBORS);
+        let nb = with_every_quarter(&units, SPHERE_NEIGHBORS, QUARTER_REACH);
         Grid::with_neighbors(points, GridKind::Irregular, nb)
     }
 
