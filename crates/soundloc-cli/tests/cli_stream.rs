@@ -275,6 +275,8 @@ fn a_file_piped_faster_than_real_time_loses_nothing() {
     assert!(o.status.success(), "{err}");
     assert!(!err.contains("input gap"), "{err}");
     assert!(err.contains("faster than real time"), "{err}");
+    // Read like a file: no live session's progress lines (every 10 s of audio).
+    assert!(!err.contains("s localized, real-time factor"), "{err}");
     assert_eq!(String::from_utf8(o.stdout).unwrap(), want, "{err}");
 }
 
@@ -541,6 +543,21 @@ fn negative_numbers_parse_and_bad_values_fail_before_any_work() {
     assert!(String::from_utf8_lossy(&o.stderr).contains("max-peaks must be -1"));
     let o = run(&["--min-deg", "-90", "--max-deg", "90", "-q", "--device", "cpu"]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    // HARK's spelling of the algorithms (MUSIC_ALGORITHM=SEVD) is the same value.
+    let o = run(&["--algorithm", "SEVD", "-q", "--device", "cpu"]);
+    let lower = run(&["--algorithm", "sevd", "-q", "--device", "cpu"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert_eq!(o.stdout, lower.stdout);
+    // `tf make` reads a negative value as a value (and refuses it for what it is).
+    let o = bin()
+        .args(["tf", "make", "--geometry"])
+        .arg(&geo)
+        .args(["--grid", "ring:5", "--grid-radius", "-1", "-o"])
+        .arg(tmp("neg.zip"))
+        .output()
+        .unwrap();
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.code() == Some(2) && e.contains("positive"), "{e}");
     let under_file = format!("{}/out.jsonl", wav.display());
     for (flags, want) in [
         (&["--plot", "x.jpg"][..], "PNG or SVG"),

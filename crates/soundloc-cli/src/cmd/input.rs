@@ -214,6 +214,9 @@ pub enum Msg {
     Failed(soundloc::Error),
     /// Something the user should know about the input.
     Note(String),
+    /// A live input turned out to arrive faster than real time: read like a file from now
+    /// on (the note says so).
+    LikeAFile(String),
 }
 
 /// A localizer behind live input catches up: blocks already queued behind the one at hand
@@ -564,7 +567,7 @@ fn reader_loop(
                                 frames as f64 / rate.max(1) as f64,
                                 start.elapsed().as_secs_f64()
                             );
-                            if tx.send(Msg::Note(note)).is_err() {
+                            if tx.send(Msg::LikeAFile(note)).is_err() {
                                 return;
                             }
                             live = None;

@@ -138,7 +138,7 @@ pub fn drive(
         note(
             a.quiet,
             &format!(
-                "--plot is written when this live session ends; until then it keeps at most about {:.0} MB                  (past {} results, neighbouring ones merge by their maximum, finer than the picture's pixels)",
+                "--plot is written when this live session ends; until then it keeps at most about {:.0} MB (past {} results, neighbouring ones merge by their maximum, finer than the picture's pixels)",
                 (keep.max_groups() * (loc.grid().len() * 4 + 600)) as f64 / 1e6,
                 keep.max_groups()
             ),
@@ -182,6 +182,12 @@ pub fn drive(
             Msg::Failed(e) => return Err(e.into()),
             Msg::Note(n) => {
                 note(a.quiet, &n);
+                continue;
+            }
+            Msg::LikeAFile(n) => {
+                // A file being piped: no progress lines of a live session from now on.
+                note(a.quiet, &n);
+                next_report = f64::INFINITY;
                 continue;
             }
         };

@@ -18,6 +18,7 @@ pub struct Args {
 pub enum NoiseCmCommand {
     /// Estimate K (x xᴴ averaged over the noise frames, every bin 0..=N/2) from a
     /// noise-only recording and write it as HARK reads it.
+    #[command(allow_negative_numbers = true)]
     Make(MakeArgs),
     /// Describe a noise correlation file: channels, bins, per-bin trace and conditioning.
     Inspect(InspectArgs),

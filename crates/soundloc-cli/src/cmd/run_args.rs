@@ -25,8 +25,9 @@ use std::path::PathBuf;
 pub struct AnalysisArgs {
     /// MUSIC_ALGORITHM. Unnamed: the room default without a noise source (sevd as
     /// NormMUSIC, subspace min(M/2, round(2√M)), refined), the robust gevd with one
-    /// (subspace max(num-sources, M/2), refined). Named: exactly HARK's.
-    #[arg(long, value_enum)]
+    /// (subspace max(num-sources, M/2), refined). Named: exactly HARK's. Any case (HARK
+    /// writes SEVD, GEVD, GSVD). NormMUSIC is sevd with --normalize-bins.
+    #[arg(long, value_enum, ignore_case = true)]
     pub algorithm: Option<AlgorithmArg>,
     /// NUM_SOURCE: the number of sources (peaks reported and, in HARK, the signal subspace
     /// dimension; < number of mics).

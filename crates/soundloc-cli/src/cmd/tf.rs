@@ -21,6 +21,7 @@ pub enum TfCommand {
     Inspect(InspectArgs),
     /// Write a geometric (free-field) HARK TF zip for an array and a direction grid, like
     /// harktool's geometric TFs (all N/2+1 bins).
+    #[command(allow_negative_numbers = true)]
     Make(MakeArgs),
 }
 
