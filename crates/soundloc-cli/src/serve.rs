@@ -85,8 +85,11 @@ impl LiveServer {
         listen(addr).map(drop)
     }
 
-    /// Listen on `addr` (`HOST:PORT`; port 0 picks a free one).
-    pub fn bind(addr: &str) -> anyhow::Result<Self> {
+    /// Listen on `addr` (`HOST:PORT`; port 0 picks a free one). Requests must name the
+    /// server in their Host as [`host_allowed`] says, with `hosts` the names given with
+    /// `--serve-host`.
+    pub fn bind(addr: &str, hosts: &[String]) -> anyhow::Result<Self> {
+        let hosts: Arc<[String]> = hosts.iter().map(|h| h.to_ascii_lowercase()).collect();
         let l = listen(addr)?;
         let addr = l.local_addr()?;
         let state = Arc::new(Mutex::new(State::default()));
@@ -104,7 +107,7 @@ impl LiveServer {
                         continue;
                     }
                     active.fetch_add(1, Ordering::AcqRel);
-                    let (s, mine) = (s.clone(), active.clone());
+                    let (s, mine, hosts) = (s.clone(), active.clone(), hosts.clone());
                     let spawned = std::thread::Builder::new()
                         .name("soundloc view client".into())
                         .spawn(move || {
@@ -116,7 +119,7 @@ impl LiveServer {
                                 }
                             }
                             let _place = Place(mine);
-                            handle(conn, &s);
+                            handle(conn, &s, &hosts);
                         });
                     if spawned.is_err() {
                         active.fetch_sub(1, Ordering::AcqRel);
@@ -237,7 +240,56 @@ fn peek_head(c: &TcpStream) -> Option<(String, usize, bool)> {
     }
 }
 
-fn handle(conn: TcpStream, state: &Mutex<State>) {
+/// Whether a request's Host header names this server as a browser reaches it: an IP
+/// address, `localhost` (or a name under it), this machine's own name (or NAME.local, its
+/// mDNS name), or one of `hosts` (`--serve-host`, lower case). A page of another site
+/// whose name was re-pointed at this address (DNS rebinding) sends its own name and is
+/// refused, so it cannot read the stream as a same-origin page would.
+pub fn host_allowed(host: &str, hosts: &[String]) -> bool {
+    let name = match host.strip_prefix('[') {
+        // [IPv6]:port
+        Some(rest) => {
+            return rest
+                .split(']')
+                .next()
+                .is_some_and(|a| a.parse::<std::net::Ipv6Addr>().is_ok())
+        }
+        None => match host.rsplit_once(':') {
+            Some((n, port)) if port.bytes().all(|b| b.is_ascii_digit()) => n,
+            _ => host,
+        },
+    };
+    let name = name.trim_end_matches('.').to_ascii_lowercase();
+    if name.parse::<std::net::Ipv4Addr>().is_ok() || name == "localhost" || name.ends_with(".localhost") {
+        return true;
+    }
+    if hosts.contains(&name) {
+        return true;
+    }
+    let me = own_name().to_ascii_lowercase();
+    !me.is_empty() && (name == me || name == format!("{me}.local"))
+}
+
+/// This machine's host name (empty when unknown).
+fn own_name() -> String {
+    #[cfg(unix)]
+    {
+        let mut buf = [0u8; 256];
+        // SAFETY: a buffer of the length given; the name is NUL-terminated within it or
+        // truncated, which the search for the first NUL handles.
+        if unsafe { libc::gethostname(buf.as_mut_ptr().cast(), buf.len()) } == 0 {
+            let end = buf.iter().position(|&b| b == 0).unwrap_or(buf.len());
+            return String::from_utf8_lossy(&buf[..end]).into_owned();
+        }
+        String::new()
+    }
+    #[cfg(not(unix))]
+    {
+        std::env::var("COMPUTERNAME").unwrap_or_default()
+    }
+}
+
+fn handle(conn: TcpStream, state: &Mutex<State>, hosts: &[String]) {
     let _ = conn.set_read_timeout(Some(Duration::from_secs(5)));
     let _ = conn.set_write_timeout(Some(WRITE_TIMEOUT));
     let Some((head, head_len, utf8)) = peek_head(&conn) else {
@@ -268,7 +320,9 @@ fn handle(conn: TcpStream, state: &Mutex<State>) {
         (Some(_), None) => true,
         _ => false,
     };
-    if method == "GET" && route == "/ws" && upgrade && key && !foreign {
+    let host = header("host");
+    let stranger = host.as_deref().filter(|h| !host_allowed(h, hosts));
+    if method == "GET" && route == "/ws" && upgrade && key && !foreign && stranger.is_none() {
         websocket(conn, state);
         return;
     }
@@ -280,8 +334,18 @@ fn handle(conn: TcpStream, state: &Mutex<State>) {
     }
     // HEAD is GET without the body (RFC 9110 §9.3.2).
     let get = matches!(method, "GET" | "HEAD");
+    let refused;
     let (status, ctype, body) = match (get, route) {
         _ if !utf8 => ("400 Bad Request", "text/plain; charset=utf-8", "not UTF-8\n"),
+        _ if stranger.is_some() => {
+            refused = format!(
+                "Host {} is not a name of this server (an IP address, localhost or this machine's name); \
+                 if it is one, start soundloc with --serve-host {}\n",
+                stranger.unwrap_or_default(),
+                stranger.unwrap_or_default().split(':').next().unwrap_or_default()
+            );
+            ("403 Forbidden", "text/plain; charset=utf-8", refused.as_str())
+        }
         (true, "/ws") if foreign => (
             "403 Forbidden",
             "text/plain; charset=utf-8",
@@ -421,92 +485,4 @@ fn page_is_there(ws: &mut tungstenite::WebSocket<TcpStream>) -> Option<bool> {
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-
-    /// Pages that closed free their places though nothing is broadcast any more (after
-    /// the input ended): twice the cap of pages come and go, then the page loads. Before,
-    /// each closed page held its thread until the next broadcast, and all later requests
-    /// got 503.
-    #[test]
-    fn closed_pages_free_their_places_when_nothing_is_sent() {
-        let v = LiveServer::bind("127.0.0.1:0").unwrap();
-        v.hello("{\"type\":\"hello\"}".into());
-        let addr = v.local_addr();
-        for round in 0..2 {
-            let pages: Vec<_> = (0..MAX_CLIENTS / 2 + 8)
-                .map(|_| {
-                    let (mut ws, _) = tungstenite::connect(format!("ws://{addr}/ws")).unwrap();
-                    assert!(matches!(ws.read().unwrap(), Message::Text(_)), "hello");
-                    ws
-                })
-                .collect();
-            let mut pages = pages;
-            for ws in &mut pages {
-                ws.close(None).unwrap();
-            }
-            // Each is answered (a close frame, then the end of the connection).
-            for ws in &mut pages {
-                while ws.read().is_ok() {}
-            }
-            page_loads_within(addr, Duration::from_secs(10), &format!("round {round}"));
-        }
-    }
-
-    /// A head that is not UTF-8 and a /ws request without a key get a 400 at once.
-    #[test]
-    fn malformed_requests_get_400() {
-        let v = LiveServer::bind("127.0.0.1:0").unwrap();
-        for req in [
-            &b"GET /\xff\xfe HTTP/1.1\r\nHost: x\r\n\r\n"[..],
-            b"GET /ws HTTP/1.1\r\nHost: x\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n\r\n",
-        ] {
-            let mut c = TcpStream::connect(v.local_addr()).unwrap();
-            c.set_read_timeout(Some(Duration::from_secs(10))).unwrap();
-            c.write_all(req).unwrap();
-            let t = Instant::now();
-            let mut got = String::new();
-            let _ = c.read_to_string(&mut got);
-            assert!(got.starts_with("HTTP/1.1 400"), "{got:?}");
-            assert!(t.elapsed() < Duration::from_secs(2), "answered at once");
-        }
-    }
-
-    /// Idle connections beyond [`MAX_CLIENTS`] get a 503 at once instead of a thread each.
-    #[test]
-    fn connections_beyond_the_cap_are_refused() {
-        let v = LiveServer::bind("127.0.0.1:0").unwrap();
-        let idle: Vec<TcpStream> = (0..MAX_CLIENTS)
-            .map(|_| TcpStream::connect(v.local_addr()).unwrap())
-            .collect();
-        let mut extra = TcpStream::connect(v.local_addr()).unwrap();
-        extra.set_read_timeout(Some(Duration::from_secs(4))).unwrap();
-        let mut got = String::new();
-        let _ = extra.read_to_string(&mut got);
-        assert!(got.starts_with("HTTP/1.1 503"), "{got:?}");
-        // A served client that leaves frees its place.
-        drop(idle);
-        page_loads_within(
-            v.local_addr(),
-            Duration::from_secs(20),
-            "after the idle clients left",
-        );
-    }
-
-    /// GET / until it answers 200, failing after `limit`.
-    fn page_loads_within(addr: SocketAddr, limit: Duration, what: &str) {
-        let t = Instant::now();
-        loop {
-            let mut c = TcpStream::connect(addr).unwrap();
-            c.set_read_timeout(Some(Duration::from_secs(4))).unwrap();
-            c.write_all(b"GET / HTTP/1.1\r\nHost: x\r\n\r\n").unwrap();
-            let mut page = String::new();
-            let _ = c.read_to_string(&mut page);
-            if page.starts_with("HTTP/1.1 200") {
-                return;
-            }
-            assert!(t.elapsed() < limit, "{what}: {page:?}");
-            std::thread::sleep(Duration::from_millis(100));
-        }
-    }
-}
+mod tests;

@@ -19,6 +19,11 @@ pub struct LiveArgs {
     /// the view stays up until Ctrl-C.
     #[arg(long, value_name = "[HOST:]PORT")]
     pub serve: Option<String>,
+    /// A name browsers use for this machine besides its IP addresses, localhost and its
+    /// own host name (repeatable): the live view answers only requests whose Host is one
+    /// of these (a page of another site re-pointed at this address is refused).
+    #[arg(long, value_name = "NAME", requires = "serve")]
+    pub serve_host: Vec<String>,
     /// ODAS SSL messages (potential sources) to a TCP server HOST:PORT (odas_web listens
     /// on 9001; retried while absent, never blocking) or to a file.
     #[arg(long, value_name = "HOST:PORT|FILE")]

@@ -330,7 +330,7 @@ impl Sinks {
         }
         let view = match &l.serve {
             Some(addr) => {
-                let v = LiveServer::bind(&serve_address(addr))?;
+                let v = LiveServer::bind(&serve_address(addr), &l.serve_host)?;
                 let c = loc.config();
                 let grid = loc.grid();
                 let az: Vec<f64> = (0..grid.len()).map(|d| grid.azimuth_deg(d)).collect();

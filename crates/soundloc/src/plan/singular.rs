@@ -100,7 +100,7 @@ fn diagnose(k: &Mat<c64>, head: &str) -> String {
                  dependent in the noise (one is a combination of the others: a summed, bridged \
                  or mis-wired channel?); leave one of them out with the TF channel selection \
                  (--channels, channels=[...]), or, for noise-free synthetic input, use diagonal \
-                 loading",
+                 loading (--diagonal-loading, diagonal_loading= in Python)",
                 list(&involved)
             );
         }
@@ -108,7 +108,8 @@ fn diagnose(k: &Mat<c64>, head: &str) -> String {
     format!(
         "{head}: it has rank {} of {m} (too few noise frames for the channel \
          count, at least {m} and better {}, one coherent noise source, or a channel that \
-         combines all the others?); give more noise frames or use diagonal loading",
+         combines all the others?); give more noise frames or use diagonal loading \
+         (--diagonal-loading, diagonal_loading= in Python)",
         m - null.len().max(1),
         10 * m
     )

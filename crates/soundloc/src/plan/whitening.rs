@@ -86,7 +86,7 @@ pub(super) fn whitening<T: Real>(
             .map_err(|msg| {
                 Error::numerical(
                     "noise",
-                    format!("noise correlation matrix K at bin {bin} ({hz:.0} Hz): {msg}"),
+                    format!("the correlation matrix K at bin {bin} ({hz:.0} Hz): {msg}"),
                 )
             })
         })
