@@ -121,6 +121,25 @@ def test_two_sources_on_an_anisotropic_product_grid_as_pyroomacoustics_finds_the
         assert abs(got[1][0] - 26.6) <= 2 and abs(got[1][1] - 79.7) <= 4, (name, got)
 
 
+def test_an_array_far_from_the_origin_keeps_plane_waves():
+    """L at room or survey coordinates (1 km from the origin): the same peak as at the
+    origin, as pyroomacoustics' far field gives. Until 2026-12-07 the sources were placed
+    10 km from the origin instead of the array, and 1 km of offset moved the peak 1.6 deg."""
+    rng = np.random.default_rng(0)
+    Lc = pra.circular_2D_array([0, 0], 8, 0.0, 0.05)
+    az = np.radians(33.3)
+    k = 2 * np.pi * np.arange(NFFT // 2 + 1) * FS / NFFT / 343.0
+    u = np.array([np.cos(az), np.sin(az)])
+    S = rng.standard_normal((NFFT // 2 + 1, 100)) + 1j * rng.standard_normal((NFFT // 2 + 1, 100))
+    X = np.exp(1j * k[None, :, None] * (u @ Lc)[:, None, None]) * S[None]
+    X = X + 0.01 * rng.standard_normal(X.shape)
+    grid = np.radians(np.arange(0, 360, 0.1))
+    for off in [0.0, 1000.0]:
+        d = soundloc.doa.MUSIC(Lc + off, FS, NFFT, num_src=1, azimuth=grid)
+        d.locate_sources(X)
+        assert abs(np.degrees(d.azimuth_recon[0]) - 33.3) < 0.05, (off, np.degrees(d.azimuth_recon))
+
+
 def test_sphere_grid_angles_are_pyroomacoustics_own():
     """dim=3 without angles: the Fibonacci sphere's points and angles as pyroomacoustics'
     GridSphere gives them (azimuth in (-pi, pi]), so azimuth_recon can be compared."""

@@ -140,7 +140,10 @@ class _DOA:
         self.num_freq = None
         self.num_snap = None
         self._native = _Frames(
-            np.ascontiguousarray(self.L.T), np.ascontiguousarray(self.grid.points() * _FAR_M),
+            # Far from the array's own centre, not the coordinates' origin: an array at room
+            # or survey coordinates keeps plane waves (pyroomacoustics' far field).
+            np.ascontiguousarray(self.L.T),
+            np.ascontiguousarray(self.L.mean(axis=1)[None, :] + self.grid.points() * _FAR_M),
             self.fs, self.nfft, self.c, self._algorithm, self._normalize, False, precision, device,
         )
 
