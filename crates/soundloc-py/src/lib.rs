@@ -16,6 +16,7 @@ mod frames;
 mod group;
 mod localizer;
 mod spec;
+mod spec_values;
 mod turns;
 
 /// `py.released(f)`: `f` with the GIL released, its parallel work on soundloc's pool that

@@ -65,7 +65,7 @@ impl PyLocalizer {
         fs: Option<&Bound<'py, PyAny>>,
         channels_first: Option<bool>,
     ) -> PyResult<Bound<'py, PyDict>> {
-        let fs = fs.map(crate::spec::rate).transpose()?;
+        let fs = fs.map(crate::spec_values::rate).transpose()?;
         let channels_first = channels_first.unwrap_or(self.channels_first);
         let s = samples(x)?;
         // One lock throughout: another thread's call cannot come between the reset and
@@ -161,7 +161,7 @@ impl PyLocalizer {
         fs: Option<&Bound<'py, PyAny>>,
         channels_first: Option<bool>,
     ) -> PyResult<Bound<'py, PyDict>> {
-        let fs = fs.map(crate::spec::rate).transpose()?;
+        let fs = fs.map(crate::spec_values::rate).transpose()?;
         let s = samples(x)?;
         let mut guard = self.lock(py)?;
         self.stream_rate(py, &mut guard, fs)?;

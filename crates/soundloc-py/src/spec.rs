@@ -2,6 +2,7 @@
 //! a noise recording as arrays). `Localizer` and `StreamGroup` are both built from one
 //! [`PySpec`], so they take the same arguments (documented on `soundloc.Localizer`).
 
+use crate::spec_values::{pair, preceding, rate, spectrum_weight_of};
 use crate::Released;
 use crate::{err, parse, points, samples};
 use pyo3::exceptions::PyValueError;
@@ -68,7 +69,9 @@ impl PySpec {
     tracker_min_id=None, tracker_confirm_frames=None, preroll=0, track_active_only=None, device="auto", precision="f32", channels=None,
     input_channels=None, invert_channels=None, spectrum=true, grid_radius=None, speed_of_sound=None, channels_first=false,
     subspace_dim=None, normalize_bins=None, refine=None, subspace_tracking=false, resample=false,
-    diagonal_loading=0.0, coherence=None, numerator=None, onset_frames=None))]
+    diagonal_loading=0.0, coherence=None, numerator=None, onset_frames=None, min_deg=-180.0,
+    max_deg=180.0, window_function="conj", eigenvalue_weight=true, spectrum_weight=None,
+    denominator="squared"))]
 #[allow(clippy::too_many_arguments)] // mirrors the Python keywords
 pub(crate) fn spec(
     tf: Option<PathBuf>,
@@ -115,6 +118,12 @@ pub(crate) fn spec(
     coherence: Option<bool>,
     numerator: Option<&str>,
     onset_frames: Option<usize>,
+    min_deg: f64,
+    max_deg: f64,
+    window_function: &str,
+    eigenvalue_weight: bool,
+    spectrum_weight: Option<&Bound<'_, PyAny>>,
+    denominator: &str,
 ) -> PyResult<PySpec> {
     // Defaults: HARK's band (500–2800 Hz) and 16 kHz.
     let freq_range = freq_range.map_or(Ok((500.0, 2800.0)), |r| pair(r, "freq_range"))?;
@@ -220,6 +229,13 @@ pub(crate) fn spec(
     let frames_given = (nfft, hop);
     (a.nfft, a.hop) = frame_sizes(frames_given, fs, &spec.array);
     a.diagonal_loading = diagonal_loading;
+    // HARK's MIN_DEG / MAX_DEG, MultiFFT WINDOW, ENABLE_EIGENVALUE_WEIGHT,
+    // SPECTRUM_WEIGHT_TYPE (or one weight per used bin) and the denominator.
+    (a.min_deg, a.max_deg) = (min_deg, max_deg);
+    a.window_function = parse("window_function", window_function)?;
+    a.eigenvalue_weight = eigenvalue_weight;
+    a.spectrum_weight = spectrum_weight_of(spectrum_weight)?;
+    a.denominator = parse("denominator", denominator)?;
     spec.channels = channels.unwrap_or_default();
     spec.input_channels = input_channels.unwrap_or_default();
     spec.invert_channels = invert_channels.unwrap_or_default();
@@ -306,67 +322,6 @@ pub(crate) fn spec(
         frames_given,
         square_note,
     })
-}
-
-/// Two numbers from a tuple, list or array (pyroomacoustics users write `[500, 4000]`).
-fn pair(v: &Bound<'_, PyAny>, what: &str) -> PyResult<(f64, f64)> {
-    match v.extract::<Vec<f64>>() {
-        Ok(p) if p.len() == 2 => Ok((p[0], p[1])),
-        _ => Err(PyValueError::new_err(format!(
-            "{what} must be two numbers (start, end), got {}",
-            v.repr().map(|r| r.to_string()).unwrap_or_default()
-        ))),
-    }
-}
-
-/// `noise_preceding`: FRAMES, or (FRAMES, GAP) as a tuple or list (the CLI's
-/// FRAMES[:GAP]; GAP 0 when left out).
-fn preceding(v: &Bound<'_, PyAny>) -> PyResult<(usize, usize)> {
-    let bad = || {
-        PyValueError::new_err(format!(
-            "noise_preceding must be FRAMES or (FRAMES, GAP), whole numbers with FRAMES ≥ 1, got {}",
-            v.repr().map(|r| r.to_string()).unwrap_or_default()
-        ))
-    };
-    if v.is_instance_of::<pyo3::types::PyBool>() {
-        return Err(bad());
-    }
-    let (frames, gap) = match (v.extract::<usize>(), v.extract::<Vec<usize>>()) {
-        (Ok(f), _) => (f, 0),
-        (_, Ok(p)) if p.len() == 2 => (p[0], p[1]),
-        (_, Ok(p)) if p.len() == 1 => (p[0], 0),
-        _ => return Err(bad()),
-    };
-    if frames == 0 {
-        return Err(bad());
-    }
-    Ok((frames, gap))
-}
-
-/// A sample rate in Hz: a positive whole number (16000 or 16000.0).
-pub(crate) fn rate(v: &Bound<'_, PyAny>) -> PyResult<u32> {
-    let bad = || {
-        PyValueError::new_err(format!(
-            "fs must be a positive whole number of Hz, got {}",
-            v.repr().map(|r| r.to_string()).unwrap_or_default()
-        ))
-    };
-    if v.is_instance_of::<pyo3::types::PyBool>() {
-        return Err(bad());
-    }
-    // Not a number at all (a string, say): the wrong type, as Python's own calls say.
-    let f: f64 = v.extract().map_err(|_| {
-        pyo3::exceptions::PyTypeError::new_err(format!(
-            "fs must be a number of Hz, got {} of type {}",
-            v.repr().map(|r| r.to_string()).unwrap_or_default(),
-            v.get_type().name().map(|n| n.to_string()).unwrap_or_default()
-        ))
-    })?;
-    if f.fract() == 0.0 && f >= 1.0 && f <= u32::MAX as f64 {
-        Ok(f as u32)
-    } else {
-        Err(bad())
-    }
 }
 
 /// What [`PySpec::arrays`] builds: the TFs, K, and a note on how the positions were read.

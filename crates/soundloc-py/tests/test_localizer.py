@@ -927,3 +927,47 @@ def test_array_likes_flags_and_empty_frames():
     assert len(df) == 0 and "power_db" in df.columns and "azimuth_deg" in df.columns
     assert len(df[df.power_db > 10]) == 0
     assert isinstance(df, pd.DataFrame)
+
+
+def test_harks_other_parameters_equal_the_cli(tmp_path):
+    """MIN_DEG / MAX_DEG, the MultiFFT window, ENABLE_EIGENVALUE_WEIGHT, the spectrum
+    weights and the denominator as keywords: the CLI's results with the same flags, and
+    MIN_DEG/MAX_DEG keep only the talker inside them."""
+    x = scene(seconds=2.0, seed=6)
+    wav = tmp_path / "rec.wav"
+    write_wav(wav, x)
+    geo = write_geometry(tmp_path / "array.toml")
+    bins = 0
+    for kw, flags in [
+        (dict(min_deg=-90.0, max_deg=90.0), ["--min-deg", "-90", "--max-deg", "90"]),
+        (dict(window_function="hamming", eigenvalue_weight=False, denominator="unsquared"),
+         ["--window-function", "hamming", "--eigenvalue-weight", "false", "--denominator", "unsquared"]),
+        (dict(spectrum_weight="a-weighting"), ["--spectrum-weight", "a-weighting"]),
+        (dict(spectrum_weight=[1.0 + 0.1 * k for k in range(73)]),
+         ["--spectrum-weights", ",".join(repr(1.0 + 0.1 * k) for k in range(73))]),
+    ]:
+        out = subprocess.run(
+            [str(cli()), "localize", str(wav), "--geometry", str(geo), "--grid", "ring:5", "--device", "cpu",
+             "-q", "--period", "20", "--algorithm", "sevd"] + flags,
+            check=True, capture_output=True, text=True,
+        ).stdout
+        lines = [json.loads(l) for l in out.splitlines()]
+        r = localizer(period=20, algorithm="sevd", **kw).localize(x, FS)
+        assert len(lines) == len(r), kw
+        for i, l in enumerate(lines):
+            # (Python pads a window's missing peaks with NaN.)
+            n = len(l["sources"])
+            assert [s["azimuth_deg"] for s in l["sources"]] == list(r.azimuth_deg[i][:n]), kw
+            assert [s["power_db"] for s in l["sources"]] == list(r.power_db[i][:n]), kw
+            assert np.all(np.isnan(r.azimuth_deg[i][n:])), kw
+        if "min_deg" in kw:
+            az = np.concatenate([np.asarray(a) for a in r.azimuth_deg])
+            az = az[~np.isnan(az)]
+            assert az.size and np.all(np.abs(az) <= 90.0), az
+            assert any(angle(a, 30.0) <= 5 for a in az)
+    with pytest.raises(ValueError, match="window_function"):
+        localizer(window_function="blackman")
+    with pytest.raises(ValueError, match="one per used bin"):
+        localizer(spectrum_weight="manual")
+    with pytest.raises(TypeError):
+        localizer(eigenvalue_weight="no")

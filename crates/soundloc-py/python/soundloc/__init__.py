@@ -77,6 +77,12 @@ Arguments (HARK LocalizeMUSIC name / pyroomacoustics name):
         once seen over this many frames; None: the window length when no algorithm is
         named, 0 = at once, as HARK, with one); as the CLI's --thresh, --pause-length,
         --min-src-interval, --min-id, --preroll, --active-only/--no-active-only, --confirm.
+    min_deg, max_deg (MIN_DEG, MAX_DEG: the azimuth range kept, degrees); window_function
+        "conj"|"hamming"|"hanning"|"rectangle" (MultiFFT WINDOW); eigenvalue_weight
+        (ENABLE_EIGENVALUE_WEIGHT, True); spectrum_weight "uniform"|"a-weighting" or one
+        weight per used bin (SPECTRUM_WEIGHT_TYPE, manual weights); denominator
+        "squared"|"unsquared": as the CLI's --min-deg, --max-deg, --window-function,
+        --eigenvalue-weight, --spectrum-weight(s), --denominator.
     device: "auto"|"cpu"|"cuda"; precision: "f32"|"f64".
     channels (TF_CHANNEL_SELECTION), input_channels (ChannelSelector); diagonal_loading: K + δ·(tr K / M)·I
         (a K that is not positive definite is otherwise an error).
@@ -277,7 +283,7 @@ _COUNTS = {"num_sources", "window", "period", "nfft", "hop", "channels", "input_
 
 # Arguments that are flags: True/False, also as numpy bools or the integers 0 and 1.
 _FLAGS = {"track", "track_active_only", "spectrum", "channels_first", "normalize_bins", "refine",
-          "subspace_tracking", "resample", "coherence"}
+          "subspace_tracking", "resample", "coherence", "eigenvalue_weight"}
 
 
 def _flag(name, v):
