@@ -131,6 +131,27 @@ pub(crate) fn prepare(
     if !algorithm.uses_noise() && spec.noise != NoiseSource::None {
         notes.push(format!("{} ignores the noise matrix", algorithm.name()));
     }
+    // Diagonal loading acts on K; without one (or with an algorithm that takes none) it
+    // changes nothing.
+    if config.diagonal_loading > 0.0
+        && (!algorithm.uses_noise()
+            || (spec.noise == NoiseSource::None
+                && matches!(spec.noise_update, crate::noise::policy::NoiseUpdate::Fixed)))
+    {
+        notes.push(format!(
+            "the diagonal loading ({}) acts on the noise matrix K, and this run has none: it changes nothing",
+            config.diagonal_loading
+        ));
+    }
+    // R of fewer frames than microphones has rank below M: its smallest eigenvalues are
+    // zeros, not noise, and the noise subspace holds directions the window never saw.
+    if config.window < tf.num_mics && !matches!(algorithm, crate::config::Algorithm::SrpPhat) {
+        notes.push(format!(
+            "warning: a window of {} frames gives R of rank {} at most, below the {} microphones: the \
+             subspace methods need more frames than microphones (--window, window= in Python; HARK's 50)",
+            config.window, config.window, tf.num_mics
+        ));
+    }
     let nyquist = config.sample_rate_hz as f64 / 2.0;
     if config.upper_freq_hz > nyquist {
         notes.push(format!(

@@ -77,10 +77,23 @@ fn settings_that_would_silently_do_nothing_are_noted_or_refused() {
     let mut spec = LocalizerSpec::free_field(geo.mics.clone(), ring);
     spec.device = DeviceChoice::Cpu;
     let plain = Localizer::new(&spec).unwrap();
-    assert!(plain
-        .notes()
-        .iter()
-        .all(|n| !n.contains("inside the array") && !n.contains("Nyquist")));
+    assert!(plain.notes().iter().all(|n| !n.contains("inside the array")
+        && !n.contains("Nyquist")
+        && !n.contains("diagonal loading")
+        && !n.contains("rank")));
+    // Diagonal loading without a K, and a window shorter than the array.
+    let mut odd = spec.clone();
+    odd.analysis.diagonal_loading = 0.5;
+    odd.analysis.window = 5;
+    let notes = Localizer::new(&odd).unwrap().notes().join("\n");
+    assert!(
+        notes.contains("the diagonal loading (0.5) acts on the noise matrix K, and this run has none"),
+        "{notes}"
+    );
+    assert!(
+        notes.contains("warning: a window of 5 frames gives R of rank 5 at most, below the 8 microphones"),
+        "{notes}"
+    );
     if let ArraySpec::FreeField { radius_m, .. } = &mut spec.array {
         *radius_m = 0.01;
     }
