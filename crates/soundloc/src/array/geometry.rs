@@ -112,9 +112,21 @@ impl Geometry {
     /// `ring8.toml: mic 3: expected 3 coordinates, found 2`.
     pub fn from_toml_str(text: &str, path_for_errors: &Path) -> Result<Self> {
         let fail = |m: String| Error::format(path_for_errors, m);
-        let value: toml::Table = text
-            .parse()
-            .map_err(|e: toml::de::Error| fail(format!("invalid TOML: {}", e.message())))?;
+        let value: toml::Table = text.parse().map_err(|e: toml::de::Error| {
+            // Where: line and column of the span's start (1-based).
+            let at = e.span().map_or(String::new(), |sp| {
+                let before = &text[..sp.start.min(text.len())];
+                let line = before.matches('\n').count() + 1;
+                let col = before.rsplit('\n').next().map_or(0, |l| l.chars().count()) + 1;
+                format!(" at line {line}, column {col}")
+            });
+            let hint = if text.contains("np.float") || text.contains("array(") {
+                " (numpy's repr is not TOML: write plain numbers, e.g. from positions.tolist())"
+            } else {
+                ""
+            };
+            fail(format!("invalid TOML{at}: {}{hint}", e.message().trim_end()))
+        })?;
         if let Some(k) = value.keys().find(|k| !matches!(k.as_str(), "mics" | "mic")) {
             return Err(fail(format!(
                 "unknown key `{k}` (a geometry file holds `mics = [[x, y, z], ...]` or `[[mic]]` tables)"
@@ -161,9 +173,12 @@ impl Geometry {
                     .as_array()
                     .ok_or_else(|| fail("`mic` must be an array of tables ([[mic]])".into()))?;
                 for (i, t) in tables.iter().enumerate() {
-                    let t = t
-                        .as_table()
-                        .ok_or_else(|| fail(format!("mic {i}: expected a table with x, y, z")))?;
+                    let t = t.as_table().ok_or_else(|| {
+                        fail(format!(
+                            "mic {i}: expected a table with x, y, z (`[[mic]]`); for a list of [x, y, z] \
+                             lists the key is `mics`"
+                        ))
+                    })?;
                     if let Some(k) = t.keys().find(|k| !matches!(k.as_str(), "x" | "y" | "z")) {
                         return Err(fail(format!("mic {i}: unknown key `{k}` (expected x, y, z)")));
                     }

@@ -137,7 +137,18 @@ fn errors_name_file_and_mic() {
     assert!(e("[[mic]]\nx=1\n").contains("mic 0: missing y"));
     assert!(e("[[mic]]\nx=1\ny=2\nw=3").contains("unknown key `w`"));
     assert!(e("mics = [[0, 0, 0], [1, 0, 0]]\nextra = 5").contains("unknown key `extra`"));
-    assert!(e("mics = [").starts_with("ring8.toml: invalid TOML"));
+    assert!(e("mics = [").starts_with("ring8.toml: invalid TOML at line 1, column 9"));
+    // numpy 2's repr of its floats, and a list under [[mic]]'s key.
+    let np = e("mics = [[np.float64(0.1), 0.0, 0.0],\n [0.0, 0.1, 0.0]]");
+    assert!(
+        np.contains("at line 1, column 10") && np.contains("positions.tolist()"),
+        "{np}"
+    );
+    let mic = e("mic = [[0, 0, 0], [0.1, 0, 0]]");
+    assert!(
+        mic.contains("for a list of [x, y, z] lists the key is `mics`"),
+        "{mic}"
+    );
     assert!(e("").contains("no microphones"));
     let missing = Geometry::load(Path::new("/nonexistent/ring8.toml")).unwrap_err();
     assert!(missing.to_string().starts_with("/nonexistent/ring8.toml: "));
