@@ -234,13 +234,13 @@ fn a_localizer_group_from_a_spec_equals_one_localizer_per_stream() {
     let e = LocalizerGroup::new(&spec, 2).err().expect("zero K refused");
     assert!(
         e.to_string()
-            .contains(&format!("{}: noise correlation matrix K", silent.display())),
+            .contains(&format!("{}: the correlation matrix K", silent.display())),
         "{e}"
     );
     let e = Localizer::new(&spec).err().expect("zero K refused");
     assert!(
         e.to_string()
-            .contains(&format!("{}: noise correlation matrix K", silent.display())),
+            .contains(&format!("{}: the correlation matrix K", silent.display())),
         "{e}"
     );
     // A noise range of each stream's own input would give each its own K: refused.

@@ -326,6 +326,17 @@ impl LocalizerSpec {
                 speed_of_sound_m_s,
             } => {
                 grid.validate()?;
+                // Before the TFs of every bin are built: a rate of GHz (a typo) would
+                // make gigabytes of them, then fail at the STFT.
+                if config.nfft > crate::stft::MAX_NFFT {
+                    return Err(Error::Config(format!(
+                        "the frame of {} samples at {} Hz exceeds the largest supported FFT length, {} \
+                         (check the sample rate; or give --fft-length, nfft= in Python)",
+                        config.nfft,
+                        config.sample_rate_hz,
+                        crate::stft::MAX_NFFT
+                    )));
+                }
                 if !(radius_m.is_finite() && *radius_m > 0.0) {
                     return Err(Error::Config(format!(
                         "grid radius must be positive, got {radius_m} m"

@@ -108,6 +108,16 @@ fn settings_that_would_silently_do_nothing_are_noted_or_refused() {
         notes.contains("upper edge 12000 Hz is above the Nyquist frequency (8000 Hz"),
         "{notes}"
     );
+    // A frame past the largest FFT (32 ms of a mistyped rate) is refused before the
+    // free-field TFs of its bins are built (it took 1.7 GB and 6.6 s at 4.3 GHz).
+    let mut huge = LocalizerSpec::free_field(geo.mics.clone(), ring);
+    huge.analysis.nfft = 1 << 27;
+    huge.analysis.sample_rate_hz = 4_000_000_000;
+    let e = Localizer::new(&huge).err().expect("too long a frame").to_string();
+    assert!(
+        e.contains("exceeds the largest supported FFT length, 65536"),
+        "{e}"
+    );
     // 1000..3000 Hz at N = 8: bins 0..1, DC only.
     let mut dc = LocalizerSpec::free_field(geo.mics.clone(), ring);
     dc.device = DeviceChoice::Cpu;
