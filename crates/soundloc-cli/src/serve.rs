@@ -89,7 +89,7 @@ impl LiveServer {
     /// server in their Host as [`host_allowed`] says, with `hosts` the names given with
     /// `--serve-host`.
     pub fn bind(addr: &str, hosts: &[String]) -> anyhow::Result<Self> {
-        let hosts: Arc<[String]> = hosts.iter().map(|h| h.to_ascii_lowercase()).collect();
+        let hosts: Arc<[String]> = server_names(hosts).into();
         let l = listen(addr)?;
         let addr = l.local_addr()?;
         let state = Arc::new(Mutex::new(State::default()));
@@ -240,12 +240,26 @@ fn peek_head(c: &TcpStream) -> Option<(String, usize, bool)> {
     }
 }
 
+/// The names besides IP addresses and localhost that a request's Host may give, lower
+/// case: `extra` (`--serve-host`), this machine's own name and NAME.local (its mDNS name).
+fn server_names(extra: &[String]) -> Vec<String> {
+    let mut v: Vec<String> = extra
+        .iter()
+        .map(|h| h.trim_end_matches('.').to_ascii_lowercase())
+        .collect();
+    let me = own_name().to_ascii_lowercase();
+    if !me.is_empty() {
+        v.push(format!("{me}.local"));
+        v.push(me);
+    }
+    v
+}
+
 /// Whether a request's Host header names this server as a browser reaches it: an IP
-/// address, `localhost` (or a name under it), this machine's own name (or NAME.local, its
-/// mDNS name), or one of `hosts` (`--serve-host`, lower case). A page of another site
-/// whose name was re-pointed at this address (DNS rebinding) sends its own name and is
-/// refused, so it cannot read the stream as a same-origin page would.
-pub fn host_allowed(host: &str, hosts: &[String]) -> bool {
+/// address, `localhost` (or a name under it), or one of `names` ([`server_names`]). A page
+/// of another site whose name was re-pointed at this address (DNS rebinding) sends its own
+/// name and is refused, so it cannot read the stream as a same-origin page would.
+pub fn host_allowed(host: &str, names: &[String]) -> bool {
     let name = match host.strip_prefix('[') {
         // [IPv6]:port
         Some(rest) => {
@@ -263,11 +277,7 @@ pub fn host_allowed(host: &str, hosts: &[String]) -> bool {
     if name.parse::<std::net::Ipv4Addr>().is_ok() || name == "localhost" || name.ends_with(".localhost") {
         return true;
     }
-    if hosts.contains(&name) {
-        return true;
-    }
-    let me = own_name().to_ascii_lowercase();
-    !me.is_empty() && (name == me || name == format!("{me}.local"))
+    names.contains(&name)
 }
 
 /// This machine's host name (empty when unknown).

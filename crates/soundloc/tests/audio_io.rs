@@ -78,12 +78,25 @@ fn errors_name_the_file() {
     std::fs::remove_dir_all(&d).unwrap();
 }
 
+/// Everything `src` delivers in blocks of 256 frames, and its notes.
+fn read_with_notes(src: &mut dyn soundloc::audio::AudioSource) -> (Vec<f32>, Vec<String>) {
+    let (mut got, mut notes, mut buf) = (Vec::new(), Vec::new(), Vec::new());
+    loop {
+        let n = src.read_interleaved(256, &mut buf).unwrap();
+        notes.extend(src.take_notes());
+        if n == 0 {
+            return (got, notes);
+        }
+        got.extend_from_slice(&buf);
+    }
+}
+
 /// A live stream (stdin, a socket) is not ended by a non-finite sample: it becomes 0, with
 /// one warning naming it and a count at the end; every sample keeps its place. A file with
 /// the same bytes is refused (it can be fixed and read again).
 #[test]
 fn a_streams_non_finite_samples_become_zero_with_a_warning() {
-    use soundloc::audio::{AudioSource, RawEncoding, RawSource};
+    use soundloc::audio::{RawEncoding, RawSource};
     let mut x: Vec<f32> = (0..3000).map(|i| (i % 17) as f32).collect();
     x[1001] = f32::NAN;
     x[2500] = f32::INFINITY;
@@ -97,15 +110,7 @@ fn a_streams_non_finite_samples_become_zero_with_a_warning() {
         name,
     )
     .unwrap();
-    let (mut got, mut notes, mut buf) = (Vec::new(), Vec::new(), Vec::new());
-    loop {
-        let n = src.read_interleaved(256, &mut buf).unwrap();
-        notes.extend(src.take_notes());
-        if n == 0 {
-            break;
-        }
-        got.extend_from_slice(&buf);
-    }
+    let (got, notes) = read_with_notes(&mut src);
     let mut want = x.clone();
     want[1001] = 0.0;
     want[2500] = 0.0;
@@ -127,15 +132,7 @@ fn a_streams_non_finite_samples_become_zero_with_a_warning() {
     y[2701] = -1e20;
     let bytes: Vec<u8> = y.iter().flat_map(|v| v.to_le_bytes()).collect();
     let mut src = RawSource::new(std::io::Cursor::new(bytes), RawEncoding::F32le, 2, 16000, name).unwrap();
-    let (mut got, mut notes) = (Vec::new(), Vec::new());
-    loop {
-        let n = src.read_interleaved(256, &mut buf).unwrap();
-        notes.extend(src.take_notes());
-        if n == 0 {
-            break;
-        }
-        got.extend_from_slice(&buf);
-    }
+    let (got, notes) = read_with_notes(&mut src);
     y[2701] = 0.0;
     assert_eq!(got, y);
     assert!(

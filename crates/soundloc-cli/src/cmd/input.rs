@@ -103,23 +103,35 @@ fn stdin_is_file() -> bool {
 }
 
 impl InputArgs {
+    /// Headerless PCM from `r` as the `--raw` flags describe it.
+    fn raw_source(
+        &self,
+        r: Box<dyn std::io::Read + Send>,
+        name: &Path,
+    ) -> anyhow::Result<Box<dyn AudioSource>> {
+        let (Some(enc), Some(ch), Some(rate)) = (self.raw, self.raw_channels, self.rate) else {
+            bail!("--raw needs --raw-channels and --rate")
+        };
+        Ok(Box::new(RawSource::new(r, enc.into(), ch, rate, name)?))
+    }
+
+    /// A stream (stdin, a socket): raw PCM with `--raw`, else WAV/FLAC by its first bytes.
+    fn stream_source(
+        &self,
+        r: Box<dyn std::io::Read + Send>,
+        name: &Path,
+    ) -> anyhow::Result<Box<dyn AudioSource>> {
+        if self.raw.is_some() {
+            self.raw_source(r, name)
+        } else {
+            Ok(open_stream(r, name)?)
+        }
+    }
+
     /// Open the input (for a listening socket: wait for the sender).
     pub fn open(&self, quiet: bool) -> anyhow::Result<Input> {
         let name = PathBuf::from(&self.input);
-        let raw = |r: Box<dyn std::io::Read + Send>, name: &Path| -> anyhow::Result<Box<dyn AudioSource>> {
-            let (Some(enc), Some(ch), Some(rate)) = (self.raw, self.raw_channels, self.rate) else {
-                bail!("--raw needs --raw-channels and --rate")
-            };
-            Ok(Box::new(RawSource::new(r, enc.into(), ch, rate, name)?))
-        };
-        let stream =
-            |r: Box<dyn std::io::Read + Send>, name: &Path| -> anyhow::Result<Box<dyn AudioSource>> {
-                if self.raw.is_some() {
-                    raw(r, name)
-                } else {
-                    Ok(open_stream(r, name)?)
-                }
-            };
+        let stream = |r, name: &Path| self.stream_source(r, name);
         check_max_buffer(self.max_buffer)?;
         if self.input.is_empty() {
             bail!("the input's name is empty: give a recording (WAV, FLAC), - for standard input, or a network source (see --help)");
@@ -161,15 +173,8 @@ impl InputArgs {
             }
             if self.keep_listening {
                 let me = self.clone();
-                let open: super::senders::Opener = Box::new(move |s, name| {
-                    let r: Box<dyn std::io::Read + Send> = Box::new(s);
-                    match (me.raw, me.raw_channels, me.rate) {
-                        (Some(enc), Some(ch), Some(rate)) => {
-                            Ok(Box::new(RawSource::new(r, enc.into(), ch, rate, name)?))
-                        }
-                        _ => Ok(open_stream(r, name)?),
-                    }
-                });
+                let open: super::senders::Opener =
+                    Box::new(move |s, name| me.stream_source(Box::new(s), name));
                 let senders = super::senders::Senders::first(l, open, name.clone(), quiet)?;
                 return Ok(Input {
                     source: Box::new(senders),
@@ -189,7 +194,7 @@ impl InputArgs {
         }
         let source = if self.raw.is_some() {
             let f = std::fs::File::open(&name).map_err(|e| soundloc::Error::io(&name, e))?;
-            raw(Box::new(std::io::BufReader::with_capacity(1 << 20, f)), &name)?
+            self.raw_source(Box::new(std::io::BufReader::with_capacity(1 << 20, f)), &name)?
         } else {
             open_source(&name)?
         };
@@ -584,6 +589,12 @@ fn reader_loop(
                     return;
                 }
                 gap = 0;
+            }
+            // A file cut short with audio before the cut: the error says how to keep it.
+            Err(soundloc::Error::Truncated { path, message }) if !keep_cut && frames > 0 => {
+                let hint = format!("{message} (--allow-truncated localizes the audio before the cut)");
+                let _ = tx.send(Msg::Failed(soundloc::Error::truncated(path, hint)));
+                return;
             }
             Err(e @ soundloc::Error::Truncated { .. }) if keep_cut && frames > 0 => {
                 let note = format!(

@@ -176,9 +176,6 @@ pub fn drive(
             Msg::Block { data, gap } => (data, gap, false, 0),
             Msg::End { gap } => (Vec::new(), gap, true, 0),
             Msg::Pause { lost, frames } => (Vec::new(), lost, false, frames),
-            Msg::Failed(e @ soundloc::Error::Truncated { .. }) => {
-                bail!("{e} (--allow-truncated localizes the audio before the cut)")
-            }
             Msg::Failed(e) => return Err(e.into()),
             Msg::Note(n) => {
                 note(a.quiet, &n);

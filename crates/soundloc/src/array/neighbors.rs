@@ -148,9 +148,8 @@ pub fn nearest_neighbors(units: &[[f64; 3]], k: usize) -> Vec<Vec<usize>> {
 /// plane's directions of growing azimuth and of growing elevation).
 const QUARTERS: usize = 4;
 
-/// The quarter (0 east, 1 north, 2 west, 3 south) in which unit vector `v` lies seen
-/// from unit vector `u`, or None when they coincide.
-fn quarter(u: [f64; 3], v: [f64; 3]) -> Option<usize> {
+/// The tangent plane's east and north at unit vector `u`.
+fn frame_at(u: [f64; 3]) -> [[f64; 3]; 2] {
     let r = (u[0] * u[0] + u[1] * u[1]).sqrt();
     // East: z × u normalised (at a pole, any horizontal direction: x's).
     let east = if r > 1e-12 {
@@ -163,8 +162,14 @@ fn quarter(u: [f64; 3], v: [f64; 3]) -> Option<usize> {
         u[2] * east[0] - u[0] * east[2],
         u[0] * east[1] - u[1] * east[0],
     ];
+    [east, north]
+}
+
+/// The quarter (0 east, 1 north, 2 west, 3 south) in which unit vector `v` lies seen
+/// from the point whose [`frame_at`] is `frame`, or None when they coincide.
+fn quarter(frame: [[f64; 3]; 2], v: [f64; 3]) -> Option<usize> {
     let dot = |a: [f64; 3], b: [f64; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
-    let (x, y) = (dot(v, east), dot(v, north));
+    let (x, y) = (dot(v, frame[0]), dot(v, frame[1]));
     if x == 0.0 && y == 0.0 {
         return None;
     }
@@ -201,9 +206,10 @@ pub fn with_every_quarter(units: &[[f64; 3]], k: usize, reach: f64) -> Vec<Vec<u
     let typical = sorted.get(n / 2).copied().unwrap_or(0.0);
     let mut added: Vec<(usize, usize)> = Vec::new();
     for i in 0..n {
+        let frame = frame_at(units[i]);
         let mut have = [false; QUARTERS];
         for &j in &lists[i] {
-            if let Some(q) = quarter(units[i], units[j]) {
+            if let Some(q) = quarter(frame, units[j]) {
                 have[q] = true;
             }
         }
@@ -219,7 +225,7 @@ pub fn with_every_quarter(units: &[[f64; 3]], k: usize, reach: f64) -> Vec<Vec<u
             if j == i || a > limit {
                 continue;
             }
-            if let Some(q) = quarter(units[i], units[j]).filter(|&q| !have[q]) {
+            if let Some(q) = quarter(frame, units[j]).filter(|&q| !have[q]) {
                 if best[q].is_none_or(|(b, bj)| (a, j) < (b, bj)) {
                     best[q] = Some((a, j));
                 }

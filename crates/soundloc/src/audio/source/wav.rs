@@ -28,6 +28,14 @@ impl<R: Read + Send> WavSource<R> {
     /// file) instead of returning what has arrived (a pipe).
     pub fn new(mut r: R, name: &Path, greedy: bool) -> Result<Self> {
         let truncated = || Error::format(name, "truncated WAV file");
+        // A chunk's `size` bytes and its pad byte.
+        let body = |r: &mut R, size: u32| -> Result<Vec<u8>> {
+            let mut b = vec![0u8; size as usize + (size as usize & 1)];
+            if read_full(r, &mut b).map_err(|e| Error::io(name, e))? < b.len() {
+                return Err(truncated());
+            }
+            Ok(b)
+        };
         let mut head = [0u8; 12];
         if read_full(&mut r, &mut head).map_err(|e| Error::io(name, e))? < 12 {
             return Err(truncated());
@@ -65,10 +73,7 @@ impl<R: Read + Send> WavSource<R> {
                             format!("bad RF64 file: ds64 chunk of {size} bytes"),
                         ));
                     }
-                    let mut d = vec![0u8; size as usize + (size as usize & 1)];
-                    if read_full(&mut r, &mut d).map_err(|e| Error::io(name, e))? < d.len() {
-                        return Err(truncated());
-                    }
+                    let d = body(&mut r, size)?;
                     ds64_data = Some(u64::from_le_bytes(d[8..16].try_into().expect("8 bytes")));
                 }
                 b"fmt " => {
@@ -78,10 +83,7 @@ impl<R: Read + Send> WavSource<R> {
                             format!("bad WAV file: fmt chunk of {size} bytes"),
                         ));
                     }
-                    let mut f = vec![0u8; size as usize + (size as usize & 1)];
-                    if read_full(&mut r, &mut f).map_err(|e| Error::io(name, e))? < f.len() {
-                        return Err(truncated());
-                    }
+                    let f = body(&mut r, size)?;
                     let mut tag = u16_at(&f, 0);
                     let channels = u16_at(&f, 2) as usize;
                     let rate = u32_at(&f, 4);
