@@ -323,14 +323,48 @@ fn tcp_listen_and_connect_equal_the_file_and_a_cut_frame_is_reported() {
     sender.join().unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     assert_eq!(String::from_utf8(o.stdout).unwrap(), want);
-    // Nobody listening: a clear error.
+    // Nobody listening: soundloc tries again for --connect-timeout, then a clear error.
+    let t = Instant::now();
     let o = bin()
-        .args(["localize", &format!("tcp:{addr}"), "--geometry"])
+        .args([
+            "localize",
+            &format!("tcp:{addr}"),
+            "--connect-timeout",
+            "0.6",
+            "--geometry",
+        ])
         .arg(&geo)
         .output()
         .unwrap();
-    assert_eq!(o.status.code(), Some(2));
-    assert!(String::from_utf8_lossy(&o.stderr).contains("connecting"));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(t.elapsed() >= Duration::from_millis(600), "{:?}", t.elapsed());
+    assert!(
+        err.contains("refused the connection (no sender yet); trying again for up to 0.6 s")
+            && err.contains("connecting")
+            && err.contains("no sender came within 0.6 s (--connect-timeout)"),
+        "{err}"
+    );
+    // A sender that starts listening after soundloc started: soundloc waits for it, and
+    // the results are the file's.
+    let child = bin()
+        .args(["localize", &format!("tcp:{addr}"), "--geometry"])
+        .arg(&geo)
+        .args(OPTS)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    std::thread::sleep(Duration::from_millis(700));
+    let l = TcpListener::bind(addr).unwrap();
+    let (mut s, _) = l.accept().unwrap();
+    s.write_all(&std::fs::read(&wav).unwrap()).unwrap();
+    drop(s);
+    let o = child.wait_with_output().unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    assert_eq!(String::from_utf8(o.stdout).unwrap(), want);
+    drop(l);
     // --realtime paces files only; with a network source it is refused, not ignored.
     let o = bin()
         .args(["localize", &format!("tcp:{addr}"), "--realtime", "--geometry"])

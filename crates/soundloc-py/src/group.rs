@@ -179,6 +179,13 @@ impl PyGroup {
         Ok(self.lock(py)?.group.config().algorithm.name())
     }
 
+    /// The analysis that runs, every default resolved, as JSON (`soundloc.StreamGroup.config`).
+    #[getter]
+    fn config_json(&self, py: Python<'_>) -> PyResult<String> {
+        serde_json::to_string(self.lock(py)?.group.config())
+            .map_err(|e| pyo3::exceptions::PyValueError::new_err(e.to_string()))
+    }
+
     /// Analysis sampling rate, Hz.
     #[getter]
     fn fs(&self, py: Python<'_>) -> PyResult<u32> {

@@ -152,6 +152,7 @@ pub(crate) fn samples<'py>(x: &Bound<'py, PyAny>) -> PyResult<Samples<'py>> {
     }
 }
 
+/// Positions or directions, one per row: (N, 3), or (N, 2) in the x-y plane (z = 0).
 pub(crate) fn points(x: &Bound<'_, PyAny>, what: &str) -> PyResult<Vec<[f64; 3]>> {
     let v: Vec<Vec<f64>> = x
         .call_method0("tolist")
@@ -163,23 +164,15 @@ pub(crate) fn points(x: &Bound<'_, PyAny>, what: &str) -> PyResult<Vec<[f64; 3]>
     if by_columns {
         return Err(PyValueError::new_err(format!(
             "{what}: a ({}, {}) array holds one microphone per column (pyroomacoustics' L); give one per \
-             row, (M, 3): L.T{}",
+             row, (M, 3) or (M, 2) for a planar array: L.T",
             v.len(),
             v[0].len(),
-            if v.len() == 2 {
-                " with a column of zeros for z"
-            } else {
-                ""
-            }
         )));
     }
-    // Planar positions, one per row: (M, 2).
+    // Planar positions, one per row: (M, 2) with M > 3 (a 2 × 2 or 3 × 2 array could be
+    // either layout and is named above): z = 0.
     if v.len() > 3 && v.iter().all(|r| r.len() == 2) {
-        return Err(PyValueError::new_err(format!(
-            "{what}: a ({}, 2) array holds x, y only; give (M, 3) with z: e.g. \
-             np.column_stack([P, np.zeros(len(P))]) for a planar array",
-            v.len()
-        )));
+        return Ok(v.into_iter().map(|r| [r[0], r[1], 0.0]).collect());
     }
     v.into_iter()
         .enumerate()

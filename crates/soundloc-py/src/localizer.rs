@@ -220,6 +220,12 @@ impl PyLocalizer {
         Ok(self.lock(py)?.config().sample_rate_hz)
     }
 
+    /// The analysis that runs, every default resolved, as JSON (`soundloc.Localizer.config`).
+    #[getter]
+    fn config_json(&self, py: Python<'_>) -> PyResult<String> {
+        serde_json::to_string(self.lock(py)?.config()).map_err(|e| PyValueError::new_err(e.to_string()))
+    }
+
     /// Microphones used.
     #[getter]
     fn num_mics(&self, py: Python<'_>) -> PyResult<usize> {

@@ -546,14 +546,17 @@ def test_big_endian_and_shape_hints():
 
 def test_geometry_by_columns_and_a_hop_past_the_frame_are_named():
     """pyroomacoustics' L (one microphone per column) is refused with the transpose to
-    pass, a 3 × 3 array (rows or columns alike) is read by rows with a note, and a hop
+    pass, (M, 2) is a planar array, a 3 × 3 array (rows or columns alike) is read by rows with a note, and a hop
     longer than the frame gets a note (samples between frames go unanalysed)."""
     with pytest.raises(ValueError, match=r"\(3, 8\) array holds one microphone per column .*L\.T"):
         soundloc.Localizer(geometry=MICS.T, grid="ring:5", device="cpu")
-    with pytest.raises(ValueError, match=r"\(2, 8\) array .*L\.T with a column of zeros"):
+    with pytest.raises(ValueError, match=r"\(2, 8\) array .*\(M, 2\) for a planar array: L\.T"):
         soundloc.Localizer(geometry=MICS.T[:2], grid="ring:5", device="cpu")
-    with pytest.raises(ValueError, match=r"\(8, 2\) array holds x, y only; give \(M, 3\)"):
-        soundloc.Localizer(geometry=MICS[:, :2], grid="ring:5", device="cpu")
+    # (M, 2): a planar array, z = 0 (the ring's z is 0: the same results).
+    x = scene(seconds=1.0)
+    np.testing.assert_array_equal(
+        soundloc.Localizer(geometry=MICS[:, :2], grid="ring:5", device="cpu").localize(x, FS).azimuth_deg,
+        localizer().localize(x, FS).azimuth_deg)
     three = soundloc.Localizer(geometry=MICS[[0, 3, 5]], grid="ring:5", device="cpu", num_sources=1)
     assert any("3 × 3 array" in n for n in three.notes)
     assert not any("3 × 3" in n for n in localizer().notes)
@@ -811,16 +814,38 @@ def test_positions_in_millimetres_get_a_units_note():
 
 
 def test_copy_is_refused_cleanly():
-    """A Localizer holds a native stream: copy.copy shares it (it recursed without end in
-    __getattr__), deepcopy and pickle are a TypeError."""
+    """A Localizer holds a native stream: copy.copy would share it between two objects
+    (one stream's frames and results split between them); copy, deepcopy and pickle are a
+    TypeError that says what to do, for a StreamGroup too."""
     import copy
     import pickle
-    loc = localizer()
-    shallow = copy.copy(loc)
-    assert shallow.fs == loc.fs and shallow._n is loc._n
-    for f in (copy.deepcopy, pickle.dumps):
+    for obj in (localizer(), soundloc.StreamGroup(2, geometry=MICS, grid="ring:5", fs=FS, device="cpu")):
+        for f in (copy.copy, copy.deepcopy):
+            with pytest.raises(TypeError, match="cannot be copied.*same arguments"):
+                f(obj)
         with pytest.raises(TypeError):
-            f(loc)
+            pickle.dumps(obj)
+
+
+def test_config_shows_what_the_defaults_resolved_to():
+    """spec_json() is the spec as given; config() the analysis that runs: the robust
+    default (a noise source, no algorithm) is GEVD with half the array as its subspace,
+    the geometric numerator, onset weighting and refinement; the room default is
+    normalised SEVD; a named algorithm is HARK's, as it is."""
+    noise = (np.random.default_rng(5).standard_normal((16000, 8)) * 30).astype(np.float32)
+    robust = localizer(noise=noise)
+    assert json.loads(robust.spec_json()).get("algorithm") is None
+    c = robust.config()
+    assert (c["algorithm"], c["subspace_dim"], c["numerator"], c["refine"]) == (
+        "gevd", len(MICS) // 2, "geometric", True)
+    assert c["onset_frames"] > 0 and c["sample_rate_hz"] == FS
+    room = localizer().config()
+    assert (room["algorithm"], room["normalize_bins"], room["refine"]) == ("sevd", True, True)
+    hark = localizer(noise=noise, algorithm="gsvd").config()
+    assert (hark["algorithm"], hark["subspace_dim"], hark["refine"]) == ("gsvd", None, False)
+    assert "numerator" not in hark and "onset_frames" not in hark
+    g = soundloc.StreamGroup(2, geometry=MICS, grid="ring:5", fs=FS, device="cpu")
+    assert g.config() == room
 
 
 def test_pyroomacoustics_argument_names_are_accepted():

@@ -217,6 +217,7 @@ pub fn run(mut a: Args) -> anyhow::Result<ExitCode> {
             max_buffer: 10.0,
             realtime: false,
             keep_listening: false,
+            connect_timeout: 0.0,
             allow_truncated: a.allow_truncated,
         };
         let res = input.open(true).and_then(|inp| {

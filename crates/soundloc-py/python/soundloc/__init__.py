@@ -23,7 +23,7 @@ write_source_log (source-location logs, text or XML), read_audio (WAV/FLAC).
 
 Arguments (HARK LocalizeMUSIC name / pyroomacoustics name):
     tf: HARK transfer-function zip or HGTF file; or geometry: (M, 3) mic positions in metres
-        (pyroomacoustics' ``L`` transposed), or a geometry file (TOML, or an ODAS
+        (pyroomacoustics' ``L`` transposed; (M, 2) for a planar array, z = 0), or a geometry file (TOML, or an ODAS
         configuration ``*.cfg``, whose mapping.map picks the microphones among the device's
         raw.nChannels channels) with grid: "ring:STEP_DEG[:ELEV]", "sphere:N", "hemisphere:N" (the N directions above the horizontal plane) or
         a (D, 3) array of unit directions, grid_radius (metres, default 1) and
@@ -101,6 +101,7 @@ Errors: ValueError (bad input or configuration), TypeError (an argument of the w
 e.g. a complex array as audio), OSError (files), RuntimeError (device).
 """
 
+import json
 from dataclasses import dataclass, field
 from typing import List, Optional
 
@@ -341,6 +342,11 @@ def _spec_of(kwargs):
         raise ValueError(f"{what}: must be a non-negative integer in range ({e})") from None
 
 
+# copy.copy would share one stream's state between two objects.
+_NO_COPY = ("a {0} cannot be copied: it holds one stream's state (and a device's plan); "
+            "make another with the same arguments, soundloc.{0}(**kwargs), for a new stream")
+
+
 class Localizer:
     """A stateful localizer; see the module docstring for the arguments."""
 
@@ -376,13 +382,29 @@ class Localizer:
         return self._n.directions()
 
     def spec_json(self) -> str:
-        """The library's spec (every option, resolved) as JSON."""
+        """The library's spec as JSON, as given (what ``soundloc localize --spec`` takes:
+        options left out stay out, so the defaults that depend on the array and the noise
+        source are chosen again where it is read). What they resolved to: :meth:`config`."""
         return self._spec_json
+
+    def config(self) -> dict:
+        """The analysis that runs, every default resolved: the algorithm (the robust
+        default's GEVD, the room default's SEVD), subspace_dim, normalize_bins, refine,
+        numerator, onset_frames, the frame sizes and the used band. Where the rate is open
+        (``geometry=`` without ``fs=``) the rate and frame sizes are the stream's once its
+        first block has named its rate."""
+        return json.loads(self._n.config_json)
+
+    def __copy__(self):
+        raise TypeError(_NO_COPY.format("Localizer"))
+
+    def __deepcopy__(self, memo):
+        raise TypeError(_NO_COPY.format("Localizer"))
 
     def __getattr__(self, name):
         # latency_frames, samples_needed_next, device, algorithm, fs, num_mics, notes.
         # Only called for names not found; _n itself missing (an object made without
-        # __init__, e.g. by copy.copy) is an AttributeError, not a recursion.
+        # __init__, e.g. by pickle) is an AttributeError, not a recursion.
         if name == "_n" or (name.startswith("__") and name.endswith("__")):
             raise AttributeError(name)
         return getattr(self._n, name)
@@ -443,10 +465,20 @@ class StreamGroup:
         """The grid: unit vectors (D, 3), azimuth_deg (D,), elevation_deg (D,)."""
         return self._n.directions()
 
+    def config(self) -> dict:
+        """The analysis that runs, every default resolved (as :meth:`Localizer.config`)."""
+        return json.loads(self._n.config_json)
+
+    def __copy__(self):
+        raise TypeError(_NO_COPY.format("StreamGroup"))
+
+    def __deepcopy__(self, memo):
+        raise TypeError(_NO_COPY.format("StreamGroup"))
+
     def __getattr__(self, name):
         # latency_frames, samples_needed_next(i), device, algorithm, fs, num_mics, notes.
         # Only called for names not found; _n itself missing (an object made without
-        # __init__, e.g. by copy.copy) is an AttributeError, not a recursion.
+        # __init__, e.g. by pickle) is an AttributeError, not a recursion.
         if name == "_n" or (name.startswith("__") and name.endswith("__")):
             raise AttributeError(name)
         return getattr(self._n, name)

@@ -1,16 +1,20 @@
 //! CSV: one row per localized source.
 //!
 //! ```text
-//! frame,time_s,rank,id,azimuth_deg,elevation_deg,x,y,z,power_db,grid_index,held
-//! 50,0.5,0,3,30,0,0.8660254037844386,0.5,0,27.1,42,
-//! 60,0.6,0,3,30,0,0.8660254037844386,0.5,0,27.1,42,1
+//! frame,time_s,rank,id,azimuth_deg,elevation_deg,x,y,z,power_db,grid_index,held,num_active
+//! 50,0.5,0,3,30,0,0.8660254037844386,0.5,0,27.1,42,,1
+//! 60,0.6,0,3,30,0,0.8660254037844386,0.5,0,27.1,42,1,0
+//! 70,0.7,,,,,,,,,,,0
 //! ```
 //!
 //! `rank` is the 0-based position of the source in its result (0 = strongest); `id` is
 //! empty for untracked sources; `held` is `1` for a tracked source carried through its
 //! pause (PAUSE_LENGTH) without being observed in that window, at its last direction and
-//! power, and empty otherwise. Angles in degrees, `time_s` in seconds, `power_db` =
-//! 10·log10(P̄ + 1). A result with no sources produces no row. Numbers use Rust's
+//! power, and empty otherwise; `num_active` is the window's estimated number of active
+//! sources where it was estimated (`--active-only`, the room and robust defaults' count),
+//! empty otherwise. A result with no sources gives one row with only `frame`, `time_s` and
+//! `num_active`, so every window computed is in the file (a silent one included). Angles in
+//! degrees, `time_s` in seconds, `power_db` = 10·log10(P̄ + 1). Numbers use Rust's
 //! shortest round-trip formatting; non-finite values are written as `NaN`, `inf`, `-inf`.
 
 use crate::result::LocalizationResult;
@@ -19,7 +23,8 @@ use std::io::{self, Write};
 use std::path::Path;
 
 /// The header line (without newline).
-pub const CSV_HEADER: &str = "frame,time_s,rank,id,azimuth_deg,elevation_deg,x,y,z,power_db,grid_index,held";
+pub const CSV_HEADER: &str =
+    "frame,time_s,rank,id,azimuth_deg,elevation_deg,x,y,z,power_db,grid_index,held,num_active";
 
 /// Writes results as CSV to any [`Write`]: the header on creation, then one row per source.
 #[derive(Debug)]
@@ -39,16 +44,21 @@ impl<W: Write> CsvWriter<W> {
         })
     }
 
-    /// Write the rows of one result (none when it has no sources), in one `write_all`.
+    /// Write the rows of one result (one with empty source fields when it has no
+    /// sources), in one `write_all`.
     pub fn write(&mut self, result: &LocalizationResult) -> io::Result<()> {
         use std::fmt::Write as _;
         self.buf.clear();
+        let active = result.num_active.map(|n| n.to_string()).unwrap_or_default();
+        if result.sources.is_empty() {
+            let _ = writeln!(self.buf, "{},{},,,,,,,,,,,{active}", result.frame, result.time_s);
+        }
         for (rank, s) in result.sources.iter().enumerate() {
             let id = s.id.map(|i| i.to_string()).unwrap_or_default();
             // Writing to a String cannot fail.
             let _ = writeln!(
                 self.buf,
-                "{},{},{},{},{},{},{},{},{},{},{},{}",
+                "{},{},{},{},{},{},{},{},{},{},{},{},{active}",
                 result.frame,
                 result.time_s,
                 rank,
@@ -62,9 +72,6 @@ impl<W: Write> CsvWriter<W> {
                 s.grid_index,
                 if s.held { "1" } else { "" }
             );
-        }
-        if self.buf.is_empty() {
-            return Ok(());
         }
         self.inner.write_all(self.buf.as_bytes())
     }
@@ -125,7 +132,7 @@ mod tests {
                 sources: vec![src(Some(7), 30.0, 27.5, 6), src(None, -90.5, 12.25, 54)],
             },
             LocalizationResult {
-                num_active: None,
+                num_active: Some(1),
                 frame: 60,
                 time_s: 0.6,
                 sources: vec![Source {
@@ -142,9 +149,10 @@ mod tests {
             lines,
             vec![
                 CSV_HEADER,
-                "50,0.5,0,7,30,0,1,0,0,27.5,6,",
-                "50,0.5,1,,-90.5,0,1,0,0,12.25,54,",
-                "60,0.6,0,7,30,0,1,0,0,27.5,6,1",
+                "0,0,,,,,,,,,,,",
+                "50,0.5,0,7,30,0,1,0,0,27.5,6,,",
+                "50,0.5,1,,-90.5,0,1,0,0,12.25,54,,",
+                "60,0.6,0,7,30,0,1,0,0,27.5,6,1,1",
             ]
         );
     }
