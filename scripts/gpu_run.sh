@@ -5,7 +5,7 @@
 #   cargo build --release && cargo test --release -p soundloc --test gpu_parity --no-run
 #   scripts/gpu_run.sh --stage        # copies the binaries and the peer into .devcarry/
 # On the device (repo root, $OUT set by the device tool):
-#   scripts/gpu_run.sh [parity] [bench] [stream] [streams] [peer] [bigbatch] [f64] [e2e] [robust] [multi] [newalg]   (default: parity bench peer)
+#   scripts/gpu_run.sh [parity] [bench] [stream] [streams] [peer] [bigbatch] [f64] [e2e] [robust] [multi] [newalg] [prebuild]   (default: parity bench peer)
 set -uo pipefail
 root="$(cd "$(dirname "$0")/.." && pwd)"
 C="$root/.devcarry"
@@ -75,15 +75,19 @@ for _ in range(60): f.write(os.urandom(16000 * 120))
 "
       for run in cold warm warm; do
         extra=""; [ $run = cold ] && extra="--no-cache"
-        python3 -c "
+        # The cold run's debug timeline (driver, kernels, context) goes to $OUT/e2e_$run.log.
+        SOUNDLOC_LOG=debug python3 -c "
 import resource, subprocess, sys, time
-t = time.time(); r = subprocess.run(sys.argv[2:], stdout=open('$W/out.jsonl', 'w'))
+t = time.time(); r = subprocess.run(sys.argv[2:], stdout=open('$W/out.jsonl', 'w'), stderr=open('$OUT/e2e_' + sys.argv[1] + '.log', 'w'))
 print(sys.argv[1] + ': %.2f s wall, %d KB max RSS, exit %d' % (time.time() - t, resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss, r.returncode))
 " $run "$C/soundloc" localize $W/rec.wav --tf $W/tf.zip --noise-range 0:1 --algorithm gsvd --period 1 --device cuda -q $extra
         wc -l < $W/out.jsonl
       done 2>&1 | tee "$OUT/e2e.txt"
       "$C/soundloc" bench --e2e --tf $W/tf.zip --input $W/rec.wav --algorithm gsvd --period 1 --device cuda 2>&1 | tee -a "$OUT/e2e.txt"
       "$C/soundloc" bench --e2e --tf $W/tf.zip --input $W/rec.wav --algorithm gsvd --period 50 --device cpu 2>&1 | tee -a "$OUT/e2e.txt" ;;
+    prebuild)
+      # The kernel bundle embedded in the binary (crates/soundloc/kernels/prebuilt/sm_90.bin).
+      "$C/soundloc" cuda-prebuild --arch sm_90 -o "$OUT/sm_90.bin" 2>&1 | tee "$OUT/prebuild.txt" ;;
     robust)
       # The robust default (no --algorithm: textbook GEVD, subspace M/2, onset weighting on
       # the host) on the e2e files, PERIOD 1 on the GPU, against --onset 0 and the textbook

@@ -100,40 +100,6 @@ pub struct Input {
     pub name: PathBuf,
 }
 
-/// Connect to `addr`, trying again every 200 ms while the connection is refused (the
-/// sender is not listening yet), for up to `timeout_s` seconds; any other error (a name
-/// that does not resolve, an unreachable network) at once.
-fn connect(addr: &str, timeout_s: f64, quiet: bool) -> anyhow::Result<std::net::TcpStream> {
-    if !(timeout_s.is_finite() && timeout_s >= 0.0) {
-        bail!("--connect-timeout must be a number of seconds, 0 or more (got {timeout_s})");
-    }
-    let deadline = std::time::Instant::now() + std::time::Duration::from_secs_f64(timeout_s.min(1e6));
-    let mut told = false;
-    loop {
-        match std::net::TcpStream::connect(addr) {
-            Ok(s) => return Ok(s),
-            Err(e)
-                if e.kind() == std::io::ErrorKind::ConnectionRefused
-                    && std::time::Instant::now() < deadline =>
-            {
-                if !told && !quiet {
-                    eprintln!(
-                        "soundloc: tcp:{addr} refused the connection (no sender yet); trying again for up to \
-                         {timeout_s} s (--connect-timeout)"
-                    );
-                }
-                told = true;
-                std::thread::sleep(std::time::Duration::from_millis(200));
-            }
-            Err(e) if told => {
-                return Err(anyhow::Error::new(e)
-                    .context(format!("no sender came within {timeout_s} s (--connect-timeout)")))
-            }
-            Err(e) => return Err(e.into()),
-        }
-    }
-}
-
 fn stdin_is_file() -> bool {
     std::fs::metadata("/dev/stdin")
         .map(|m| m.is_file())
@@ -192,7 +158,7 @@ impl InputArgs {
             bail!("--realtime paces a file; a network source arrives at its sender's pace");
         }
         if let Some(addr) = self.input.strip_prefix("tcp:") {
-            let s = connect(addr, self.connect_timeout, quiet)
+            let s = super::senders::connect(addr, self.connect_timeout, quiet)
                 .with_context(|| format!("{}: connecting", self.input))?;
             return Ok(Input {
                 source: stream(Box::new(s), &name)?,

@@ -67,6 +67,33 @@ pub enum Command {
     /// Noise correlation matrices (HARK CMSave/CMLoad files): make from a recording, inspect.
     #[command(allow_negative_numbers = true)]
     Noisecm(noisecm::Args),
+    /// Developers: compile the kernel bundle embedded in the binary (needs NVRTC).
+    #[command(hide = true)]
+    CudaPrebuild(PrebuildArgs),
+}
+
+/// `soundloc cuda-prebuild`.
+#[derive(clap::Args, Debug)]
+pub struct PrebuildArgs {
+    /// Target architecture.
+    #[arg(long, default_value = "sm_90")]
+    arch: String,
+    /// The bundle to write (kernels/prebuilt/sm_90.bin).
+    #[arg(short, long)]
+    output: std::path::PathBuf,
+}
+
+fn prebuild(a: PrebuildArgs) -> anyhow::Result<ExitCode> {
+    let t = std::time::Instant::now();
+    let bundle = soundloc::backend::cuda::nvrtc_prebuild(&a.arch).map_err(anyhow::Error::msg)?;
+    soundloc::output::atomic::write_atomically(&a.output, |f| std::io::Write::write_all(f, &bundle))?;
+    eprintln!(
+        "soundloc: {} ({} bytes) in {:.1} s",
+        a.output.display(),
+        bundle.len(),
+        t.elapsed().as_secs_f64()
+    );
+    Ok(ExitCode::SUCCESS)
 }
 
 /// `--device`: auto, cpu, cuda (GPU 0), cuda:all or cuda:N[,M...] (several GPUs share the
@@ -135,6 +162,7 @@ pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
         Command::Listen(a) => listen::run(*a),
         Command::Tf(a) => tf::run(a),
         Command::Noisecm(a) => noisecm::run(a),
+        Command::CudaPrebuild(a) => prebuild(a),
     }
 }
 

@@ -7,6 +7,8 @@
 //! Every sender must send the first one's sampling rate and channel count (a raw
 //! input's flags fix both); one that does not is told why on stderr and disconnected.
 //! The run ends with Ctrl-C (or SIGTERM), which completes every output.
+//!
+//! Also `tcp:`'s connection, tried again while the sender is not up yet ([`connect`]).
 
 use soundloc::audio::{AudioFormat, AudioSource};
 use std::net::{SocketAddr, TcpListener, TcpStream};
@@ -139,5 +141,39 @@ impl AudioSource for Senders {
 
     fn take_pause(&mut self) -> u64 {
         std::mem::take(&mut self.pause)
+    }
+}
+
+/// Connect to `addr`, trying again every 200 ms while the connection is refused (the
+/// sender is not listening yet), for up to `timeout_s` seconds; any other error (a name
+/// that does not resolve, an unreachable network) at once.
+pub(super) fn connect(addr: &str, timeout_s: f64, quiet: bool) -> anyhow::Result<std::net::TcpStream> {
+    if !(timeout_s.is_finite() && timeout_s >= 0.0) {
+        anyhow::bail!("--connect-timeout must be a number of seconds, 0 or more (got {timeout_s})");
+    }
+    let deadline = std::time::Instant::now() + std::time::Duration::from_secs_f64(timeout_s.min(1e6));
+    let mut told = false;
+    loop {
+        match std::net::TcpStream::connect(addr) {
+            Ok(s) => return Ok(s),
+            Err(e)
+                if e.kind() == std::io::ErrorKind::ConnectionRefused
+                    && std::time::Instant::now() < deadline =>
+            {
+                if !told && !quiet {
+                    eprintln!(
+                        "soundloc: tcp:{addr} refused the connection (no sender yet); trying again for up to \
+                         {timeout_s} s (--connect-timeout)"
+                    );
+                }
+                told = true;
+                std::thread::sleep(std::time::Duration::from_millis(200));
+            }
+            Err(e) if told => {
+                return Err(anyhow::Error::new(e)
+                    .context(format!("no sender came within {timeout_s} s (--connect-timeout)")))
+            }
+            Err(e) => return Err(e.into()),
+        }
     }
 }

@@ -206,7 +206,7 @@ impl CudaGpu {
             )));
         }
         tracing::debug!("cuda:{ordinal}: {name} (sm_{cc}, {sms} SMs)");
-        let img = kernels::image_for(variant, cc, cache).map_err(Error::Device)?;
+        let mut img = kernels::image_for(variant, cc, cache, true).map_err(Error::Device)?;
         tracing::debug!(
             "cuda:{ordinal}: kernels ready ({}, {} bytes)",
             img.arch,
@@ -244,8 +244,16 @@ impl CudaGpu {
         g.copy = drv::stream::create(drv::stream::StreamKind::NonBlocking)
             .map_err(|e| dev_err("cuStreamCreate", e))?;
         // SAFETY: a CUBIN, or NUL-terminated PTX.
-        g.module = unsafe { drv::module::load_data(img.bytes.as_ptr() as *const c_void) }
-            .map_err(|e| dev_err(&format!("cuModuleLoadData ({})", img.arch), e))?;
+        let mut loaded = unsafe { drv::module::load_data(img.bytes.as_ptr() as *const c_void) };
+        if let (Err(e), true) = (&loaded, img.prebuilt) {
+            // A driver older than the compiler that made the embedded image: compile here.
+            tracing::debug!("cuda:{ordinal}: the embedded kernels do not load ({e}); compiling them");
+            img = kernels::image_for(variant, cc, cache, false).map_err(Error::Device)?;
+            // SAFETY: as above.
+            loaded = unsafe { drv::module::load_data(img.bytes.as_ptr() as *const c_void) };
+        }
+        g.module = loaded.map_err(|e| dev_err(&format!("cuModuleLoadData ({})", img.arch), e))?;
+        g.arch = img.arch;
         tracing::debug!("cuda:{ordinal}: module loaded");
         Ok(g)
     }

@@ -59,6 +59,7 @@ pub(crate) fn read(file: &Path) -> Result<Image, String> {
     Ok(Image {
         bytes: rest.to_vec(),
         arch,
+        prebuilt: false,
     })
 }
 
@@ -104,6 +105,7 @@ mod tests {
         let img = Image {
             bytes: (0..5000u32).map(|i| (i * 7 % 251) as u8).collect(),
             arch: "sm_90".into(),
+            prebuilt: false,
         };
         write(&d, &f, &img).unwrap();
         let back = read(&f).unwrap();

@@ -185,6 +185,9 @@ pub(crate) struct Image {
     pub bytes: Vec<u8>,
     /// The architecture option it was compiled with.
     pub arch: String,
+    /// Embedded in the binary ([`super::prebuilt`]), not compiled here: where the driver
+    /// refuses to load it, [`image_for`] without it compiles one.
+    pub prebuilt: bool,
 }
 
 fn cache() -> &'static Mutex<HashMap<(Variant, u32), Image>> {
@@ -278,7 +281,7 @@ pub(crate) fn nvrtc_compile(source: &str, opts: &[String], cubin: bool) -> Resul
     }
 }
 
-fn options(arch: &str) -> Vec<String> {
+pub(crate) fn options(arch: &str) -> Vec<String> {
     let mut o = vec![format!("--gpu-architecture={arch}"), "--std=c++17".to_string()];
     // Developer hook for tuning runs (e.g. "-DSL_F32_MINB=3"); fixed for the process.
     if let Ok(extra) = std::env::var("SOUNDLOC_CUDA_NVRTC_OPTS") {
@@ -287,12 +290,26 @@ fn options(arch: &str) -> Vec<String> {
     o
 }
 
-/// Compile (or fetch from the process-wide cache, else from the on-disk cache in `disk`:
-/// [`super::image_cache`]) the module for a device of compute capability `cc` =
-/// major·10 + minor.
-pub(crate) fn image_for(v: Variant, cc: u32, disk: Option<&Path>) -> Result<Image, String> {
+/// The module for a device of compute capability `cc` = major·10 + minor: from the
+/// process-wide cache, else embedded in the binary (with `prebuilt`: [`super::prebuilt`]),
+/// else from the on-disk cache in `disk` ([`super::image_cache`]), else compiled.
+pub(crate) fn image_for(v: Variant, cc: u32, disk: Option<&Path>, prebuilt: bool) -> Result<Image, String> {
     if let Some(img) = cache().lock().map_err(|e| e.to_string())?.get(&(v, cc)) {
-        return Ok(img.clone());
+        if prebuilt || !img.prebuilt {
+            return Ok(img.clone());
+        }
+    }
+    // SOUNDLOC_CUDA_PREBUILT=0 compiles with NVRTC even where an embedded image exists.
+    let prebuilt = prebuilt && std::env::var_os("SOUNDLOC_CUDA_PREBUILT").is_none_or(|x| x != "0");
+    if prebuilt {
+        if let Some(img) = super::prebuilt::find(v, cc) {
+            tracing::debug!("kernels ({}, {}) embedded in the binary", v.tag(), img.arch);
+            cache()
+                .lock()
+                .map_err(|e| e.to_string())?
+                .insert((v, cc), img.clone());
+            return Ok(img);
+        }
     }
     if !nvrtc_present() {
         return Err(
@@ -328,7 +345,11 @@ pub(crate) fn image_for(v: Variant, cc: u32, disk: Option<&Path>) -> Result<Imag
     let img = if archs.is_empty() || archs.contains(&(cc as i32)) {
         let arch = format!("sm_{cc}");
         match nvrtc_compile(&src, &options(&arch), true) {
-            Ok(bytes) => Image { bytes, arch },
+            Ok(bytes) => Image {
+                bytes,
+                arch,
+                prebuilt: false,
+            },
             Err(e) if archs.contains(&(cc as i32)) => return Err(e),
             Err(_) => ptx_fallback(&src, cc, &archs)?,
         }
@@ -363,7 +384,11 @@ fn ptx_fallback(src: &str, cc: u32, archs: &[i32]) -> Result<Image, String> {
         .unwrap_or(75);
     let arch = format!("compute_{best}");
     let bytes = nvrtc_compile(src, &options(&arch), false)?;
-    Ok(Image { bytes, arch })
+    Ok(Image {
+        bytes,
+        arch,
+        prebuilt: false,
+    })
 }
 
 /// Compile every generic variant and the device layouts of 8, 60 and 128 microphones

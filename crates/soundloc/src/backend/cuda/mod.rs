@@ -71,6 +71,7 @@ mod image_cache;
 mod kernels;
 mod launch;
 mod layout;
+mod prebuilt;
 mod prewarm;
 mod run;
 
@@ -165,6 +166,13 @@ pub fn nvrtc_available() -> bool {
 #[doc(hidden)]
 pub fn nvrtc_compile_all(arch: &str) -> std::result::Result<Vec<(String, usize)>, String> {
     guarded(|| kernels::compile_all(arch).map_err(Error::Device)).map_err(|e| e.to_string())
+}
+
+/// The embedded kernel bundle for `arch` (`sm_90`), compiled here with NVRTC
+/// (`soundloc cuda-prebuild`; [`prebuilt`]).
+#[doc(hidden)]
+pub fn nvrtc_prebuild(arch: &str) -> std::result::Result<Vec<u8>, String> {
+    guarded(|| prebuilt::build(arch).map_err(Error::Device)).map_err(|e| e.to_string())
 }
 
 fn guarded<R>(f: impl FnOnce() -> Result<R>) -> Result<R> {

@@ -1,0 +1,365 @@
+//! Kernel images compiled ahead of time and embedded in the binary, for the GPUs of
+//! compute capability 9.0 (H100, H200): a backend there loads its module without NVRTC.
+//! No run-time compiler has to be installed, and a fresh machine skips NVRTC's first
+//! compilation (8 s on a new device machine, 2026-12-01; 80–130 ms on later runs).
+//!
+//! - **Which.** f32 (the default precision), the exact layout ([`Variant::exact_for_mics`])
+//!   of every array of 2 to 64 microphones: the tridiagonal eigensolver's range. f64,
+//!   larger arrays and other GPUs compile with NVRTC as before ([`super::kernels::image_for`]).
+//! - **Key.** A 64-bit FNV-1a hash of the compute capability, the NVRTC options and the
+//!   whole translation unit: a changed kernel or a tuning `-D` (`SOUNDLOC_CUDA_NVRTC_OPTS`)
+//!   is a miss, and NVRTC compiles. A test keeps the bundle current with the sources.
+//! - **Bundle.** `kernels/prebuilt/sm_90.bin`: magic `SLCUPRE2\n`, a base image (the
+//!   middle variant's), then the entry count (u32) and per entry the key (u64), the compute
+//!   capability (u32), the architecture string (u32 length + bytes), the image's length
+//!   (u64) and CRC-32 (u32), and the image compressed with zstd (u64 length + bytes)
+//!   against the base as a raw dictionary (the images of neighbouring layouts share most of
+//!   their code: 2.2 MB for 32 images of ≈ 1 MB, against 9 MB deflated one by one). The
+//!   base is stored as an image (length, CRC-32, zstd length, bytes) without a dictionary.
+//!   Integers little-endian. A damaged entry is an error, and NVRTC compiles.
+//! - **Written** by `soundloc cuda-prebuild -o FILE` (hidden) on a machine with NVRTC
+//!   (`scripts/gpu_run.sh prebuild`).
+
+use super::kernels::{full_source, options, Image, Variant};
+use crate::array::tf_cache::{fnv1a, FNV_START};
+
+const MAGIC: &[u8; 9] = b"SLCUPRE2\n";
+
+/// The bundle for compute capability 9.0.
+static SM90: &[u8] = include_bytes!("../../../kernels/prebuilt/sm_90.bin");
+
+/// The compute capability the bundle serves.
+pub(crate) const CC: u32 = 90;
+
+/// The variants the bundle holds: f32, exact layouts for 2..=64 microphones.
+pub(crate) fn variants() -> Vec<Variant> {
+    (2..=64)
+        .step_by(2)
+        .filter_map(Variant::exact_for_mics)
+        .map(|v| Variant { only: "f32", ..v })
+        .collect()
+}
+
+/// The key of a translation unit compiled with `options` for compute capability `cc`.
+pub(crate) fn key(source: &str, options: &[String], cc: u32) -> u64 {
+    let mut h = FNV_START;
+    fnv1a(
+        &mut h,
+        format!("soundloc prebuilt cuda image v1 cc {cc}\n").as_bytes(),
+    );
+    for o in options {
+        fnv1a(&mut h, o.as_bytes());
+        fnv1a(&mut h, b"\0");
+    }
+    fnv1a(&mut h, source.as_bytes());
+    h
+}
+
+/// One entry of a bundle.
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct Entry {
+    pub key: u64,
+    pub cc: u32,
+    pub arch: String,
+    pub image: Vec<u8>,
+}
+
+/// The embedded image for `v` on a device of compute capability `cc`, if the bundle has
+/// one for these very sources and options.
+pub(crate) fn find(v: Variant, cc: u32) -> Option<Image> {
+    if cc != CC {
+        return None;
+    }
+    let want = key(&full_source(v), &options(&format!("sm_{cc}")), cc);
+    let e = read_entry(SM90, want).ok()??;
+    Some(Image {
+        bytes: e.image,
+        arch: e.arch,
+        prebuilt: true,
+    })
+}
+
+/// Every entry of the embedded bundle (for its test).
+#[cfg(test)]
+pub(crate) fn embedded() -> Result<Vec<Entry>, String> {
+    let (base, n, mut rest) = open(SM90)?;
+    let mut out = Vec::new();
+    for _ in 0..n {
+        let (e, r) = parse(rest, base.as_deref())?;
+        out.push(e);
+        rest = r;
+    }
+    Ok(out)
+}
+
+/// A bundle holding `entries` (the middle one's image is the base).
+pub(crate) fn write(entries: &[Entry]) -> std::io::Result<Vec<u8>> {
+    let base: &[u8] = entries.get(entries.len() / 2).map_or(&[], |e| &e.image);
+    let mut out = MAGIC.to_vec();
+    let z = zstd::bulk::compress(base, LEVEL)?;
+    image_header(&mut out, base, &z);
+    out.extend(z);
+    out.extend((entries.len() as u32).to_le_bytes());
+    let mut c = zstd::bulk::Compressor::with_dictionary(LEVEL, base)?;
+    for e in entries {
+        let z = c.compress(&e.image)?;
+        out.extend(e.key.to_le_bytes());
+        out.extend(e.cc.to_le_bytes());
+        out.extend((e.arch.len() as u32).to_le_bytes());
+        out.extend(e.arch.as_bytes());
+        image_header(&mut out, &e.image, &z);
+        out.extend(z);
+    }
+    Ok(out)
+}
+
+const LEVEL: i32 = 19;
+
+fn image_header(out: &mut Vec<u8>, image: &[u8], z: &[u8]) {
+    out.extend((image.len() as u64).to_le_bytes());
+    out.extend(crc32fast::hash(image).to_le_bytes());
+    out.extend((z.len() as u64).to_le_bytes());
+}
+
+/// A bundle opened: the base image (None in an empty bundle), the entry count and the
+/// entries' bytes.
+type Opened<'a> = (Option<Vec<u8>>, u32, &'a [u8]);
+
+fn open(bundle: &[u8]) -> Result<Opened<'_>, String> {
+    let rest = bundle
+        .strip_prefix(MAGIC.as_slice())
+        .ok_or("not a prebuilt kernel bundle")?;
+    let (base, rest) = image(rest, None)?;
+    let (n, rest) = take(rest, 4)?;
+    Ok((base, u32::from_le_bytes(n.try_into().unwrap()), rest))
+}
+
+/// The image at the start of `b` (length, CRC-32, compressed length, bytes; None where
+/// it is empty) and what follows it.
+fn image<'a>(b: &'a [u8], dict: Option<&[u8]>) -> Result<(Option<Vec<u8>>, &'a [u8]), String> {
+    let (len, b) = take(b, 8)?;
+    let len = usize::try_from(u64::from_le_bytes(len.try_into().unwrap())).map_err(|_| "too long")?;
+    let (crc, b) = take(b, 4)?;
+    let (zlen, b) = take(b, 8)?;
+    let zlen = usize::try_from(u64::from_le_bytes(zlen.try_into().unwrap())).map_err(|_| "too long")?;
+    let (z, rest) = take(b, zlen)?;
+    if len == 0 {
+        return Ok((None, rest));
+    }
+    // A length past any kernel image is damage, not an allocation to make.
+    if len > 64 << 20 {
+        return Err("image length out of range".into());
+    }
+    let image = match dict {
+        Some(d) => zstd::bulk::Decompressor::with_dictionary(d).and_then(|mut x| x.decompress(z, len)),
+        None => zstd::bulk::decompress(z, len),
+    }
+    .map_err(|e| format!("image does not decompress: {e}"))?;
+    if image.len() != len {
+        return Err("image is shorter than its length".into());
+    }
+    if crc32fast::hash(&image) != u32::from_le_bytes(crc.try_into().unwrap()) {
+        return Err("image fails its checksum".into());
+    }
+    Ok((Some(image), rest))
+}
+
+/// The entry of `bundle` with key `want` (None: there is none), or why the bundle cannot
+/// be read.
+pub(crate) fn read_entry(bundle: &[u8], want: u64) -> Result<Option<Entry>, String> {
+    let (base, n, mut rest) = open(bundle)?;
+    for _ in 0..n {
+        let key = u64::from_le_bytes(take(rest, 8)?.0.try_into().unwrap());
+        if key != want {
+            rest = skip(rest)?;
+            continue;
+        }
+        return parse(rest, base.as_deref()).map(|(e, _)| Some(e));
+    }
+    Ok(None)
+}
+
+/// The entry at the start of `b` (its key first) and what follows it.
+fn parse<'a>(b: &'a [u8], base: Option<&[u8]>) -> Result<(Entry, &'a [u8]), String> {
+    let (key, b) = take(b, 8)?;
+    let (cc, b) = take(b, 4)?;
+    let (n, b) = take(b, 4)?;
+    let (arch, b) = take(b, u32::from_le_bytes(n.try_into().unwrap()) as usize)?;
+    let arch = std::str::from_utf8(arch)
+        .map_err(|_| "architecture is not text")?
+        .to_string();
+    let (image, rest) = image(b, Some(base.ok_or("an entry without a base image")?))?;
+    let e = Entry {
+        key: u64::from_le_bytes(key.try_into().unwrap()),
+        cc: u32::from_le_bytes(cc.try_into().unwrap()),
+        arch,
+        image: image.ok_or("an empty image")?,
+    };
+    Ok((e, rest))
+}
+
+/// What follows the entry at the start of `b`, without decompressing it.
+fn skip(b: &[u8]) -> Result<&[u8], String> {
+    let (_, b) = take(b, 12)?;
+    let (n, b) = take(b, 4)?;
+    let (_, b) = take(b, u32::from_le_bytes(n.try_into().unwrap()) as usize + 12)?;
+    let (zlen, b) = take(b, 8)?;
+    let zlen = usize::try_from(u64::from_le_bytes(zlen.try_into().unwrap())).map_err(|_| "too long")?;
+    Ok(take(b, zlen)?.1)
+}
+
+fn take(b: &[u8], n: usize) -> Result<(&[u8], &[u8]), String> {
+    if b.len() < n {
+        return Err("the bundle ends inside an entry".into());
+    }
+    Ok(b.split_at(n))
+}
+
+/// Compile the bundle's variants for `arch` with NVRTC (`soundloc cuda-prebuild`), on
+/// every core (one NVRTC program per variant), saying on stderr how long each took.
+pub(crate) fn build(arch: &str) -> Result<Vec<u8>, String> {
+    let cc: u32 = arch
+        .strip_prefix("sm_")
+        .and_then(|c| c.parse().ok())
+        .ok_or_else(|| format!("{arch}: expected sm_XY"))?;
+    if std::env::var_os("SOUNDLOC_CUDA_NVRTC_OPTS").is_some() {
+        return Err("SOUNDLOC_CUDA_NVRTC_OPTS is set: the bundle holds the default build only".into());
+    }
+    let vs = variants();
+    let next = std::sync::atomic::AtomicUsize::new(0);
+    let threads = std::thread::available_parallelism()
+        .map_or(4, |n| n.get())
+        .min(vs.len());
+    let t0 = std::time::Instant::now();
+    let mut done: Vec<(usize, Result<Entry, String>)> = std::thread::scope(|s| {
+        let workers: Vec<_> = (0..threads)
+            .map(|_| {
+                s.spawn(|| {
+                    let mut out = Vec::new();
+                    loop {
+                        let i = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                        let Some(&v) = vs.get(i) else { break out };
+                        let src = full_source(v);
+                        let opts = options(arch);
+                        let t = std::time::Instant::now();
+                        let r = super::kernels::nvrtc_compile(&src, &opts, true).map(|image| Entry {
+                            key: key(&src, &opts, cc),
+                            cc,
+                            arch: arch.to_string(),
+                            image,
+                        });
+                        eprintln!(
+                            "soundloc: {} f32: {:.1} s (at {:.1} s)",
+                            v.tag(),
+                            t.elapsed().as_secs_f64(),
+                            t0.elapsed().as_secs_f64()
+                        );
+                        out.push((i, r));
+                    }
+                })
+            })
+            .collect();
+        workers
+            .into_iter()
+            .flat_map(|w| w.join().unwrap_or_default())
+            .collect()
+    });
+    if done.len() != vs.len() {
+        return Err("a compilation thread failed".into());
+    }
+    done.sort_by_key(|(i, _)| *i);
+    let entries = done.into_iter().map(|(_, r)| r).collect::<Result<Vec<_>, _>>()?;
+    write(&entries).map_err(|e| e.to_string())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// An entry whose image does not compress (a linear congruential sequence).
+    fn entry(key: u64, seed: u64, len: usize) -> Entry {
+        let mut x = seed;
+        let image = (0..len)
+            .map(|_| {
+                x = x
+                    .wrapping_mul(6_364_136_223_846_793_005)
+                    .wrapping_add(1_442_695_040_888_963_407);
+                (x >> 56) as u8
+            })
+            .collect();
+        Entry {
+            key,
+            cc: 90,
+            arch: "sm_90".into(),
+            image,
+        }
+    }
+
+    /// Entries come back as written, found by key; a damaged bundle is an error, never
+    /// a wrong image.
+    #[test]
+    fn a_bundle_reads_back_and_damage_is_refused() {
+        let es = [entry(1, 3, 1000), entry(7, 9, 50_000), entry(42, 0, 1)];
+        let b = write(&es).unwrap();
+        for e in &es {
+            assert_eq!(read_entry(&b, e.key).unwrap().as_ref(), Some(e));
+        }
+        assert_eq!(read_entry(&b, 5).unwrap(), None);
+        assert_eq!(read_entry(&write(&[]).unwrap(), 1).unwrap(), None);
+        // Cut anywhere: an error or (cut after the entry sought) that entry intact.
+        for cut in (0..b.len()).step_by(97) {
+            match read_entry(&b[..cut], 42) {
+                Ok(Some(e)) => assert_eq!(e, es[2]),
+                Ok(None) => panic!("cut at {cut}: a miss, not an error"),
+                Err(_) => {}
+            }
+        }
+        // A flipped bit anywhere: an error, a miss (a key changed) or the right image,
+        // never a wrong one (the checksum).
+        for at in (MAGIC.len()..b.len()).step_by(31) {
+            let mut bad = b.clone();
+            bad[at] ^= 0x10;
+            for e in &es {
+                if let Ok(Some(got)) = read_entry(&bad, e.key) {
+                    assert_eq!(got.image, e.image, "flip at {at}");
+                }
+            }
+        }
+        assert!(read_entry(b"SLCUDAIMG1\n", 1).is_err());
+        // A bundle of similar images is much smaller than they are (the base as dictionary).
+        let similar: Vec<Entry> = (0..4)
+            .map(|k| {
+                let mut e = entry(100 + k, 5, 200_000);
+                e.image[1000 * k as usize] ^= 0xff;
+                e
+            })
+            .collect();
+        let b = write(&similar).unwrap();
+        assert!(b.len() < 300_000, "{} bytes", b.len());
+        for e in &similar {
+            assert_eq!(read_entry(&b, e.key).unwrap().as_ref(), Some(e));
+        }
+    }
+
+    /// The embedded bundle holds an image for every variant it serves, compiled from the
+    /// kernels as they are now: after a kernel edit, regenerate it on a GPU machine
+    /// (`scripts/gpu_run.sh prebuild`, then copy `$OUT/sm_90.bin` to
+    /// `crates/soundloc/kernels/prebuilt/`). A stale bundle would only cost the cold start
+    /// (NVRTC compiles instead), which this test exists to keep.
+    #[test]
+    fn the_embedded_bundle_is_for_these_kernels() {
+        let have = embedded().unwrap();
+        assert!(have.iter().all(|e| e.cc == CC && e.arch == "sm_90"));
+        let keys: Vec<u64> = have.iter().map(|e| e.key).collect();
+        for v in variants() {
+            let k = key(&full_source(v), &options("sm_90"), CC);
+            assert!(
+                keys.contains(&k),
+                "no prebuilt image for {} f32 with the current kernel sources: regenerate \
+                 kernels/prebuilt/sm_90.bin (scripts/gpu_run.sh prebuild)",
+                v.tag()
+            );
+        }
+        assert_eq!(have.len(), variants().len());
+    }
+}
