@@ -75,7 +75,8 @@ for _ in range(60): f.write(os.urandom(16000 * 120))
 "
       for run in cold warm warm; do
         extra=""; [ $run = cold ] && extra="--no-cache"
-        # The cold run's debug timeline (driver, kernels, context) goes to $OUT/e2e_$run.log.
+        # Each run's debug timeline (driver, kernels, context) goes to $OUT/e2e_$run.log
+        # (cold, and the second warm run's).
         SOUNDLOC_LOG=debug python3 -c "
 import resource, subprocess, sys, time
 t = time.time(); r = subprocess.run(sys.argv[2:], stdout=open('$W/out.jsonl', 'w'), stderr=open('$OUT/e2e_' + sys.argv[1] + '.log', 'w'))

@@ -136,7 +136,8 @@ fn jinsei_with_measured_tf_finds_one_dominant_talker() {
     let text = String::from_utf8(o.stdout).unwrap();
     let mut lines = text.lines();
     assert!(lines.next().unwrap().starts_with("frame,time_s,rank"));
-    for l in lines {
+    // Rows of windows without sources (empty rank) hold no direction.
+    for l in lines.filter(|l| l.split(',').nth(2) != Some("")) {
         let az: f64 = l.split(',').nth(4).unwrap().parse().unwrap();
         let d = ((az - mean + 540.0) % 360.0 - 180.0).abs();
         assert!(d <= 20.0, "geometric TF: azimuth {az} vs measured-TF mean {mean}");

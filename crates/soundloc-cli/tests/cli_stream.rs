@@ -346,11 +346,11 @@ fn tcp_listen_and_connect_equal_the_file_and_a_cut_frame_is_reported() {
         "{err}"
     );
     // A sender that starts listening after soundloc started: soundloc waits for it, and
-    // the results are the file's.
+    // the results are the file's (without -q, so that its note shows it was refused first).
     let child = bin()
         .args(["localize", &format!("tcp:{addr}"), "--geometry"])
         .arg(&geo)
-        .args(OPTS)
+        .args(&OPTS[..OPTS.len() - 1])
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
         .spawn()
@@ -363,6 +363,10 @@ fn tcp_listen_and_connect_equal_the_file_and_a_cut_frame_is_reported() {
     let o = child.wait_with_output().unwrap();
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(o.status.success(), "{err}");
+    assert!(
+        err.contains("refused the connection (no sender yet); trying again"),
+        "{err}"
+    );
     assert_eq!(String::from_utf8(o.stdout).unwrap(), want);
     drop(l);
     // --realtime paces files only; with a network source it is refused, not ignored.

@@ -128,7 +128,7 @@ pub(crate) fn write_tf(
     use soundloc::array::{Grid, TransferFunctions};
     let (data, shape) = complex_array(tf, "tf")?;
     let dirs = crate::points(directions, "directions")?;
-    let mics = crate::points(mics, "mics")?;
+    let mics = crate::positions(mics, "mics")?;
     let bins = nfft / 2 + 1;
     let given = shape.get(2).copied().unwrap_or(0);
     if shape.len() != 3 || shape[..2] != [dirs.len(), mics.len()] || given == 0 || first_bin + given > bins {

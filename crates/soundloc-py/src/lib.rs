@@ -152,8 +152,17 @@ pub(crate) fn samples<'py>(x: &Bound<'py, PyAny>) -> PyResult<Samples<'py>> {
     }
 }
 
-/// Positions or directions, one per row: (N, 3), or (N, 2) in the x-y plane (z = 0).
+/// Positions or directions, one per row: (N, 3).
 pub(crate) fn points(x: &Bound<'_, PyAny>, what: &str) -> PyResult<Vec<[f64; 3]>> {
+    rows_of_3(x, what, false)
+}
+
+/// Microphone positions, one per row: (M, 3), or (M, 2) for a planar array (z = 0).
+pub(crate) fn positions(x: &Bound<'_, PyAny>, what: &str) -> PyResult<Vec<[f64; 3]>> {
+    rows_of_3(x, what, true)
+}
+
+fn rows_of_3(x: &Bound<'_, PyAny>, what: &str, planar: bool) -> PyResult<Vec<[f64; 3]>> {
     let v: Vec<Vec<f64>> = x
         .call_method0("tolist")
         .and_then(|l| l.extract())
@@ -162,17 +171,31 @@ pub(crate) fn points(x: &Bound<'_, PyAny>, what: &str) -> PyResult<Vec<[f64; 3]>
     // pyroomacoustics' L is (2 or 3, M): one microphone per column.
     let by_columns = matches!(v.len(), 2 | 3) && v.iter().all(|r| r.len() == v[0].len() && r.len() != 3);
     if by_columns {
+        let hint = match (planar, v[0].len()) {
+            // (2, 2), (3, 2): planar positions by rows, too.
+            (true, 2) => {
+                " or (M, 2): L.T; planar positions given by rows, P: np.column_stack([P, np.zeros(len(P))])"
+            }
+            (true, _) => " or (M, 2): L.T",
+            _ => ": L.T",
+        };
         return Err(PyValueError::new_err(format!(
-            "{what}: a ({}, {}) array holds one microphone per column (pyroomacoustics' L); give one per \
-             row, (M, 3) or (M, 2) for a planar array: L.T",
+            "{what}: a ({}, {}) array holds one {} per column (pyroomacoustics' L); give one per row, (M, 3){hint}",
             v.len(),
             v[0].len(),
+            if planar { "microphone" } else { "point" },
         )));
     }
     // Planar positions, one per row: (M, 2) with M > 3 (a 2 × 2 or 3 × 2 array could be
     // either layout and is named above): z = 0.
     if v.len() > 3 && v.iter().all(|r| r.len() == 2) {
-        return Ok(v.into_iter().map(|r| [r[0], r[1], 0.0]).collect());
+        if planar {
+            return Ok(v.into_iter().map(|r| [r[0], r[1], 0.0]).collect());
+        }
+        return Err(PyValueError::new_err(format!(
+            "{what}: a ({}, 2) array holds 2 values per row; give (N, 3) unit vectors (x, y, z)",
+            v.len()
+        )));
     }
     v.into_iter()
         .enumerate()

@@ -54,7 +54,7 @@ fn frame_sizes(given: (Option<usize>, Option<usize>), fs: u32, array: &ArraySpec
 
 #[pymethods]
 impl PySpec {
-    /// The library's spec as JSON (what `soundloc localize --spec` would take).
+    /// The library's spec as JSON (`soundloc::LocalizerSpec`, serde), as given.
     fn to_json(&self) -> PyResult<String> {
         serde_json::to_string_pretty(&self.spec).map_err(|e| PyValueError::new_err(e.to_string()))
     }
@@ -173,7 +173,7 @@ pub(crate) fn spec(
                 raw_mapping = mapping;
                 Some(geometry.mics)
             }
-            Err(_) => Some(points(g, "geometry")?),
+            Err(_) => Some(crate::positions(g, "geometry")?),
         },
     };
     // Three microphones as a 3 × 3 array: rows or columns alike (pyroomacoustics' L).

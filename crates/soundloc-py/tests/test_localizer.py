@@ -550,8 +550,14 @@ def test_geometry_by_columns_and_a_hop_past_the_frame_are_named():
     longer than the frame gets a note (samples between frames go unanalysed)."""
     with pytest.raises(ValueError, match=r"\(3, 8\) array holds one microphone per column .*L\.T"):
         soundloc.Localizer(geometry=MICS.T, grid="ring:5", device="cpu")
-    with pytest.raises(ValueError, match=r"\(2, 8\) array .*\(M, 2\) for a planar array: L\.T"):
+    with pytest.raises(ValueError, match=r"\(2, 8\) array .*\(M, 3\) or \(M, 2\): L\.T$"):
         soundloc.Localizer(geometry=MICS.T[:2], grid="ring:5", device="cpu")
+    # (3, 2): three planar microphones by rows, or two by columns: the message names both.
+    with pytest.raises(ValueError, match=r"\(3, 2\) array .*L\.T; planar positions given by rows.*column_stack"):
+        soundloc.Localizer(geometry=MICS[:3, :2], grid="ring:5", device="cpu", num_sources=1)
+    # A grid of (D, 2) is not directions (azimuth/elevation pairs would be misread).
+    with pytest.raises(ValueError, match=r"grid: a \(72, 2\) array holds 2 values per row"):
+        soundloc.Localizer(geometry=MICS, grid=np.zeros((72, 2)), device="cpu")
     # (M, 2): a planar array, z = 0 (the ring's z is 0: the same results).
     x = scene(seconds=1.0)
     np.testing.assert_array_equal(

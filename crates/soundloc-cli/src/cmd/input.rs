@@ -81,8 +81,9 @@ pub struct InputArgs {
     /// time between senders is a pause (results keep their true times).
     #[arg(long)]
     pub keep_listening: bool,
-    /// With `tcp:`: while the sender is not up yet (the connection is refused), keep
-    /// trying for this long, seconds; 0 = one try.
+    /// With `tcp:`: how long to wait for the sender, seconds: a refused connection (the
+    /// sender is not up yet) is tried again, and an unanswered one waited for, until then;
+    /// 0 = one try, with the system's own time limit.
     #[arg(long, default_value_t = 10.0, value_name = "SECS")]
     pub connect_timeout: f64,
     /// A WAV/FLAC file cut short (it ends before the length its header declares) is

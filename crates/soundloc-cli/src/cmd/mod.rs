@@ -172,7 +172,7 @@ pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
 pub enum FormatArg {
     /// One JSON object per result per line.
     Jsonl,
-    /// One CSV row per source.
+    /// One CSV row per source (and one per window without sources).
     Csv,
 }
 

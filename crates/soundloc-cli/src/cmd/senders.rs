@@ -144,36 +144,51 @@ impl AudioSource for Senders {
     }
 }
 
-/// Connect to `addr`, trying again every 200 ms while the connection is refused (the
-/// sender is not listening yet), for up to `timeout_s` seconds; any other error (a name
-/// that does not resolve, an unreachable network) at once.
-pub(super) fn connect(addr: &str, timeout_s: f64, quiet: bool) -> anyhow::Result<std::net::TcpStream> {
+/// Connect to `addr` within `timeout_s` seconds: a refused connection (the sender is not
+/// listening yet) is tried again every 200 ms, and one not answered is waited for, until
+/// then; any other error (a name that does not resolve, an unreachable network) ends it at
+/// once. 0 = one try, with the system's own time limit.
+pub(super) fn connect(addr: &str, timeout_s: f64, quiet: bool) -> anyhow::Result<TcpStream> {
+    use std::time::Duration;
     if !(timeout_s.is_finite() && timeout_s >= 0.0) {
         anyhow::bail!("--connect-timeout must be a number of seconds, 0 or more (got {timeout_s})");
     }
-    let deadline = std::time::Instant::now() + std::time::Duration::from_secs_f64(timeout_s.min(1e6));
+    if timeout_s == 0.0 {
+        return Ok(TcpStream::connect(addr)?);
+    }
+    let addrs: Vec<SocketAddr> = std::net::ToSocketAddrs::to_socket_addrs(addr)?.collect();
+    let deadline = Instant::now() + Duration::from_secs_f64(timeout_s.min(1e6));
     let mut told = false;
     loop {
-        match std::net::TcpStream::connect(addr) {
-            Ok(s) => return Ok(s),
-            Err(e)
-                if e.kind() == std::io::ErrorKind::ConnectionRefused
-                    && std::time::Instant::now() < deadline =>
-            {
-                if !told && !quiet {
-                    eprintln!(
-                        "soundloc: tcp:{addr} refused the connection (no sender yet); trying again for up to \
-                         {timeout_s} s (--connect-timeout)"
-                    );
-                }
-                told = true;
-                std::thread::sleep(std::time::Duration::from_millis(200));
+        let mut last = None;
+        for a in &addrs {
+            let left = deadline
+                .saturating_duration_since(Instant::now())
+                .max(Duration::from_millis(100));
+            match TcpStream::connect_timeout(a, left) {
+                Ok(s) => return Ok(s),
+                Err(e) => last = Some(e),
             }
-            Err(e) if told => {
-                return Err(anyhow::Error::new(e)
-                    .context(format!("no sender came within {timeout_s} s (--connect-timeout)")))
+        }
+        let e = last.unwrap_or_else(|| std::io::Error::other("the name resolves to no address"));
+        let retry = matches!(
+            e.kind(),
+            std::io::ErrorKind::ConnectionRefused | std::io::ErrorKind::TimedOut
+        );
+        if retry && Instant::now() < deadline {
+            if !told && !quiet {
+                eprintln!(
+                    "soundloc: tcp:{addr} refused the connection (no sender yet); trying again for up to \
+                     {timeout_s} s (--connect-timeout)"
+                );
             }
-            Err(e) => return Err(e.into()),
+            told = true;
+            std::thread::sleep(Duration::from_millis(200));
+        } else if retry {
+            return Err(anyhow::Error::new(e)
+                .context(format!("no sender came within {timeout_s} s (--connect-timeout)")));
+        } else {
+            return Err(e.into());
         }
     }
 }

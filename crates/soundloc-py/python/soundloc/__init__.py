@@ -248,7 +248,9 @@ class Results:
 
     def to_pandas(self):
         """One row per (result, source): frame, time_s, rank, id, azimuth_deg, elevation_deg,
-        power_db, grid_index, held (True for a tracked source carried through its pause)."""
+        power_db, grid_index, held (True for a tracked source carried through its pause),
+        num_active (the window's estimated count, None where not estimated). Unlike the
+        CLI's CSV, a window without sources has no row (it is in ``frames`` and ``times``)."""
         import pandas as pd
 
         rows = []
@@ -267,12 +269,14 @@ class Results:
                         power_db=float(self.power_db[i, j]),
                         grid_index=int(self.grid_index[i, j]),
                         held=bool(self.held is not None and self.held[i, j]),
+                        num_active=None if self.num_active is None or self.num_active[i] < 0
+                        else int(self.num_active[i]),
                     )
                 )
         # The columns are there without rows too (a push that completed no window,
         # silence), so df.power_db and df[df.power_db > x] work either way.
         columns = ["frame", "time_s", "rank", "id", "azimuth_deg", "elevation_deg", "power_db",
-                   "grid_index", "held"]
+                   "grid_index", "held", "num_active"]
         return pd.DataFrame(rows, columns=columns)
 
 
@@ -382,9 +386,9 @@ class Localizer:
         return self._n.directions()
 
     def spec_json(self) -> str:
-        """The library's spec as JSON, as given (what ``soundloc localize --spec`` takes:
+        """The library's spec (Rust's ``soundloc::LocalizerSpec``, serde JSON) as given:
         options left out stay out, so the defaults that depend on the array and the noise
-        source are chosen again where it is read). What they resolved to: :meth:`config`."""
+        source are chosen again wherever it is read. What they resolved to: :meth:`config`."""
         return self._spec_json
 
     def config(self) -> dict:

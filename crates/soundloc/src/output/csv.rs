@@ -1,4 +1,4 @@
-//! CSV: one row per localized source.
+//! CSV: one row per localized source, and one per result without sources.
 //!
 //! ```text
 //! frame,time_s,rank,id,azimuth_deg,elevation_deg,x,y,z,power_db,grid_index,held,num_active
@@ -26,7 +26,8 @@ use std::path::Path;
 pub const CSV_HEADER: &str =
     "frame,time_s,rank,id,azimuth_deg,elevation_deg,x,y,z,power_db,grid_index,held,num_active";
 
-/// Writes results as CSV to any [`Write`]: the header on creation, then one row per source.
+/// Writes results as CSV to any [`Write`]: the header on creation, then one row per source
+/// (one with empty source fields for a result without sources).
 #[derive(Debug)]
 pub struct CsvWriter<W: Write> {
     inner: W,
@@ -126,6 +127,12 @@ mod tests {
                 sources: vec![],
             },
             LocalizationResult {
+                num_active: Some(0),
+                frame: 10,
+                time_s: 0.1,
+                sources: vec![],
+            },
+            LocalizationResult {
                 num_active: None,
                 frame: 50,
                 time_s: 0.5,
@@ -150,6 +157,7 @@ mod tests {
             vec![
                 CSV_HEADER,
                 "0,0,,,,,,,,,,,",
+                "10,0.1,,,,,,,,,,,0",
                 "50,0.5,0,7,30,0,1,0,0,27.5,6,,",
                 "50,0.5,1,,-90.5,0,1,0,0,12.25,54,,",
                 "60,0.6,0,7,30,0,1,0,0,27.5,6,1,1",

@@ -248,7 +248,13 @@ impl CudaGpu {
         if let (Err(e), true) = (&loaded, img.prebuilt) {
             // A driver older than the compiler that made the embedded image: compile here.
             tracing::debug!("cuda:{ordinal}: the embedded kernels do not load ({e}); compiling them");
-            img = kernels::image_for(variant, cc, cache, false).map_err(Error::Device)?;
+            let refused = e.to_string();
+            img = kernels::image_for(variant, cc, cache, false).map_err(|why| {
+                Error::Device(format!(
+                    "the driver does not load the kernels built into soundloc ({refused}; a CUDA 13 \
+                     driver, 580 or later, does), and they cannot be compiled here: {why}"
+                ))
+            })?;
             // SAFETY: as above.
             loaded = unsafe { drv::module::load_data(img.bytes.as_ptr() as *const c_void) };
         }

@@ -71,7 +71,13 @@ pub(crate) fn find(v: Variant, cc: u32) -> Option<Image> {
         return None;
     }
     let want = key(&full_source(v), &options(&format!("sm_{cc}")), cc);
-    let e = read_entry(SM90, want).ok()??;
+    let e = match read_entry(SM90, want) {
+        Ok(e) => e?,
+        Err(why) => {
+            tracing::debug!("embedded kernels: {why}");
+            return None;
+        }
+    };
     Some(Image {
         bytes: e.image,
         arch: e.arch,
