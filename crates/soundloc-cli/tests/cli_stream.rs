@@ -612,6 +612,11 @@ fn negative_numbers_parse_and_bad_values_fail_before_any_work() {
             "--max-buffer must be a number of seconds above 0 and at most 3600",
         ),
         (&["--max-buffer", "0"][..], "--max-buffer must be"),
+        (
+            &["--connect-timeout", "-1"][..],
+            "--connect-timeout must be a number of seconds, 0 or more (got -1)",
+        ),
+        (&["--connect-timeout", "inf"][..], "--connect-timeout must be"),
     ] {
         let o = run(flags);
         let e = String::from_utf8_lossy(&o.stderr);

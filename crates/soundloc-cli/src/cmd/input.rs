@@ -138,6 +138,12 @@ impl InputArgs {
         let name = PathBuf::from(&self.input);
         let stream = |r, name: &Path| self.stream_source(r, name);
         check_max_buffer(self.max_buffer)?;
+        if !(self.connect_timeout.is_finite() && self.connect_timeout >= 0.0) {
+            bail!(
+                "--connect-timeout must be a number of seconds, 0 or more (got {})",
+                self.connect_timeout
+            );
+        }
         if self.input.is_empty() {
             bail!("the input's name is empty: give a recording (WAV, FLAC), - for standard input, or a network source (see --help)");
         }

@@ -147,13 +147,11 @@ impl AudioSource for Senders {
 /// Connect to `addr` within `timeout_s` seconds: a refused connection (the sender is not
 /// listening yet) is tried again every 200 ms, and one not answered is waited for, until
 /// then; any other error (a name that does not resolve, an unreachable network) ends it at
-/// once. 0 = one try, with the system's own time limit.
+/// once. 0 = one try, with the system's own time limit. `timeout_s` is checked by
+/// [`super::input::InputArgs::open`] (finite, 0 or more).
 pub(super) fn connect(addr: &str, timeout_s: f64, quiet: bool) -> anyhow::Result<TcpStream> {
     use std::time::Duration;
-    if !(timeout_s.is_finite() && timeout_s >= 0.0) {
-        anyhow::bail!("--connect-timeout must be a number of seconds, 0 or more (got {timeout_s})");
-    }
-    if timeout_s == 0.0 {
+    if timeout_s <= 0.0 {
         return Ok(TcpStream::connect(addr)?);
     }
     let addrs: Vec<SocketAddr> = std::net::ToSocketAddrs::to_socket_addrs(addr)?.collect();

@@ -20,17 +20,25 @@ const MAGIC: &[u8; 11] = b"SLCUDAIMG1\n";
 
 /// The entry file in `dir` for this source, options, compiler and device.
 pub(crate) fn entry(dir: &Path, source: &str, options: &[String], nvrtc: (i32, i32), cc: u32) -> PathBuf {
-    let mut h = FNV_START;
-    fnv1a(
-        &mut h,
-        format!("soundloc cuda image v1 nvrtc {}.{} cc {cc}\n", nvrtc.0, nvrtc.1).as_bytes(),
+    let h = key(
+        &format!("soundloc cuda image v1 nvrtc {}.{} cc {cc}\n", nvrtc.0, nvrtc.1),
+        source,
+        options,
     );
+    dir.join(format!("cuda-{h:016x}.bin"))
+}
+
+/// A 64-bit FNV-1a hash of `header`, the NVRTC `options` and the translation unit: the key
+/// of a compiled image (here and in [`super::prebuilt`]).
+pub(crate) fn key(header: &str, source: &str, options: &[String]) -> u64 {
+    let mut h = FNV_START;
+    fnv1a(&mut h, header.as_bytes());
     for o in options {
         fnv1a(&mut h, o.as_bytes());
         fnv1a(&mut h, b"\0");
     }
     fnv1a(&mut h, source.as_bytes());
-    dir.join(format!("cuda-{h:016x}.bin"))
+    h
 }
 
 /// The image stored in `file`, or why it cannot be used (absent, torn, corrupt).

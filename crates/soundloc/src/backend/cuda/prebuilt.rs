@@ -1,7 +1,8 @@
 //! Kernel images compiled ahead of time and embedded in the binary, for the GPUs of
 //! compute capability 9.0 (H100, H200): a backend there loads its module without NVRTC.
-//! No run-time compiler has to be installed, and a fresh machine skips NVRTC's first
-//! compilation (8 s on a new device machine, 2026-12-01; 80–130 ms on later runs).
+//! No run-time compiler has to be installed (with a CUDA 13 driver, 580 or later), and no
+//! run pays NVRTC's compilation of the module (16–18 s on an H100 or H200 host, 2026-12-07;
+//! BENCHMARKS.md, "stop 60").
 //!
 //! - **Which.** f32 (the default precision), the exact layout ([`Variant::exact_for_mics`])
 //!   of every array of 2 to 64 microphones: the tridiagonal eigensolver's range. f64,
@@ -17,11 +18,11 @@
 //!   their code: 2.2 MB for 32 images of ≈ 1 MB, against 9 MB deflated one by one). The
 //!   base is stored as an image (length, CRC-32, zstd length, bytes) without a dictionary.
 //!   Integers little-endian. A damaged entry is an error, and NVRTC compiles.
-//! - **Written** by `soundloc cuda-prebuild -o FILE` (hidden) on a machine with NVRTC
-//!   (`scripts/gpu_run.sh prebuild`).
+//! - **Written** by `soundloc cuda-prebuild -o FILE` (hidden) on any machine with NVRTC, a
+//!   GPU or not: pip's `nvidia-cuda-nvrtc==13.0.88` (docs/gpu.md, "How to reproduce"), or a
+//!   device's (`scripts/gpu_run.sh prebuild`).
 
 use super::kernels::{full_source, options, Image, Variant};
-use crate::array::tf_cache::{fnv1a, FNV_START};
 
 const MAGIC: &[u8; 9] = b"SLCUPRE2\n";
 
@@ -42,17 +43,11 @@ pub(crate) fn variants() -> Vec<Variant> {
 
 /// The key of a translation unit compiled with `options` for compute capability `cc`.
 pub(crate) fn key(source: &str, options: &[String], cc: u32) -> u64 {
-    let mut h = FNV_START;
-    fnv1a(
-        &mut h,
-        format!("soundloc prebuilt cuda image v1 cc {cc}\n").as_bytes(),
-    );
-    for o in options {
-        fnv1a(&mut h, o.as_bytes());
-        fnv1a(&mut h, b"\0");
-    }
-    fnv1a(&mut h, source.as_bytes());
-    h
+    super::image_cache::key(
+        &format!("soundloc prebuilt cuda image v1 cc {cc}\n"),
+        source,
+        options,
+    )
 }
 
 /// One entry of a bundle.
@@ -89,6 +84,7 @@ pub(crate) fn find(v: Variant, cc: u32) -> Option<Image> {
 #[cfg(test)]
 pub(crate) fn embedded() -> Result<Vec<Entry>, String> {
     let (base, n, mut rest) = open(SM90)?;
+    let base = base_image(base)?;
     let mut out = Vec::new();
     for _ in 0..n {
         let (e, r) = parse(rest, base.as_deref())?;
@@ -127,17 +123,28 @@ fn image_header(out: &mut Vec<u8>, image: &[u8], z: &[u8]) {
     out.extend((z.len() as u64).to_le_bytes());
 }
 
-/// A bundle opened: the base image (None in an empty bundle), the entry count and the
-/// entries' bytes.
-type Opened<'a> = (Option<Vec<u8>>, u32, &'a [u8]);
+/// A bundle opened: the base image's record (still compressed: it is decompressed only
+/// for an entry that is used), the entry count and the entries' bytes.
+type Opened<'a> = (&'a [u8], u32, &'a [u8]);
 
 fn open(bundle: &[u8]) -> Result<Opened<'_>, String> {
     let rest = bundle
         .strip_prefix(MAGIC.as_slice())
         .ok_or("not a prebuilt kernel bundle")?;
-    let (base, rest) = image(rest, None)?;
+    let (_, zlen) = take(rest, 12)?;
+    let zlen = u64::from_le_bytes(take(zlen, 8)?.0.try_into().unwrap());
+    let record = usize::try_from(zlen)
+        .ok()
+        .and_then(|z| z.checked_add(20))
+        .ok_or("too long")?;
+    let (base, rest) = take(rest, record)?;
     let (n, rest) = take(rest, 4)?;
     Ok((base, u32::from_le_bytes(n.try_into().unwrap()), rest))
+}
+
+/// The base image of an opened bundle (None in an empty one).
+fn base_image(record: &[u8]) -> Result<Option<Vec<u8>>, String> {
+    image(record, None).map(|(b, _)| b)
 }
 
 /// The image at the start of `b` (length, CRC-32, compressed length, bytes; None where
@@ -180,7 +187,7 @@ pub(crate) fn read_entry(bundle: &[u8], want: u64) -> Result<Option<Entry>, Stri
             rest = skip(rest)?;
             continue;
         }
-        return parse(rest, base.as_deref()).map(|(e, _)| Some(e));
+        return parse(rest, base_image(base)?.as_deref()).map(|(e, _)| Some(e));
     }
     Ok(None)
 }
@@ -228,6 +235,13 @@ pub(crate) fn build(arch: &str) -> Result<Vec<u8>, String> {
         .strip_prefix("sm_")
         .and_then(|c| c.parse().ok())
         .ok_or_else(|| format!("{arch}: expected sm_XY"))?;
+    if !super::kernels::nvrtc_present() {
+        return Err(
+            "libnvrtc (the CUDA run-time compiler) was not found: pip install \
+                    nvidia-cuda-nvrtc==13.0.88 and add its nvidia/cu13/lib folder to LD_LIBRARY_PATH"
+                .into(),
+        );
+    }
     if std::env::var_os("SOUNDLOC_CUDA_NVRTC_OPTS").is_some() {
         return Err("SOUNDLOC_CUDA_NVRTC_OPTS is set: the bundle holds the default build only".into());
     }
@@ -348,9 +362,8 @@ mod tests {
     }
 
     /// The embedded bundle holds an image for every variant it serves, compiled from the
-    /// kernels as they are now: after a kernel edit, regenerate it on a GPU machine
-    /// (`scripts/gpu_run.sh prebuild`, then copy `$OUT/sm_90.bin` to
-    /// `crates/soundloc/kernels/prebuilt/`). A stale bundle would only cost the cold start
+    /// kernels as they are now: after a kernel edit, regenerate it (`soundloc
+    /// cuda-prebuild`, docs/gpu.md, "How to reproduce"; no GPU needed). A stale bundle would only cost the cold start
     /// (NVRTC compiles instead), which this test exists to keep.
     #[test]
     fn the_embedded_bundle_is_for_these_kernels() {
@@ -362,7 +375,7 @@ mod tests {
             assert!(
                 keys.contains(&k),
                 "no prebuilt image for {} f32 with the current kernel sources: regenerate \
-                 kernels/prebuilt/sm_90.bin (scripts/gpu_run.sh prebuild)",
+                 kernels/prebuilt/sm_90.bin (soundloc cuda-prebuild: docs/gpu.md, \"How to reproduce\")",
                 v.tag()
             );
         }
