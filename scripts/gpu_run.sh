@@ -87,8 +87,10 @@ print(sys.argv[1] + ': %.2f s wall, %d KB max RSS, exit %d' % (time.time() - t, 
       "$C/soundloc" bench --e2e --tf $W/tf.zip --input $W/rec.wav --algorithm gsvd --period 1 --device cuda 2>&1 | tee -a "$OUT/e2e.txt"
       "$C/soundloc" bench --e2e --tf $W/tf.zip --input $W/rec.wav --algorithm gsvd --period 50 --device cpu 2>&1 | tee -a "$OUT/e2e.txt" ;;
     prebuild)
-      # The kernel bundle embedded in the binary (crates/soundloc/kernels/prebuilt/sm_90.bin).
-      "$C/soundloc" cuda-prebuild --arch sm_90 -o "$OUT/sm_90.bin" 2>&1 | tee "$OUT/prebuild.txt" ;;
+      # The kernel bundle for this device's architecture (crates/soundloc/kernels/prebuilt/;
+      # scripts/cuda_prebuild.sh makes them all without a GPU).
+      a=sm_$(nvidia-smi --query-gpu=compute_cap --format=csv,noheader | head -1 | tr -d .)
+      "$C/soundloc" cuda-prebuild --arch $a -o "$OUT/$a.bin" 2>&1 | tee "$OUT/prebuild.txt" ;;
     robust)
       # The robust default (no --algorithm: textbook GEVD, subspace M/2, onset weighting on
       # the host) on the e2e files, PERIOD 1 on the GPU, against --onset 0 and the textbook

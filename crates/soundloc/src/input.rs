@@ -18,6 +18,25 @@ pub const CATCH_UP_S: f64 = 1.0;
 /// Frames per tile when an interleaved block is split into channels.
 const TILE: usize = 256;
 
+/// Samples from which a block is checked and transposed on every core (≈ 1 MB: below it a
+/// hand-off to the thread pool costs more than it saves).
+const PAR_SAMPLES: usize = 1 << 18;
+
+/// Frames `data` (interleaved, `ch` channels) into `outs[k]` ← channel `idx[k]`, in tiles
+/// of [`TILE`] frames (the tile stays in cache while every channel takes its samples).
+fn transpose(data: &[f32], ch: usize, idx: &[usize], outs: &mut [&mut [f32]]) {
+    let n = data.len() / ch.max(1);
+    for t0 in (0..n).step_by(TILE) {
+        let t1 = (t0 + TILE).min(n);
+        let tile = &data[t0 * ch..t1 * ch];
+        for (&c, o) in idx.iter().zip(outs.iter_mut()) {
+            for (x, frame) in o[t0..t1].iter_mut().zip(tile.chunks_exact(ch)) {
+                *x = frame[c];
+            }
+        }
+    }
+}
+
 /// A block of multichannel samples.
 #[derive(Debug, Clone, Copy)]
 pub enum Block<'a> {
@@ -140,9 +159,19 @@ impl<'a> Block<'a> {
     /// The first frame (and its input channel) among channels `idx` where `bad` holds,
     /// or `None`: a branch-free pass first (it vectorises), the position only when
     /// something is wrong.
-    pub fn find(&self, idx: &[usize], bad: impl Fn(f32) -> bool) -> Option<(usize, usize)> {
+    pub fn find(&self, idx: &[usize], bad: impl Fn(f32) -> bool + Sync) -> Option<(usize, usize)> {
         let n = self.samples().ok()?;
-        let any = |xs: &[f32]| xs.iter().fold(false, |b, &v| b | bad(v));
+        let any1 = |xs: &[f32]| xs.iter().fold(false, |b, &v| b | bad(v));
+        // A large block (a file's) is checked on every core: one pass over it is bound by
+        // memory, not by the comparisons.
+        let any = |xs: &[f32]| {
+            if xs.len() < PAR_SAMPLES {
+                any1(xs)
+            } else {
+                use rayon::prelude::*;
+                xs.par_chunks(PAR_SAMPLES / 4).any(&any1)
+            }
+        };
         match *self {
             Block::Interleaved { data, channels } => {
                 if !any(data) {
@@ -180,19 +209,36 @@ impl<'a> Block<'a> {
         };
         let (ch, n) = (*channels, range.len());
         let data = &data[range.start * ch..range.end * ch];
-        let base: Vec<usize> = outs.iter().map(Vec::len).collect();
-        for o in outs.iter_mut() {
-            o.resize(o.len() + n, 0.0);
+        let mut dst: Vec<&mut [f32]> = outs
+            .iter_mut()
+            .map(|o| {
+                let b = o.len();
+                o.resize(b + n, 0.0);
+                &mut o[b..]
+            })
+            .collect();
+        if data.len() < PAR_SAMPLES || rayon::current_num_threads() < 2 {
+            transpose(data, ch, idx, &mut dst);
+            return;
         }
-        for t0 in (0..n).step_by(TILE) {
-            let t1 = (t0 + TILE).min(n);
-            let tile = &data[t0 * ch..t1 * ch];
-            for ((&c, o), &b) in idx.iter().zip(outs.iter_mut()).zip(&base) {
-                for (x, frame) in o[b + t0..b + t1].iter_mut().zip(tile.chunks_exact(ch)) {
-                    *x = frame[c];
-                }
+        // A large block on every core, each taking a run of whole tiles of frames into
+        // its part of every channel.
+        use rayon::prelude::*;
+        let parts = rayon::current_num_threads().min(n.div_ceil(TILE));
+        let per = n.div_ceil(parts).div_ceil(TILE) * TILE;
+        let mut split: Vec<Vec<&mut [f32]>> = (0..n.div_ceil(per))
+            .map(|_| Vec::with_capacity(dst.len()))
+            .collect();
+        for d in dst {
+            for (p, part) in d.chunks_mut(per).enumerate() {
+                split[p].push(part);
             }
         }
+        split.into_par_iter().enumerate().for_each(|(p, mut d)| {
+            let f0 = p * per;
+            let f1 = (f0 + per).min(n);
+            transpose(&data[f0 * ch..f1 * ch], ch, idx, &mut d);
+        });
     }
 
     /// Append samples `range` of channel `c` to `out`.
@@ -471,6 +517,43 @@ mod tests {
         .samples()
         .is_err());
         assert!(Block::Planar(&[vec![1.0], vec![]]).samples().is_err());
+    }
+
+    /// Blocks above [`PAR_SAMPLES`] are transposed and checked on every core: the same
+    /// channels, and the first bad sample, as the serial pass (the part boundaries are
+    /// not tile-aligned with the range's start, and the channel count is odd).
+    #[test]
+    fn large_blocks_are_transposed_and_checked_in_parallel_alike() {
+        let (ch, n) = (13usize, PAR_SAMPLES / 13 * 3 + 77);
+        let inter: Vec<f32> = (0..ch * n).map(|i| (i % 1_000_003) as f32).collect();
+        let b = Block::Interleaved {
+            data: &inter,
+            channels: ch,
+        };
+        let idx = [12, 0, 5, 5, 7];
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(3).build().unwrap();
+        let mut outs = vec![vec![-1.0f32; 3]; idx.len()];
+        pool.install(|| b.extend_channels(&idx, 5..n - 2, &mut outs));
+        for (o, &c) in outs.iter().zip(&idx) {
+            assert_eq!(o.len(), 3 + n - 7, "channel {c}");
+            assert_eq!(&o[..3], &[-1.0; 3]);
+            for (k, f) in (5..n - 2).enumerate() {
+                assert_eq!(o[3 + k], inter[f * ch + c], "channel {c} frame {f}");
+            }
+        }
+        let bad = |v: f32| v.is_nan() | (v.abs() > 1e9);
+        assert_eq!(pool.install(|| b.find(&idx, bad)), None);
+        let mut dirty = inter.clone();
+        let at = (n - 10) * ch + 7; // frame n − 10, channel 7
+        dirty[at] = f32::NAN;
+        dirty[(n - 3) * ch + 12] = f32::INFINITY; // later
+        dirty[(n / 2) * ch + 1] = f32::NAN; // channel 1 is not taken
+        let d = Block::Interleaved {
+            data: &dirty,
+            channels: ch,
+        };
+        assert_eq!(pool.install(|| d.find(&idx, bad)), Some((n - 10, 7)));
+        assert_eq!(d.find(&idx, bad), Some((n - 10, 7)));
     }
 
     #[test]

@@ -78,7 +78,7 @@ pub struct PrebuildArgs {
     /// Target architecture.
     #[arg(long, default_value = "sm_90")]
     arch: String,
-    /// The bundle to write (kernels/prebuilt/sm_90.bin).
+    /// The bundle to write (kernels/prebuilt/sm_XY.bin).
     #[arg(short, long)]
     output: std::path::PathBuf,
 }

@@ -1,36 +1,56 @@
-//! Kernel images compiled ahead of time and embedded in the binary, for the GPUs of
-//! compute capability 9.0 (H100, H200): a backend there loads its module without NVRTC.
-//! No run-time compiler has to be installed (with a CUDA 13 driver, 580 or later), and no
-//! run pays NVRTC's compilation of the module (16–18 s on an H100 or H200 host, 2026-12-07;
-//! BENCHMARKS.md, "stop 60").
+//! Kernel images compiled ahead of time and embedded in the binary: a backend on a GPU
+//! they serve loads its module without NVRTC. No run-time compiler has to be installed
+//! (with a CUDA 13 driver, 580 or later), and no run pays NVRTC's compilation of the
+//! module (16–18 s on an H100 or H200 host, 2026-12-07; BENCHMARKS.md, "stop 60").
 //!
-//! - **Which.** f32 (the default precision), the exact layout ([`Variant::exact_for_mics`])
-//!   of every array of 2 to 64 microphones: the tridiagonal eigensolver's range. f64,
-//!   larger arrays and other GPUs compile with NVRTC as before ([`super::kernels::image_for`]).
-//! - **Key.** A 64-bit FNV-1a hash of the compute capability, the NVRTC options and the
-//!   whole translation unit: a changed kernel or a tuning `-D` (`SOUNDLOC_CUDA_NVRTC_OPTS`)
-//!   is a miss, and NVRTC compiles. A test keeps the bundle current with the sources.
-//! - **Bundle.** `kernels/prebuilt/sm_90.bin`: magic `SLCUPRE2\n`, a base image (the
+//! - **Which GPUs.** One bundle per architecture ([`BUNDLES`]): sm_75 (T4, RTX 20xx),
+//!   sm_80 (A100; its images also run on 8.6 and 8.9: A10, A40, RTX 30xx, L4, L40S,
+//!   RTX 40xx), sm_90 (H100, H200), sm_100 (B200; also 10.3), sm_120 (RTX 50xx,
+//!   RTX PRO 6000; also 12.1). A device takes the bundle of its own major version with the
+//!   highest minor version not above its own ([`bundle_for`]): a cubin runs on any GPU
+//!   of its major version and an equal or higher minor one.
+//! - **Which kernels.** f32 (the default precision), the exact layout
+//!   ([`Variant::exact_for_mics`]) of every array of 2 to 64 microphones: the tridiagonal
+//!   eigensolver's range. f64, larger arrays and older GPUs compile with NVRTC as before
+//!   ([`super::kernels::image_for`]).
+//! - **Key.** A 64-bit FNV-1a hash of the bundle's compute capability, the NVRTC options
+//!   and the whole translation unit: a changed kernel or a tuning `-D`
+//!   (`SOUNDLOC_CUDA_NVRTC_OPTS`) is a miss, and NVRTC compiles. A test keeps every
+//!   bundle current with the sources.
+//! - **Bundle.** `kernels/prebuilt/sm_XY.bin`: magic `SLCUPRE2\n`, a base image (the
 //!   middle variant's), then the entry count (u32) and per entry the key (u64), the compute
 //!   capability (u32), the architecture string (u32 length + bytes), the image's length
 //!   (u64) and CRC-32 (u32), and the image compressed with zstd (u64 length + bytes)
 //!   against the base as a raw dictionary (the images of neighbouring layouts share most of
-//!   their code: 2.2 MB for 32 images of ≈ 1 MB, against 9 MB deflated one by one). The
-//!   base is stored as an image (length, CRC-32, zstd length, bytes) without a dictionary.
-//!   Integers little-endian. A damaged entry is an error, and NVRTC compiles.
-//! - **Written** by `soundloc cuda-prebuild -o FILE` (hidden) on any machine with NVRTC, a
-//!   GPU or not: pip's `nvidia-cuda-nvrtc==13.0.88` (docs/gpu.md, "How to reproduce"), or a
-//!   device's (`scripts/gpu_run.sh prebuild`).
+//!   their code: 2.1–2.2 MB for 32 images of ≈ 1 MB, against 9 MB deflated one by one).
+//!   The base is stored as an image (length, CRC-32, zstd length, bytes) without a
+//!   dictionary. Integers little-endian. A damaged entry is an error, and NVRTC compiles.
+//! - **Written** by `soundloc cuda-prebuild --arch sm_XY -o FILE` (hidden) on any machine
+//!   with NVRTC, a GPU or not: `scripts/cuda_prebuild.sh` regenerates every bundle with
+//!   pip's `nvidia-cuda-nvrtc==13.0.88` (docs/gpu.md, "How to reproduce").
 
 use super::kernels::{full_source, options, Image, Variant};
 
 const MAGIC: &[u8; 9] = b"SLCUPRE2\n";
 
-/// The bundle for compute capability 9.0.
-static SM90: &[u8] = include_bytes!("../../../kernels/prebuilt/sm_90.bin");
+/// The embedded bundles: compute capability (major·10 + minor) and bytes, ascending.
+pub(crate) static BUNDLES: &[(u32, &[u8])] = &[
+    (75, include_bytes!("../../../kernels/prebuilt/sm_75.bin")),
+    (80, include_bytes!("../../../kernels/prebuilt/sm_80.bin")),
+    (90, include_bytes!("../../../kernels/prebuilt/sm_90.bin")),
+    (100, include_bytes!("../../../kernels/prebuilt/sm_100.bin")),
+    (120, include_bytes!("../../../kernels/prebuilt/sm_120.bin")),
+];
 
-/// The compute capability the bundle serves.
-pub(crate) const CC: u32 = 90;
+/// The compute capability of the bundle whose images run on a device of compute
+/// capability `cc`: the same major version, the highest minor version not above the
+/// device's (8.6 and 8.9 take 8.0's; 9.0 its own; 7.0 none). `have` is ascending.
+pub(crate) fn bundle_for(cc: u32, have: &[u32]) -> Option<u32> {
+    have.iter()
+        .copied()
+        .filter(|&b| b / 10 == cc / 10 && b <= cc)
+        .max()
+}
 
 /// The variants the bundle holds: f32, exact layouts for 2..=64 microphones.
 pub(crate) fn variants() -> Vec<Variant> {
@@ -62,11 +82,11 @@ pub(crate) struct Entry {
 /// The embedded image for `v` on a device of compute capability `cc`, if the bundle has
 /// one for these very sources and options.
 pub(crate) fn find(v: Variant, cc: u32) -> Option<Image> {
-    if cc != CC {
-        return None;
-    }
-    let want = key(&full_source(v), &options(&format!("sm_{cc}")), cc);
-    let e = match read_entry(SM90, want) {
+    let ccs: Vec<u32> = BUNDLES.iter().map(|b| b.0).collect();
+    let bcc = bundle_for(cc, &ccs)?;
+    let bundle = BUNDLES.iter().find(|b| b.0 == bcc)?.1;
+    let want = key(&full_source(v), &options(&format!("sm_{bcc}")), bcc);
+    let e = match read_entry(bundle, want) {
         Ok(e) => e?,
         Err(why) => {
             tracing::debug!("embedded kernels: {why}");
@@ -80,10 +100,10 @@ pub(crate) fn find(v: Variant, cc: u32) -> Option<Image> {
     })
 }
 
-/// Every entry of the embedded bundle (for its test).
+/// Every entry of an embedded bundle (for its test).
 #[cfg(test)]
-pub(crate) fn embedded() -> Result<Vec<Entry>, String> {
-    let (base, n, mut rest) = open(SM90)?;
+pub(crate) fn embedded(bundle: &[u8]) -> Result<Vec<Entry>, String> {
+    let (base, n, mut rest) = open(bundle)?;
     let base = base_image(base)?;
     let mut out = Vec::new();
     for _ in 0..n {
@@ -361,24 +381,65 @@ mod tests {
         }
     }
 
-    /// The embedded bundle holds an image for every variant it serves, compiled from the
-    /// kernels as they are now: after a kernel edit, regenerate it (`soundloc
-    /// cuda-prebuild`, docs/gpu.md, "How to reproduce"; no GPU needed). A stale bundle would only cost the cold start
-    /// (NVRTC compiles instead), which this test exists to keep.
+    /// Every embedded bundle holds an image for every variant it serves, compiled from
+    /// the kernels as they are now: after a kernel edit, regenerate them
+    /// (`scripts/cuda_prebuild.sh`, docs/gpu.md, "How to reproduce"; no GPU needed). A
+    /// stale bundle would only cost the cold start (NVRTC compiles instead), which this
+    /// test exists to keep.
     #[test]
-    fn the_embedded_bundle_is_for_these_kernels() {
-        let have = embedded().unwrap();
-        assert!(have.iter().all(|e| e.cc == CC && e.arch == "sm_90"));
-        let keys: Vec<u64> = have.iter().map(|e| e.key).collect();
-        for v in variants() {
-            let k = key(&full_source(v), &options("sm_90"), CC);
-            assert!(
-                keys.contains(&k),
-                "no prebuilt image for {} f32 with the current kernel sources: regenerate \
-                 kernels/prebuilt/sm_90.bin (soundloc cuda-prebuild: docs/gpu.md, \"How to reproduce\")",
-                v.tag()
-            );
+    fn the_embedded_bundles_are_for_these_kernels() {
+        for &(cc, bundle) in BUNDLES {
+            let arch = format!("sm_{cc}");
+            let have = embedded(bundle).unwrap();
+            assert!(have.iter().all(|e| e.cc == cc && e.arch == arch), "{arch}");
+            let keys: Vec<u64> = have.iter().map(|e| e.key).collect();
+            for v in variants() {
+                let k = key(&full_source(v), &options(&arch), cc);
+                assert!(
+                    keys.contains(&k),
+                    "no prebuilt {arch} image for {} f32 with the current kernel sources: \
+                     regenerate kernels/prebuilt/*.bin (scripts/cuda_prebuild.sh: docs/gpu.md, \
+                     \"How to reproduce\")",
+                    v.tag()
+                );
+            }
+            assert_eq!(have.len(), variants().len(), "{arch}");
+            // What a device of this very capability finds: an image of this bundle.
+            let img = find(variants()[3], cc).unwrap();
+            assert_eq!(img.arch, arch);
+            assert!(img.prebuilt);
         }
-        assert_eq!(have.len(), variants().len());
+    }
+
+    /// A device takes the bundle of its major version with the highest minor version at
+    /// or below its own; none for a major version without a bundle.
+    #[test]
+    fn a_device_takes_the_bundle_of_its_major_version() {
+        let have: Vec<u32> = BUNDLES.iter().map(|b| b.0).collect();
+        assert_eq!(have, [75, 80, 90, 100, 120]);
+        for (cc, want) in [
+            (75, Some(75)),
+            (80, Some(80)),
+            (86, Some(80)),
+            (87, Some(80)),
+            (89, Some(80)),
+            (90, Some(90)),
+            (100, Some(100)),
+            (103, Some(100)),
+            (110, None),
+            (120, Some(120)),
+            (121, Some(120)),
+            (70, None),
+            (61, None),
+        ] {
+            assert_eq!(bundle_for(cc, &have), want, "cc {cc}");
+        }
+        // A bundle above the device's minor version is not taken (8.0's images are not
+        // for 7.x, an 8.6 bundle would not serve 8.0).
+        assert_eq!(bundle_for(80, &[86]), None);
+        assert_eq!(bundle_for(89, &[80, 86]), Some(86));
+        let img = find(variants()[0], 89).unwrap();
+        assert_eq!(img.arch, "sm_80");
+        assert!(find(variants()[0], 70).is_none());
     }
 }
