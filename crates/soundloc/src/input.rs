@@ -169,7 +169,7 @@ impl<'a> Block<'a> {
                 any1(xs)
             } else {
                 use rayon::prelude::*;
-                xs.par_chunks(PAR_SAMPLES / 4).any(&any1)
+                xs.par_chunks(PAR_SAMPLES / 4).any(any1)
             }
         };
         match *self {
