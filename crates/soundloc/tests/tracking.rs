@@ -2,7 +2,8 @@
 
 use rand::{Rng, SeedableRng};
 use soundloc::tracking::{
-    extend, summarize, IntervalExtender, IntervalExtenderConfig, SourceTracker, TrackerConfig,
+    extend, summarize, summarize_with_starts, IntervalExtender, IntervalExtenderConfig, SourceTracker,
+    TrackStart, TrackerConfig,
 };
 use soundloc::{LocalizationResult, Source};
 
@@ -552,6 +553,65 @@ fn confirmation_holds_back_new_sources_until_seen_over_its_frames() {
         let out = hark.update(&result(0, vec![peak(30.0, 0.0, 10.0), peak(-120.0, 0.0, 12.0)]));
         assert_eq!(ids(&out), vec![0, 1]);
     }
+}
+
+/// The tracker tells when it first saw each source it gives an id: with confirmation the
+/// tentative sighting (50 frames before the first result with the id), without it that
+/// result's own; a blip that never got an id is not told. The summary's `first_seen_*`
+/// is that sighting, `start_*` the first result with the id; both the same from bare
+/// results (`summarize`).
+#[test]
+fn the_tracker_tells_each_sources_first_sighting_and_the_summary_keeps_it() {
+    let mut t = confirming(50);
+    let (mut run, mut starts) = (Vec::new(), Vec::new());
+    for f in (20..300).step_by(10) {
+        let mut peaks = vec![peak(30.0, 0.0, 10.0)];
+        if f <= 40 {
+            peaks.push(peak(-120.0, 0.0, 12.0)); // a blip: three sightings
+        }
+        if f >= 100 {
+            peaks.push(peak(90.0, 0.0, 8.0)); // a second source from frame 100
+        }
+        run.push(t.update(&result(f, peaks)));
+        starts.extend(t.take_started());
+    }
+    assert_eq!(
+        starts,
+        vec![
+            TrackStart {
+                id: 0,
+                frame: 20,
+                time_s: 0.2
+            },
+            TrackStart {
+                id: 1,
+                frame: 100,
+                time_s: 1.0
+            },
+        ]
+    );
+    assert!(t.take_started().is_empty(), "taken once");
+    let s = summarize_with_starts(&run, &starts);
+    assert_eq!(s.len(), 2);
+    assert_eq!((s[0].id, s[0].first_seen_frame, s[0].start_frame), (0, 20, 70));
+    assert!((s[0].first_seen_s - 0.2).abs() < 1e-12 && (s[0].start_s - 0.7).abs() < 1e-12);
+    assert_eq!((s[1].id, s[1].first_seen_frame, s[1].start_frame), (1, 100, 150));
+    for b in summarize(&run) {
+        assert_eq!((b.first_seen_frame, b.first_seen_s), (b.start_frame, b.start_s));
+    }
+    // Without confirmation the sighting is the first result with the id.
+    let mut hark = confirming(0);
+    hark.update(&result(5, vec![peak(30.0, 0.0, 10.0)]));
+    assert_eq!(
+        hark.take_started(),
+        vec![TrackStart {
+            id: 0,
+            frame: 5,
+            time_s: 0.05
+        }]
+    );
+    hark.reset();
+    assert!(hark.take_started().is_empty());
 }
 
 /// A tentative source must be seen again within confirm_frames, or at the very next result

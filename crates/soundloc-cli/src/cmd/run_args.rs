@@ -258,7 +258,9 @@ pub struct RunArgs {
     /// room default).
     #[arg(long, requires = "track", overrides_with = "active_only")]
     pub no_active_only: bool,
-    /// With --track: write the per-source summary (JSON) here.
+    /// With --track: write the per-source summary (JSON) here: per id the first and last
+    /// results carrying it (start_s, end_s), first_seen_s (when the tracker first saw the
+    /// source, before confirming it), mean direction, max power, result count.
     #[arg(long)]
     pub summary: Option<PathBuf>,
     /// Write a HARK source-location log (text, HARK <= 2.0).

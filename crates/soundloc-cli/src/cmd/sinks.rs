@@ -409,6 +409,7 @@ impl Sinks {
     /// Write what `out` holds now and empty it.
     pub fn emit(&mut self, out: &mut Output, progress: &Progress) -> anyhow::Result<()> {
         let results = std::mem::take(&mut out.results);
+        let starts = std::mem::take(&mut out.track_starts);
         // ODAS's SSL carries each window's own peaks (potential sources), its SST the tracks.
         let peaks = out.peaks.as_mut().map(std::mem::take).unwrap_or_default();
         let pots = if self.tracking { &peaks } else { &results };
@@ -513,6 +514,7 @@ impl Sinks {
             written.with_context(|| format!("{}: writing the source-location log", p.display()))?;
         }
         if let Some(s) = &mut self.summary {
+            starts.iter().for_each(|t| s.started(t));
             results.iter().for_each(|r| s.add(r));
         }
         self.count += results.len();

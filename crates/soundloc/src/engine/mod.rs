@@ -574,6 +574,7 @@ impl<T: Real> Engine<T> {
         self.flush(&mut out)?;
         Ok(Localization {
             results: out.results,
+            track_starts: out.track_starts,
             spectrum: out.spectrum,
             notes: out.notes,
             device: self.device_name(),

@@ -55,6 +55,7 @@ impl<T: Real> Engine<T> {
                     }
                     _ => t.update(&r),
                 };
+                out.track_starts.extend(t.take_started());
                 let untracked = std::mem::replace(&mut r, tracked);
                 if let Some(p) = &mut out.peaks {
                     p.push(untracked);

@@ -84,6 +84,10 @@ pub struct Output {
     pub spectrum: Option<SpectrumTable>,
     /// Things the user should know.
     pub notes: Vec<String>,
+    /// With tracking, the ids given since the last output and when the tracker first saw
+    /// each source (before confirming it): what [`crate::tracking::Summarizer::started`]
+    /// takes. They come as the ids are given, ahead of `preroll`'s delayed results.
+    pub track_starts: Vec<crate::tracking::TrackStart>,
 }
 
 impl Output {
@@ -98,6 +102,9 @@ impl Output {
 pub struct Localization {
     /// One result per correlation window, in time order.
     pub results: Vec<LocalizationResult>,
+    /// With tracking, every id given and when the tracker first saw its source
+    /// ([`crate::tracking::summarize_with_starts`]).
+    pub track_starts: Vec<crate::tracking::TrackStart>,
     /// The spectrum, when asked for.
     pub spectrum: Option<SpectrumTable>,
     /// Notes for the user.

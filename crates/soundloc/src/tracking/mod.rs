@@ -89,20 +89,36 @@
 //!
 //! ## [`summarize`]
 //! One [`SourceSummary`] per id: first/last frame and time, mean direction (the circular
-//! mean of the azimuths, the mean of the elevations), maximum power, number of results.
+//! mean of the azimuths, the mean of the elevations), maximum power, number of results,
+//! and (given the tracker's [`TrackStart`]s: [`summarize_with_starts`],
+//! [`Summarizer::started`]) when the tracker first saw it, before confirming it.
 
 mod extender;
 mod summary;
 mod tracker;
 
 pub use extender::{extend, IntervalExtender};
-pub use summary::{summarize, SourceSummary, Summarizer};
+pub use summary::{summarize, summarize_with_starts, SourceSummary, Summarizer};
 pub use tracker::SourceTracker;
 
 use serde::Serialize;
 
 use crate::error::{Error, Result};
 use crate::result::Source;
+
+/// When the tracker first saw a source that has just been given its id: with
+/// confirmation ([`TrackerConfig::confirm_frames`] = C) that sighting is C frames or more
+/// before the first result carrying the id; without it, that result's own. From
+/// [`SourceTracker::take_started`]; [`Summarizer::started`] takes it.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct TrackStart {
+    /// The id just given.
+    pub id: i64,
+    /// Frame of the result of the first sighting.
+    pub frame: usize,
+    /// `time_s` of that result, seconds.
+    pub time_s: f64,
+}
 
 /// HARK SourceTracker parameters. See the [module docs](self) for semantics.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, serde::Deserialize)]

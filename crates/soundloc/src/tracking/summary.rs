@@ -4,7 +4,7 @@ use std::collections::BTreeMap;
 
 use serde::Serialize;
 
-use super::unit_vector;
+use super::{unit_vector, TrackStart};
 use crate::result::LocalizationResult;
 
 /// Summary of one tracked source over a run.
@@ -22,6 +22,14 @@ pub struct SourceSummary {
     pub start_s: f64,
     /// `time_s` of the last result observing the id, seconds.
     pub end_s: f64,
+    /// Frame of the result where the tracker first saw the source. With confirmation
+    /// (`--confirm` C, the defaults' C = W) a source gets its id, and is output, only once
+    /// seen again C frames or more later, so this is `start_frame` − C or earlier: when
+    /// the source began. `start_frame` where the tracker's [`TrackStart`]s were not given
+    /// ([`summarize`] of bare results) and without confirmation.
+    pub first_seen_frame: usize,
+    /// `time_s` of that result, seconds.
+    pub first_seen_s: f64,
     /// Circular mean of the observed azimuths (the azimuth of the mean horizontal unit
     /// vector, so 170° and −170° average to 180°), degrees.
     pub mean_azimuth_deg: f64,
@@ -37,7 +45,14 @@ pub struct SourceSummary {
 /// One summary per id (sorted by id) over the results that observe it; sources without an
 /// id, and [`Source::held`](crate::result::Source::held) ones, are ignored.
 pub fn summarize(results: &[LocalizationResult]) -> Vec<SourceSummary> {
+    summarize_with_starts(results, &[])
+}
+
+/// [`summarize`], with the tracker's first sightings ([`SourceSummary::first_seen_frame`];
+/// [`crate::engine::Output::track_starts`], [`super::SourceTracker::take_started`]).
+pub fn summarize_with_starts(results: &[LocalizationResult], starts: &[TrackStart]) -> Vec<SourceSummary> {
     let mut s = Summarizer::default();
+    starts.iter().for_each(|t| s.started(t));
     results.iter().for_each(|r| s.add(r));
     s.finish()
 }
@@ -46,6 +61,8 @@ pub fn summarize(results: &[LocalizationResult]) -> Vec<SourceSummary> {
 #[derive(Debug, Clone, Default)]
 pub struct Summarizer {
     acc: BTreeMap<i64, SummaryAcc>,
+    /// First sightings by id ([`Summarizer::started`]).
+    seen: BTreeMap<i64, (usize, f64)>,
 }
 
 #[derive(Debug, Clone)]
@@ -57,6 +74,14 @@ struct SummaryAcc {
 }
 
 impl Summarizer {
+    /// Takes in the tracker's first sighting of a source (before or after its results).
+    pub fn started(&mut self, t: &TrackStart) {
+        let e = self.seen.entry(t.id).or_insert((t.frame, t.time_s));
+        if t.frame < e.0 {
+            *e = (t.frame, t.time_s);
+        }
+    }
+
     /// Takes in one result's tracked, observed sources.
     pub fn add(&mut self, r: &LocalizationResult) {
         for s in r.sources.iter().filter(|s| !s.held) {
@@ -69,6 +94,8 @@ impl Summarizer {
                     end_frame: r.frame,
                     start_s: r.time_s,
                     end_s: r.time_s,
+                    first_seen_frame: r.frame,
+                    first_seen_s: r.time_s,
                     mean_azimuth_deg: 0.0,
                     mean_elevation_deg: 0.0,
                     max_power_db: f64::NEG_INFINITY,
@@ -104,9 +131,14 @@ impl Summarizer {
 
     /// One summary per id, sorted by id.
     pub fn finish(self) -> Vec<SourceSummary> {
+        let seen = self.seen;
         self.acc
             .into_values()
             .map(|mut a| {
+                (a.s.first_seen_frame, a.s.first_seen_s) = (a.s.start_frame, a.s.start_s);
+                if let Some(&(f, t)) = seen.get(&a.s.id).filter(|s| s.0 < a.s.start_frame) {
+                    (a.s.first_seen_frame, a.s.first_seen_s) = (f, t);
+                }
                 let [c, s, el] = a.sum;
                 let az = s.atan2(c).to_degrees();
                 a.s.mean_azimuth_deg = if az <= -180.0 { az + 360.0 } else { az };

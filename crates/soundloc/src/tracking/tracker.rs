@@ -12,6 +12,8 @@ struct Track {
     id: Option<i64>,
     /// Frame of the first claimed peak.
     first_frame: usize,
+    /// `time_s` of that result.
+    first_time_s: f64,
     /// Last claimed peak (position and power), with `id` set.
     source: Source,
     remaining: f64,
@@ -43,6 +45,9 @@ pub struct SourceTracker {
     predict_motion: bool,
     /// Tentative sources started since the last reset (confirmation).
     tentative_started: usize,
+    /// Ids given since the last [`take_started`](Self::take_started), with their first
+    /// sightings.
+    started: Vec<super::TrackStart>,
 }
 
 impl SourceTracker {
@@ -55,6 +60,7 @@ impl SourceTracker {
             last_frame: None,
             predict_motion: false,
             tentative_started: 0,
+            started: Vec::new(),
         }
     }
 
@@ -78,6 +84,13 @@ impl SourceTracker {
         self.next_id = self.cfg.min_id;
         self.last_frame = None;
         self.tentative_started = 0;
+        self.started.clear();
+    }
+
+    /// The ids given since the last call, each with the result of its first sighting
+    /// (the tentative one, with confirmation), in the order given.
+    pub fn take_started(&mut self) -> Vec<super::TrackStart> {
+        std::mem::take(&mut self.started)
     }
 
     /// With confirmation, where sources were seen but none was ever confirmed (no id was
@@ -169,7 +182,13 @@ impl SourceTracker {
             match claim {
                 Some(pi) => {
                     if t.id.is_none() && frame.saturating_sub(t.first_frame) >= confirm {
-                        t.id = Some(self.take_id());
+                        let id = self.take_id();
+                        t.id = Some(id);
+                        self.started.push(super::TrackStart {
+                            id,
+                            frame: t.first_frame,
+                            time_s: t.first_time_s,
+                        });
                     }
                     let mut s = result.sources[peaks[pi].0].clone();
                     s.id = t.id;
@@ -217,14 +236,20 @@ impl SourceTracker {
             });
             if far {
                 let id = (confirm == 0).then(|| self.take_id());
-                if id.is_none() {
-                    self.tentative_started += 1;
+                match id {
+                    Some(id) => self.started.push(super::TrackStart {
+                        id,
+                        frame,
+                        time_s: result.time_s,
+                    }),
+                    None => self.tentative_started += 1,
                 }
                 let mut s = result.sources[peaks[pi].0].clone();
                 s.id = id;
                 self.tracks.push(Track {
                     id,
                     first_frame: frame,
+                    first_time_s: result.time_s,
                     source: s,
                     remaining: self.cfg.pause_length,
                     last_match_frame: frame,
