@@ -11,10 +11,36 @@ use pyo3::types::PyDict;
 use std::path::PathBuf;
 
 /// Read a WAV or FLAC file: (samples × channels float32 array in the file's raw units,
-/// e.g. int16 values for 16-bit files, sampling rate in Hz).
+/// e.g. int16 values for 16-bit files, sampling rate in Hz). With `raw=` ("u8", "s16le",
+/// "s24le", "s32le", "f32le", "f64le"; the CLI's `--raw`), a headerless file of
+/// interleaved PCM of `channels` channels at `fs` Hz.
 #[pyfunction]
-pub(crate) fn read_audio(py: Python<'_>, path: PathBuf) -> PyResult<(Bound<'_, PyArray2<f32>>, u32)> {
-    let a = py.released(|| soundloc::audio::read_audio(&path)).map_err(err)?;
+#[pyo3(signature = (path, raw=None, channels=None, fs=None))]
+pub(crate) fn read_audio(
+    py: Python<'_>,
+    path: PathBuf,
+    raw: Option<String>,
+    channels: Option<usize>,
+    fs: Option<u32>,
+) -> PyResult<(Bound<'_, PyArray2<f32>>, u32)> {
+    let a = match (raw, channels, fs) {
+        (None, None, None) => py.released(|| soundloc::audio::read_audio(&path)),
+        (Some(enc), Some(ch), Some(fs)) => {
+            let enc: soundloc::audio::RawEncoding = enc.parse().map_err(err)?;
+            py.released(|| soundloc::audio::read_raw_audio(&path, enc, ch, fs))
+        }
+        (None, ..) => {
+            return Err(PyValueError::new_err(
+                "channels= and fs= describe a raw file: give raw= (its encoding) too",
+            ))
+        }
+        (Some(_), ..) => {
+            return Err(PyValueError::new_err(
+                "a raw file needs raw=, channels= and fs= (a headerless file does not say them)",
+            ))
+        }
+    }
+    .map_err(err)?;
     let (n, c) = (a.channels.first().map_or(0, |v| v.len()), a.channels.len());
     let mut x = Array2::<f32>::zeros((n, c));
     for (j, ch) in a.channels.iter().enumerate() {

@@ -133,3 +133,30 @@ def test_write_tf_noise_cm_and_source_log(tmp_path):
     # And a list of dicts as read_source_log returns round-trips too.
     soundloc.write_source_log(tmp_path / "again.txt", log)
     assert (tmp_path / "again.txt").read_text() == (tmp_path / "log.txt").read_text()
+
+
+def test_read_audio_reads_raw_pcm_as_its_wav(tmp_path):
+    """A headerless file (np.tofile's, or a recorder's) reads with raw=, channels=, fs= as the
+    WAV holding the same samples; f32 as given; a size that is not whole frames, a missing
+    argument and an unknown encoding are ValueErrors naming the problem."""
+    x = scene(seconds=0.5)
+    write_wav(tmp_path / "a.wav", x)
+    x.astype("<i2").tofile(tmp_path / "a.s16")
+    w, fs_w = soundloc.read_audio(tmp_path / "a.wav")
+    r, fs_r = soundloc.read_audio(tmp_path / "a.s16", raw="s16le", channels=8, fs=FS)
+    assert fs_r == fs_w == FS and r.shape == (len(x), 8)
+    np.testing.assert_array_equal(r, w)
+    f = (x / 32768.0).astype("<f4")
+    f.tofile(tmp_path / "a.f32")
+    g, _ = soundloc.read_audio(str(tmp_path / "a.f32"), raw="f32le", channels=8, fs=FS)
+    np.testing.assert_array_equal(g, f)
+    with pytest.raises(ValueError, match=r"not a whole number of sample frames"):
+        soundloc.read_audio(tmp_path / "a.s16", raw="s16le", channels=7, fs=FS)
+    with pytest.raises(ValueError, match=r"raw=, channels= and fs="):
+        soundloc.read_audio(tmp_path / "a.s16", raw="s16le", channels=8)
+    with pytest.raises(ValueError, match=r"give raw="):
+        soundloc.read_audio(tmp_path / "a.wav", channels=8)
+    with pytest.raises(ValueError, match=r"expected u8, s16le"):
+        soundloc.read_audio(tmp_path / "a.s16", raw="s16be", channels=8, fs=FS)
+    with pytest.raises(OSError):
+        soundloc.read_audio(tmp_path / "none.raw", raw="s16le", channels=8, fs=FS)

@@ -19,7 +19,8 @@ fork start method, ProcessPoolExecutor) work: each gets a thread pool of its own
 
 HARK files as numpy: read_tf / write_tf (transfer-function zips), read_noise_cm /
 write_noise_cm (noise correlation matrices, zip or text pair), read_source_log /
-write_source_log (source-location logs, text or XML), read_audio (WAV/FLAC).
+write_source_log (source-location logs, text or XML), read_audio (WAV/FLAC; headerless PCM
+with raw="s16le"|"s24le"|"s32le"|"f32le"|"f64le"|"u8", channels= and fs=).
 
 Arguments (HARK LocalizeMUSIC name / pyroomacoustics name):
     tf: HARK transfer-function zip or HGTF file; or geometry: (M, 3) mic positions in metres

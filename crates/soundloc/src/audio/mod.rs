@@ -200,7 +200,46 @@ impl Audio {
 /// Read a WAV or FLAC file (recognised by its magic bytes) into planar raw-valued channels.
 pub fn read_audio(path: impl AsRef<Path>) -> Result<Audio> {
     let path = path.as_ref();
-    let mut src = open_source(path)?;
+    read_all(&mut *open_source(path)?, path)
+}
+
+/// Read a headerless file of interleaved PCM (`enc`, `channels` channels at
+/// `sample_rate_hz`; what the CLI's `--raw` reads) into planar raw-valued channels. A size
+/// that is not a whole number of sample frames, or a non-finite sample, is an error naming
+/// the file.
+pub fn read_raw_audio(
+    path: impl AsRef<Path>,
+    enc: RawEncoding,
+    channels: usize,
+    sample_rate_hz: u32,
+) -> Result<Audio> {
+    let path = path.as_ref();
+    let file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
+    let len = file.metadata().map_err(|e| Error::io(path, e))?.len();
+    let src = RawSource::new(
+        std::io::BufReader::with_capacity(1 << 20, file),
+        enc,
+        channels,
+        sample_rate_hz,
+        path,
+    )?;
+    let fb = (enc.bytes() * channels) as u64;
+    if len % fb != 0 {
+        return Err(Error::format(
+            path,
+            format!(
+                "{len} bytes is not a whole number of sample frames of {channels} channels × {} bytes ({} frames and {} bytes): \
+                 is the channel count or the encoding right?",
+                enc.bytes(),
+                len / fb,
+                len % fb
+            ),
+        ));
+    }
+    read_all(&mut src.as_file(), path)
+}
+
+fn read_all(src: &mut dyn AudioSource, path: &Path) -> Result<Audio> {
     let fmt = src.format();
     let nch = fmt.channels;
     let mut channels: Vec<Vec<f32>> = vec![Vec::new(); nch];
@@ -221,3 +260,61 @@ pub fn read_audio(path: impl AsRef<Path>) -> Result<Audio> {
 
 #[cfg(test)]
 pub(crate) mod tests;
+
+#[cfg(test)]
+mod raw_tests {
+    use super::*;
+
+    /// A raw file reads as the same samples as the WAV holding them; a size that is not a
+    /// whole number of frames and a non-finite sample are errors naming the file.
+    #[test]
+    fn a_raw_file_reads_as_its_wav_and_bad_ones_are_named() {
+        let d = tests::temp_dir("raw");
+        let frames: Vec<[i16; 3]> = (0..500)
+            .map(|i| [i as i16 * 7, -(i as i16), 32767 - i as i16])
+            .collect();
+        let (wav, raw) = (d.join("a.wav"), d.join("a.s16"));
+        let spec = hound::WavSpec {
+            channels: 3,
+            sample_rate: 16000,
+            bits_per_sample: 16,
+            sample_format: hound::SampleFormat::Int,
+        };
+        let mut w = hound::WavWriter::create(&wav, spec).unwrap();
+        frames.iter().flatten().for_each(|&s| w.write_sample(s).unwrap());
+        w.finalize().unwrap();
+        let bytes: Vec<u8> = frames.iter().flatten().flat_map(|s| s.to_le_bytes()).collect();
+        std::fs::write(&raw, &bytes).unwrap();
+        let enc: RawEncoding = "s16le".parse().unwrap();
+        assert_eq!(
+            read_raw_audio(&raw, enc, 3, 16000).unwrap(),
+            read_audio(&wav).unwrap()
+        );
+        // Seven channels: 3000 bytes is 214 frames of 14 bytes and 4 over.
+        let e = read_raw_audio(&raw, enc, 7, 16000).unwrap_err().to_string();
+        assert!(
+            e.contains("a.s16") && e.contains("(214 frames and 4 bytes)"),
+            "{e}"
+        );
+        let f: Vec<u8> = [1.0f32, f32::NAN, 2.0, 3.0]
+            .iter()
+            .flat_map(|v| v.to_le_bytes())
+            .collect();
+        let nan = d.join("nan.f32");
+        std::fs::write(&nan, f).unwrap();
+        let e = read_raw_audio(&nan, RawEncoding::F32le, 2, 8000)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("nan.f32") && e.contains("NaN"), "{e}");
+        let e = read_raw_audio(d.join("none.raw"), enc, 1, 8000)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("none.raw"), "{e}");
+        assert!("s16be"
+            .parse::<RawEncoding>()
+            .unwrap_err()
+            .to_string()
+            .contains("s16le"));
+        std::fs::remove_dir_all(&d).unwrap();
+    }
+}

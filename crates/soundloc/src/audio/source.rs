@@ -189,6 +189,26 @@ pub enum RawEncoding {
     F64le,
 }
 
+impl std::str::FromStr for RawEncoding {
+    type Err = Error;
+    /// `u8`, `s16le`, `s24le`, `s32le`, `f32le` or `f64le` (the CLI's `--raw` names).
+    fn from_str(s: &str) -> Result<Self> {
+        Ok(match s {
+            "u8" => RawEncoding::U8,
+            "s16le" => RawEncoding::S16le,
+            "s24le" => RawEncoding::S24le,
+            "s32le" => RawEncoding::S32le,
+            "f32le" => RawEncoding::F32le,
+            "f64le" => RawEncoding::F64le,
+            _ => {
+                return Err(Error::Config(format!(
+                    "raw encoding {s:?}: expected u8, s16le, s24le, s32le, f32le or f64le"
+                )))
+            }
+        })
+    }
+}
+
 impl RawEncoding {
     /// Bytes per sample.
     pub fn bytes(self) -> usize {
@@ -457,6 +477,15 @@ impl<R: Read + Send> RawSource<R> {
             rate: sample_rate_hz,
             name: name.to_path_buf(),
         })
+    }
+}
+
+impl<R: Read + Send> RawSource<R> {
+    /// Read as a file, not a stream: whole blocks, and a non-finite sample is an error
+    /// naming it (a stream's become 0 with a warning, so that a glitch does not end it).
+    pub fn as_file(mut self) -> Self {
+        self.pcm.greedy = true;
+        self
     }
 }
 
