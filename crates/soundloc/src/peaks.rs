@@ -38,24 +38,36 @@ impl PeakTable {
                 grid.neighbors.len()
             )));
         }
+        for (i, nb) in grid.neighbors.iter().enumerate() {
+            if let Some(&j) = nb.iter().find(|&&j| j >= d) {
+                return Err(Error::Config(format!(
+                    "direction {i} lists neighbour {j}, but the grid has {d} points"
+                )));
+            }
+        }
+        // Points given twice (a grid from `linspace(…, endpoint=True)`, whose last azimuth
+        // is its first): one point, the first of them, whose neighbours are all of theirs.
+        // The others never peak; two equal values would otherwise each stop the other
+        // being a strict maximum, and the strongest source would vanish.
+        let first = coincident_first(grid);
+        let mut lists: Vec<Vec<u32>> = vec![Vec::new(); d];
+        for (i, nb) in grid.neighbors.iter().enumerate() {
+            let l = &mut lists[first[i]];
+            for &j in nb {
+                if first[j] != first[i] && !l.contains(&(j as u32)) {
+                    l.push(j as u32);
+                }
+            }
+        }
         let mut offsets = Vec::with_capacity(d + 1);
         let mut neighbors = Vec::new();
         offsets.push(0u32);
-        for (i, nb) in grid.neighbors.iter().enumerate() {
-            for &j in nb {
-                if j >= d {
-                    return Err(Error::Config(format!(
-                        "direction {i} lists neighbour {j}, but the grid has {d} points"
-                    )));
-                }
-                if j != i {
-                    neighbors.push(j as u32);
-                }
-            }
+        for l in &lists {
+            neighbors.extend_from_slice(l);
             offsets.push(neighbors.len() as u32);
         }
         let azimuth_ok = (0..d)
-            .map(|i| azimuth_in_range(grid.azimuth_deg(i), config.min_deg, config.max_deg))
+            .map(|i| first[i] == i && azimuth_in_range(grid.azimuth_deg(i), config.min_deg, config.max_deg))
             .collect();
         Ok(PeakTable {
             offsets,
@@ -69,6 +81,49 @@ impl PeakTable {
     pub fn neighbors_of(&self, d: usize) -> &[u32] {
         &self.neighbors[self.offsets[d] as usize..self.offsets[d + 1] as usize]
     }
+}
+
+/// For every grid point, the first point with the same direction (itself when it is the
+/// first): unit vectors within 1e-9 of each other are one direction. Points are compared
+/// along the coordinate that spreads them most, sorted: O(D log D) for any usual grid.
+fn coincident_first(grid: &Grid) -> Vec<usize> {
+    const TOL: f64 = 1e-9;
+    let d = grid.len();
+    let u: Vec<[f64; 3]> = (0..d).map(|i| grid.unit(i)).collect();
+    let spread = |k: usize| {
+        let (lo, hi) = u.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), p| {
+            (a.min(p[k]), b.max(p[k]))
+        });
+        hi - lo
+    };
+    let k = (0..3)
+        .max_by(|&a, &b| spread(a).total_cmp(&spread(b)))
+        .unwrap_or(0);
+    let mut order: Vec<usize> = (0..d).collect();
+    order.sort_by(|&a, &b| u[a][k].total_cmp(&u[b][k]).then(a.cmp(&b)));
+    let mut first: Vec<usize> = (0..d).collect();
+    for (n, &i) in order.iter().enumerate() {
+        for &j in &order[n + 1..] {
+            if u[j][k] - u[i][k] > TOL {
+                break;
+            }
+            let close = (0..3).all(|c| (u[i][c] - u[j][c]).abs() <= TOL);
+            if close {
+                let f = first[i].min(first[j]);
+                first[i] = f;
+                first[j] = f;
+            }
+        }
+    }
+    // Chains (a ≈ b ≈ c found in any order) settle on their first point.
+    for i in 0..d {
+        let mut f = first[i];
+        while first[f] != f {
+            f = first[f];
+        }
+        first[i] = f;
+    }
+    first
 }
 
 /// Whether `az` (degrees), wrapped into (min, min + 360], lies in [min, max].
@@ -146,6 +201,63 @@ mod tests {
             ..Default::default()
         };
         assert_eq!(find_peaks(&db, &PeakTable::new(&g, &cfg2).unwrap()).len(), 1);
+    }
+
+    /// A direction given twice (the last point of a `linspace(0, 360, n + 1)` ring is its
+    /// first; a TF file listing one twice) is one point: the first of them peaks, with the
+    /// neighbours of both, and the copy never does. Before, the two equal values stopped
+    /// each other, and the strongest peak was lost.
+    #[test]
+    fn a_direction_given_twice_is_one_point() {
+        let mut g = ring(8);
+        g.points.push(g.points[0]);
+        g.points[8][1] += 1e-12; // the rounding of cos/sin(360°)
+        let n = 9;
+        g.neighbors = (0..n).map(|i| vec![(i + n - 1) % n, (i + 1) % n]).collect();
+        let cfg = LocalizeConfig {
+            max_peaks: 0,
+            ..Default::default()
+        };
+        let t = PeakTable::new(&g, &cfg).unwrap();
+        let mut nb = t.neighbors_of(0).to_vec();
+        nb.sort();
+        assert_eq!(nb, vec![1, 7]);
+        assert!(!t.azimuth_ok[8] && t.azimuth_ok[0]);
+        //            0    1    2    3    4    5    6    7    8 (= 0)
+        let db = [5.0, 1.0, 2.0, 3.0, 1.0, 1.0, 1.0, 4.0, 5.0f64];
+        let p = find_peaks(&db, &t);
+        assert_eq!(p.iter().map(|p| p.dir).collect::<Vec<_>>(), vec![0, 3]);
+        // Not where 7 is above it.
+        let db = [5.0, 1.0, 2.0, 3.0, 1.0, 1.0, 1.0, 6.0, 5.0f64];
+        assert_eq!(
+            find_peaks(&db, &t).iter().map(|p| p.dir).collect::<Vec<_>>(),
+            vec![7, 3]
+        );
+        // A copy in the middle of the list, and three copies of one point.
+        let mut g = ring(6);
+        g.points.insert(3, g.points[2]);
+        g.points.push(g.points[2]);
+        g.neighbors = vec![
+            vec![6, 1],
+            vec![0, 2],
+            vec![1, 3],
+            vec![2, 4],
+            vec![3, 5],
+            vec![4, 6],
+            vec![5, 0],
+            vec![],
+        ];
+        let t = PeakTable::new(&g, &cfg).unwrap();
+        let first = coincident_first(&g);
+        assert_eq!(first, vec![0, 1, 2, 2, 4, 5, 6, 2]);
+        let db = [0.0, 1.0, 9.0, 9.0, 2.0, 1.0, 0.5, 9.0f64];
+        assert_eq!(
+            find_peaks(&db, &t).iter().map(|p| p.dir).collect::<Vec<_>>(),
+            vec![2]
+        );
+        // A grid without copies is left as it was.
+        let g = ring(8);
+        assert_eq!(coincident_first(&g), (0..8).collect::<Vec<_>>());
     }
 
     #[test]
