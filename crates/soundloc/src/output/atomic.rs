@@ -107,9 +107,15 @@ impl AtomicFile {
     /// (e.g. `".png"` for a library that picks the format from the extension).
     pub fn create_with_suffix(path: impl AsRef<Path>, suffix: &str) -> Result<Self> {
         let path = path.as_ref();
+        // A file replaced keeps its mode (a private 0600 file stays private, a shared 0664
+        // one group-writable); a new one gets the umask's, as with any tool.
+        let mut keep_mode = None;
         // The kernel follows links here, magic ones too (/dev/stdout, /dev/fd/N → a pipe,
         // whose link text `pipe:[N]` names no file).
         if let Ok(meta) = std::fs::metadata(path) {
+            if meta.is_file() {
+                keep_mode = Some(meta.permissions());
+            }
             // A rename would replace a file its owner made read-only (even as root): refuse,
             // as `cp` does for other users.
             if meta.is_file() && meta.permissions().readonly() {
@@ -172,11 +178,19 @@ impl AtomicFile {
             match OpenOptions::new().write(true).create_new(true).open(&temp) {
                 Ok(f) => {
                     registry.push(temp.clone());
-                    return Ok(AtomicFile {
+                    drop(registry);
+                    let file = AtomicFile {
                         target,
                         temp,
                         file: Some(BufWriter::new(f)),
-                    });
+                    };
+                    if let (Some(mode), Some(w)) = (keep_mode, &file.file) {
+                        // On failure the temporary file goes with `file`.
+                        w.get_ref()
+                            .set_permissions(mode)
+                            .map_err(|e| Error::io(&file.target, e))?;
+                    }
+                    return Ok(file);
                 }
                 Err(e) if e.kind() == io::ErrorKind::AlreadyExists => last_err = Some(e),
                 Err(e) if e.kind() == io::ErrorKind::NotFound && !dir.is_dir() => {

@@ -125,6 +125,37 @@ fn replaces_existing_and_suffix_is_kept() {
     std::fs::remove_dir_all(&d).unwrap();
 }
 
+/// A replaced file keeps its mode (0600 stays private, 0664 group-writable), written as a
+/// stream or by path; a new file gets the mode any new file gets there. Until 2026-12-08
+/// every replaced output became 0644 (found by a user sweep).
+#[cfg(unix)]
+#[test]
+fn a_replaced_file_keeps_its_mode() {
+    use std::os::unix::fs::PermissionsExt;
+    let d = temp_dir("mode");
+    let mode = |p: &Path| std::fs::metadata(p).unwrap().permissions().mode() & 0o777;
+    for m in [0o600, 0o664, 0o640] {
+        let target = d.join(format!("out{m:o}.jsonl"));
+        std::fs::write(&target, b"old").unwrap();
+        std::fs::set_permissions(&target, std::fs::Permissions::from_mode(m)).unwrap();
+        write_atomically(&target, |f| f.write_all(b"new")).unwrap();
+        assert_eq!(
+            (std::fs::read(&target).unwrap(), mode(&target)),
+            (b"new".to_vec(), m)
+        );
+        let f = AtomicFile::create_with_suffix(&target, ".png").unwrap();
+        std::fs::write(f.temp_path(), b"by path").unwrap();
+        f.commit().unwrap();
+        assert_eq!(mode(&target), m);
+    }
+    let fresh = d.join("fresh.jsonl");
+    write_atomically(&fresh, |f| f.write_all(b"x")).unwrap();
+    let plain = d.join("plain");
+    std::fs::File::create(&plain).unwrap();
+    assert_eq!(mode(&fresh), mode(&plain));
+    std::fs::remove_dir_all(&d).unwrap();
+}
+
 /// `-o /dev/stdout | cat`, `-o >(wc -l)`: a magic link to an anonymous pipe, whose
 /// link text (`pipe:[N]`) names no file.
 #[cfg(unix)]
