@@ -142,9 +142,15 @@ impl PyGroup {
         let mut guard = self.lock(py)?;
         let st = &mut *guard;
         let (g, outs) = (&mut st.group, &mut st.outs);
-        py.released(|| g.flush(i, outs)).map_err(err)?;
+        // As Localizer.flush: a stream that ended before its first window gives no
+        // results and a note (it is ended either way; reset(i) starts it again).
+        let short = match py.released(|| g.flush(i, outs)) {
+            Err(soundloc::Error::NoWindow(m)) => Some(format!("no results: {m}")),
+            r => r.map(|_| None).map_err(err)?,
+        };
         let n = st.group.grid().len();
         let mut out = std::mem::take(&mut st.outs[i]);
+        out.notes.extend(short);
         results(py, &mut out, n, st.group.config())
     }
 

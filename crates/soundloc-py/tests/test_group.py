@@ -49,6 +49,28 @@ def test_each_stream_equals_its_own_localizer():
     assert len(first) == 3 and len(first[0]) > 0 and len(first[1]) == len(first[2]) == 0
 
 
+def test_flush_of_a_stream_shorter_than_one_window():
+    """As Localizer.flush: a stream that ends before its first window (one array of many
+    disconnected at once) gives no results and a note, not an exception; the other streams
+    go on, and reset(i) starts it again. It raised until 2026-12-08."""
+    x = scene(seconds=1.0, seed=7)
+    g = soundloc.StreamGroup(2, geometry=MICS, grid="ring:5", fs=FS, device="cpu")
+    g.push(0, x[:100])
+    r = g.flush(0)
+    assert len(r) == 0 and r.azimuth_deg.shape[0] == 0
+    assert any(n.startswith("no results: the audio has 100 samples") for n in r.notes), r.notes
+    with pytest.raises(ValueError, match="push after the end of the stream"):
+        g.push(0, x[:100])
+    g.push(1, x)
+    got = soundloc.Results.concatenate([g.run()[1], g.flush(1)])
+    want = soundloc.Localizer(geometry=MICS, grid="ring:5", fs=FS, device="cpu").localize(x, FS)
+    np.testing.assert_array_equal(got.azimuth_deg, want.azimuth_deg)
+    g.reset(0)
+    g.push(0, x)
+    again = soundloc.Results.concatenate([g.run()[0], g.flush(0)])
+    np.testing.assert_array_equal(again.azimuth_deg, want.azimuth_deg)
+
+
 def test_group_refuses_what_it_cannot_share():
     with pytest.raises(ValueError, match="one fixed noise matrix"):
         soundloc.StreamGroup(2, geometry=MICS, grid="ring:5", fs=FS, device="cpu", noise_range=(0.0, 0.5))

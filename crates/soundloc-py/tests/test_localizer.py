@@ -499,6 +499,10 @@ def test_flush_of_a_stream_shorter_than_one_window():
     assert len(loc.push(x[:1000])) == 0
     r = loc.flush()
     assert len(r) == 0 and r.azimuth_deg.shape[0] == 0
+    # A (0, D) spectrum, not None: the parts of a stream join with np.concatenate too.
+    d = len(loc.directions()["azimuth_deg"])
+    assert r.spectrum_db.shape == (0, d) and r.spectrum_db.dtype == np.float32
+    assert localizer(fs=FS, spectrum=False).push(x[:1000]).spectrum_db is None
     assert any(n.startswith("no results: the audio has 1000 samples") for n in r.notes), r.notes
     with pytest.raises(ValueError, match=r"push after the end of the stream \(flush, or localize"):
         loc.push(x[:100])

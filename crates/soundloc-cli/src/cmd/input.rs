@@ -203,9 +203,13 @@ impl InputArgs {
                 name,
             });
         }
-        let source = if self.raw.is_some() {
-            let f = std::fs::File::open(&name).map_err(|e| soundloc::Error::io(&name, e))?;
-            self.raw_source(Box::new(std::io::BufReader::with_capacity(1 << 20, f)), &name)?
+        let source = if let Some(enc) = self.raw {
+            // A regular file is read as one (a NaN or a cut frame is an error naming it);
+            // a FIFO as a stream.
+            let (Some(ch), Some(rate)) = (self.raw_channels, self.rate) else {
+                bail!("--raw needs --raw-channels and --rate")
+            };
+            Box::new(soundloc::audio::open_raw_file(&name, enc.into(), ch, rate)?)
         } else {
             open_source(&name)?
         };

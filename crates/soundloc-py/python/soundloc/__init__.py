@@ -352,6 +352,22 @@ _NO_COPY = ("a {0} cannot be copied: it holds one stream's state (and a device's
             "make another with the same arguments, soundloc.{0}(**kwargs), for a new stream")
 
 
+class _EmptySpectrum:
+    """Gives Results without windows a (0, directions) spectrum_db where the spectrum is
+    kept (spectrum=True, the default), so that the parts of a stream concatenate with
+    np.concatenate as well as with Results.concatenate; None stays for spectrum=False."""
+
+    def __init__(self, native, kwargs):
+        self._native, self._want, self._dirs = native, kwargs.get("spectrum", True) is not False, None
+
+    def __call__(self, r):
+        if r.spectrum_db is None and self._want and len(r) == 0:
+            if self._dirs is None:
+                self._dirs = len(self._native.directions()["azimuth_deg"])
+            r.spectrum_db = np.zeros((0, self._dirs), dtype=np.float32)
+        return r
+
+
 class Localizer:
     """A stateful localizer; see the module docstring for the arguments."""
 
@@ -359,10 +375,11 @@ class Localizer:
         spec = _spec_of(kwargs)
         self._spec_json = spec.to_json()
         self._n = _Native(spec)
+        self._empty = _EmptySpectrum(self._n, kwargs)
 
     def localize(self, x, fs=None, channels_first=None) -> Results:
         """Localize a whole recording (the stream is reset first)."""
-        return Results(**self._n.localize(_array(x), fs=fs, channels_first=_flag("channels_first", channels_first)))
+        return self._empty(Results(**self._n.localize(_array(x), fs=fs, channels_first=_flag("channels_first", channels_first))))
 
     def localize_file(self, input, output, format="jsonl") -> int:
         """Localize a WAV/FLAC file and write its results as ``soundloc localize -o`` does
@@ -372,11 +389,11 @@ class Localizer:
     def push(self, block, fs=None, channels_first=None) -> Results:
         """Push a block of any length (at ``fs`` Hz: checked, and named on a stream's
         first push where the rate is open); returns the results it completed."""
-        return Results(**self._n.push(_array(block), fs=fs, channels_first=_flag("channels_first", channels_first)))
+        return self._empty(Results(**self._n.push(_array(block), fs=fs, channels_first=_flag("channels_first", channels_first))))
 
     def flush(self) -> Results:
         """End of input: the results still held."""
-        return Results(**self._n.flush())
+        return self._empty(Results(**self._n.flush()))
 
     def reset(self) -> None:
         """Start a new stream."""
@@ -433,6 +450,7 @@ class StreamGroup:
         if int(streams) < 1:
             raise ValueError(f"streams must be at least 1, got {streams}")
         self._n = _Group(_spec_of(kwargs), int(streams))
+        self._empty = _EmptySpectrum(self._n, kwargs)
 
     def __len__(self):
         return len(self._n)
@@ -447,15 +465,15 @@ class StreamGroup:
 
     def run(self) -> List[Results]:
         """Run every waiting window; one :class:`Results` per stream."""
-        return [Results(**r) for r in self._n.run()]
+        return [self._empty(Results(**r)) for r in self._n.run()]
 
     def push_all(self, blocks, channels_first=None) -> List[Results]:
         """One block per stream (in stream order), then one run; one :class:`Results` per stream."""
-        return [Results(**r) for r in self._n.push_all([_array(b) for b in blocks], channels_first=_flag("channels_first", channels_first))]
+        return [self._empty(Results(**r)) for r in self._n.push_all([_array(b) for b in blocks], channels_first=_flag("channels_first", channels_first))]
 
     def flush(self, i) -> Results:
         """End stream ``i``'s input: its last results."""
-        return Results(**self._n.flush(self._index(i)))
+        return self._empty(Results(**self._n.flush(self._index(i))))
 
     def reset(self, i) -> None:
         """Start stream ``i`` again."""

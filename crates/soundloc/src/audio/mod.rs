@@ -214,8 +214,22 @@ pub fn read_raw_audio(
     sample_rate_hz: u32,
 ) -> Result<Audio> {
     let path = path.as_ref();
+    read_all(&mut open_raw_file(path, enc, channels, sample_rate_hz)?, path)
+}
+
+/// A headerless PCM file opened for reading (the CLI's `--raw` on a path). A regular file
+/// is read as a file ([`RawSource::as_file`]): a size that is not a whole number of sample
+/// frames, or a non-finite sample, is an error naming it. A FIFO or device is read as a
+/// stream.
+pub fn open_raw_file(
+    path: impl AsRef<Path>,
+    enc: RawEncoding,
+    channels: usize,
+    sample_rate_hz: u32,
+) -> Result<RawSource<std::io::BufReader<std::fs::File>>> {
+    let path = path.as_ref();
     let file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
-    let len = file.metadata().map_err(|e| Error::io(path, e))?.len();
+    let meta = file.metadata().map_err(|e| Error::io(path, e))?;
     let src = RawSource::new(
         std::io::BufReader::with_capacity(1 << 20, file),
         enc,
@@ -223,7 +237,10 @@ pub fn read_raw_audio(
         sample_rate_hz,
         path,
     )?;
-    let fb = (enc.bytes() * channels) as u64;
+    if !meta.is_file() {
+        return Ok(src);
+    }
+    let (len, fb) = (meta.len(), (enc.bytes() * channels) as u64);
     if len % fb != 0 {
         return Err(Error::format(
             path,
@@ -236,7 +253,7 @@ pub fn read_raw_audio(
             ),
         ));
     }
-    read_all(&mut src.as_file(), path)
+    Ok(src.as_file())
 }
 
 fn read_all(src: &mut dyn AudioSource, path: &Path) -> Result<Audio> {
