@@ -103,6 +103,7 @@ e.g. a complex array as audio), OSError (files), RuntimeError (device).
 """
 
 import json
+import warnings
 from dataclasses import dataclass, field
 from typing import List, Optional
 
@@ -352,6 +353,15 @@ _NO_COPY = ("a {0} cannot be copied: it holds one stream's state (and a device's
             "make another with the same arguments, soundloc.{0}(**kwargs), for a new stream")
 
 
+def _warn(notes):
+    """The set-up's warnings (positions that look like millimetres, a grid radius inside
+    the array, an implausible speed of sound, ...) through Python's warnings; every note
+    stays in ``.notes``."""
+    for n in notes:
+        if n.startswith("warning: "):
+            warnings.warn(n[len("warning: "):], UserWarning, stacklevel=3)
+
+
 class _EmptySpectrum:
     """Gives Results without windows a (0, directions) spectrum_db where the spectrum is
     kept (spectrum=True, the default), so that the parts of a stream concatenate with
@@ -376,6 +386,7 @@ class Localizer:
         self._spec_json = spec.to_json()
         self._n = _Native(spec)
         self._empty = _EmptySpectrum(self._n, kwargs)
+        _warn(self._n.notes)
 
     def localize(self, x, fs=None, channels_first=None) -> Results:
         """Localize a whole recording (the stream is reset first)."""
@@ -451,6 +462,7 @@ class StreamGroup:
             raise ValueError(f"streams must be at least 1, got {streams}")
         self._n = _Group(_spec_of(kwargs), int(streams))
         self._empty = _EmptySpectrum(self._n, kwargs)
+        _warn(self._n.notes)
 
     def __len__(self):
         return len(self._n)

@@ -49,14 +49,14 @@ pub fn free_field_notes(geometry: &Geometry, radius_m: f64, speed_of_sound_m_s: 
         .fold(0.0, f64::max);
     if radius_m < reach {
         notes.push(format!(
-            "the grid radius {radius_m} m is inside the array (its farthest microphone is {reach:.3} m \
+            "warning: the grid radius {radius_m} m is inside the array (its farthest microphone is {reach:.3} m \
              from the grid's centre): the directions are points among the microphones, not far-field \
              directions; HARK's free-field TFs use 1 m or more"
         ));
     }
     if speed_of_sound_m_s.is_finite() && !PLAUSIBLE_SPEED_OF_SOUND_M_S.contains(&speed_of_sound_m_s) {
         notes.push(format!(
-            "a speed of sound of {speed_of_sound_m_s} m/s: in air it is 331-355 m/s (343 at 20 °C, the \
+            "warning: a speed of sound of {speed_of_sound_m_s} m/s: in air it is 331-355 m/s (343 at 20 °C, the \
              default), in water about 1480; the value is in metres per second (34300 would be cm/s)"
         ));
     }
@@ -174,6 +174,8 @@ mod tests {
         let mm = Geometry::circle(8, 36.5, 0.0);
         let n = free_field_notes(&mm, 1.0, 343.0);
         assert_eq!(n.len(), 2, "{n:?}");
+        // Warnings: the CLI prints them under -q too, Python raises them through `warnings`.
+        assert!(n.iter().all(|m| m.starts_with("warning: ")), "{n:?}");
         assert!(
             n[0].contains("millimetres") && n[1].contains("inside the array"),
             "{n:?}"

@@ -339,7 +339,7 @@ impl Geometry {
         let a = self.aperture_m();
         (a > UNITS_NOTE_APERTURE_M).then(|| {
             format!(
-                "the microphones span {a:.1} m: positions are in metres (in millimetres or centimetres? divide them by 1000 or 100)"
+                "warning: the microphones span {a:.1} m: positions are in metres (in millimetres or centimetres? divide them by 1000 or 100)"
             )
         })
     }
