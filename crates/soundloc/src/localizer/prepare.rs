@@ -49,6 +49,7 @@ pub(crate) fn prepare(
     };
     let channels = spec.channel_map(full_mics)?;
     let mut notes: Vec<String> = note.into_iter().collect();
+    notes.extend(zero_bins_note(&tf, config.bin_range()));
     let noise_file = match (&noise, &spec.noise) {
         (None, NoiseSource::Recording { path } | NoiseSource::CorrelationFile { path })
             if algorithm.uses_noise() =>
@@ -288,6 +289,30 @@ pub(crate) fn prepare(
     })
 }
 
+/// A warning when some used bins hold transfer functions of zero for every direction and
+/// microphone (a TF file made for a narrower band, zero-filled by `write_tf`): they add
+/// nothing to the spectrum, and the band the user asked for is not the band analysed.
+fn zero_bins_note(tf: &TransferFunctions, used: std::ops::Range<usize>) -> Option<String> {
+    let have = tf.bins();
+    let zero: Vec<usize> = used
+        .clone()
+        .filter(|b| have.contains(b))
+        .filter(|&b| {
+            (0..tf.grid.len()).all(|d| (0..tf.num_mics).all(|m| tf.get(d, m, b) == Default::default()))
+        })
+        .collect();
+    let (&lo, &hi) = (zero.first()?, zero.last()?);
+    Some(format!(
+        "warning: the transfer functions are zero for every direction in {} of the {} used bins \
+         (between {:.0} and {:.0} Hz): those bins add nothing to the spectrum; narrow the band to \
+         the TFs' (--freq-range, freq_range=) or give TFs for it",
+        zero.len(),
+        used.len(),
+        tf.bin_hz(lo),
+        tf.bin_hz(hi)
+    ))
+}
+
 pub(crate) fn engine<T: Real>(
     config: &LocalizeConfig,
     tf: &TransferFunctions,
@@ -467,5 +492,41 @@ mod tests {
             "{e}"
         );
         std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    /// Used bins whose transfer functions are zero for every direction (a TF file made
+    /// for a narrower band, zero-filled) are a warning naming how many and where; none
+    /// for complete TFs.
+    #[test]
+    fn used_bins_without_transfer_functions_are_a_warning() {
+        let geo = crate::array::Geometry::circle(8, 0.0365, 0.0);
+        let grid = crate::array::Grid::ring(30.0, 0.0, 1.0);
+        let mut tf = crate::array::freefield::free_field(&geo, &grid, 512, 16000, 0..257, 343.0).unwrap();
+        let mut spec = LocalizerSpec::from_tf(std::path::Path::new("unused.zip"));
+        spec.device = DeviceChoice::Cpu;
+        let p = prepare(&spec, tf.clone(), None).unwrap();
+        assert!(
+            !p.notes.iter().any(|n| n.contains("transfer functions are zero")),
+            "{:?}",
+            p.notes
+        );
+        // Bins 50.. zero for every direction and microphone ([dir][mic][bin] layout).
+        for row in tf.data.chunks_mut(tf.num_bins) {
+            row[50..].fill(Complex::new(0.0, 0.0));
+        }
+        let p = prepare(&spec, tf, None).unwrap();
+        // The default band 500–2800 Hz at 16 kHz, N 512: bins 16..89, of which 50..89.
+        let n: Vec<&String> = p
+            .notes
+            .iter()
+            .filter(|n| n.contains("transfer functions are zero"))
+            .collect();
+        assert_eq!(n.len(), 1, "{:?}", p.notes);
+        assert!(
+            n[0].starts_with("warning: ")
+                && n[0].contains("in 39 of the 73 used bins (between 1562 and 2750 Hz)"),
+            "{}",
+            n[0]
+        );
     }
 }
