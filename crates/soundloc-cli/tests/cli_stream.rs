@@ -650,6 +650,14 @@ fn negative_numbers_parse_and_bad_values_fail_before_any_work() {
         (&["--track", "--thresh", "nan"][..], "THRESH must be finite"),
         (&["--grid", "ring:0.001"][..], "at least 0.1 degrees"),
         (&["--grid-radius", "0"][..], "grid radius must be positive"),
+        // Each message names what was given (these named a noise range, an empty range
+        // 1..M-1 = 0 and the channels left after selection as the file's until 2026-12-08).
+        (&["--noise-segments", "0:1,2:1"][..], "--noise-segments: segment \"2:1\": need 0 <= START < END"),
+        (&["--channels", "0"][..], "1 microphone: localization needs at least 2"),
+        (
+            &["--input-channels", "0,2,4,6"][..],
+            "has 8 channels, of which --input-channels (input_channels=) picks 4, but the transfer functions have 8 microphones",
+        ),
         // The queue of a live input is sized from it: a huge value is refused, not
         // allocated (it aborted before).
         (

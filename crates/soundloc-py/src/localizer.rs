@@ -106,6 +106,14 @@ impl PyLocalizer {
                 )))
             }
         };
+        if output.as_os_str() == "-" {
+            // The CLI's `-o -` is its stdout; a library writing past sys.stdout would be
+            // lost in a notebook and mixed with print()'s buffer elsewhere.
+            return Err(PyValueError::new_err(
+                "output \"-\": localize_file writes a file (the CLI's -o - is its standard output); \
+                 for the results in Python use localize(soundloc.read_audio(path)[0], fs)",
+            ));
+        }
         let files = self.files.clone();
         let mut inner = self.lock(py)?;
         if self.open_rate.is_some() {

@@ -395,6 +395,16 @@ def test_resample_converts_another_rate(tmp_path):
     with pytest.raises(ValueError, match="48000 Hz"):
         localizer(fs=FS).localize_file(wav, tmp_path / "no.jsonl")
     assert not (tmp_path / "no.jsonl").exists()
+    # "-" is the CLI's stdout, not a file named "-" (one was written until 2026-12-08).
+    import os
+    here = os.getcwd()
+    os.chdir(tmp_path)
+    try:
+        with pytest.raises(ValueError, match=r"localize_file writes a file \(the CLI's -o - is its standard output\)"):
+            loc.localize_file(wav, "-")
+        assert not (tmp_path / "-").exists()
+    finally:
+        os.chdir(here)
     # Results never replace the recording they come from.
     before = wav.read_bytes()
     with pytest.raises(ValueError, match="would overwrite the input"):

@@ -402,11 +402,19 @@ impl ChannelMap {
             }
             self.input_channels.clone()
         };
+        // What the input gives: its channels, or those --input-channels picks from them.
+        let gives = |k: usize| {
+            if self.input_channels.is_empty() {
+                format!("has {k} channels")
+            } else {
+                format!("has {n} channels, of which --input-channels (input_channels=) picks {k}")
+            }
+        };
         if !self.tf_channels.is_empty() && idx.len() != self.tf_channels.len() {
             if idx.len() != self.full_mics {
                 return Err(Error::Mismatch(format!(
-                    "has {} channels; --channels selects {} of the transfer functions' {} microphones, so it takes an input of {} (pick the input's channels: --input-channels, input_channels=[...] in Python)",
-                    idx.len(),
+                    "{}; --channels selects {} of the transfer functions' {} microphones, so it takes an input of {} (pick the input's channels: --input-channels, input_channels=[...] in Python)",
+                    gives(idx.len()),
                     self.tf_channels.len(),
                     self.full_mics,
                     self.full_mics
@@ -416,8 +424,8 @@ impl ChannelMap {
         }
         if idx.len() != self.mics {
             return Err(Error::Mismatch(format!(
-                "has {} channels, but the transfer functions have {} microphones (pick {} input channels: --input-channels, input_channels=[...] in Python)",
-                idx.len(),
+                "{}, but the transfer functions have {} microphones (pick {} input channels: --input-channels, input_channels=[...] in Python)",
+                gives(idx.len()),
                 self.mics,
                 self.mics
             )));

@@ -172,6 +172,13 @@ impl<T: Real> Plan<T> {
         // MUSIC resolves fewer sources than microphones (HARK ties its signal subspace to
         // NUM_SOURCE); SRP-PHAT has no subspace, its num_sources is only a peak count.
         let subspace = config.algorithm.is_music();
+        if m < 2 {
+            return Err(Error::Config(format!(
+                "{m} microphone{}: localization needs at least 2 (--channels, channels= in Python, selects \
+                 the transfer functions' microphones used)",
+                if m == 1 { "" } else { "s" }
+            )));
+        }
         if config.num_sources == 0 || (subspace && config.num_sources >= m) {
             return Err(Error::Config(if subspace {
                 format!(

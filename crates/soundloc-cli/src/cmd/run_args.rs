@@ -365,7 +365,7 @@ fn noise_update(a: &RunArgs) -> anyhow::Result<NoiseUpdate> {
     if let Some(s) = &a.noise_segments {
         let segs = s
             .split(',')
-            .map(parse_range)
+            .map(|r| parse_range_of("--noise-segments: segment", r))
             .collect::<anyhow::Result<Vec<_>>>()?;
         return Ok(NoiseUpdate::Segments(segs));
     }
@@ -382,21 +382,26 @@ fn noise_update(a: &RunArgs) -> anyhow::Result<NoiseUpdate> {
     Ok(NoiseUpdate::Fixed)
 }
 
-/// Parse `START:END` seconds.
+/// Parse `START:END` seconds (a noise range).
 pub fn parse_range(s: &str) -> anyhow::Result<(f64, f64)> {
+    parse_range_of("noise range", s)
+}
+
+/// Parse `START:END` seconds; errors name it as `what`.
+pub fn parse_range_of(what: &str, s: &str) -> anyhow::Result<(f64, f64)> {
     let (a, b) = s
         .split_once(':')
-        .ok_or_else(|| anyhow!("noise range {s:?}: expected START:END in seconds, e.g. 0:1.5"))?;
+        .ok_or_else(|| anyhow!("{what} {s:?}: expected START:END in seconds, e.g. 0:1.5"))?;
     let a: f64 = a
         .trim()
         .parse()
-        .with_context(|| format!("noise range {s:?}: bad start"))?;
+        .with_context(|| format!("{what} {s:?}: bad start"))?;
     let b: f64 = b
         .trim()
         .parse()
-        .with_context(|| format!("noise range {s:?}: bad end"))?;
+        .with_context(|| format!("{what} {s:?}: bad end"))?;
     if !(a >= 0.0 && b > a) {
-        bail!("noise range {s:?}: need 0 <= START < END");
+        bail!("{what} {s:?}: need 0 <= START < END");
     }
     Ok((a, b))
 }
