@@ -300,4 +300,37 @@ fn summary_and_logs_equal_the_whole_runs() {
         std::fs::read_to_string(&log).unwrap(),
         soundloc::formats::source_log::to_text(&results)
     );
+    // With --preroll the results wait PREROLL frames behind the ids given: the first
+    // sightings are kept all the same (they were lost where an output had no result yet).
+    let o = bin()
+        .args([
+            "localize",
+            wav.to_str().unwrap(),
+            "--geometry",
+            geo.to_str().unwrap(),
+        ])
+        .args([
+            "--grid",
+            "ring:5",
+            "--period",
+            "5",
+            "--track",
+            "--preroll",
+            "400",
+            "-q",
+            "--summary",
+        ])
+        .arg(&summary)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let pre: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&summary).unwrap()).unwrap();
+    let seen = |v: &serde_json::Value| -> Vec<u64> {
+        v.as_array()
+            .unwrap()
+            .iter()
+            .map(|s| s["first_seen_frame"].as_u64().unwrap())
+            .collect()
+    };
+    assert_eq!(seen(&pre), seen(&got), "{pre}");
 }

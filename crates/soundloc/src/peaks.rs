@@ -54,8 +54,10 @@ impl PeakTable {
         for (i, nb) in grid.neighbors.iter().enumerate() {
             let l = &mut lists[first[i]];
             for &j in nb {
-                if first[j] != first[i] && !l.contains(&(j as u32)) {
-                    l.push(j as u32);
+                // A neighbour given twice is one neighbour, its first copy.
+                let j = first[j] as u32;
+                if j as usize != first[i] && !l.contains(&j) {
+                    l.push(j);
                 }
             }
         }
@@ -101,29 +103,28 @@ fn coincident_first(grid: &Grid) -> Vec<usize> {
         .unwrap_or(0);
     let mut order: Vec<usize> = (0..d).collect();
     order.sort_by(|&a, &b| u[a][k].total_cmp(&u[b][k]).then(a.cmp(&b)));
-    let mut first: Vec<usize> = (0..d).collect();
+    // Union-find, each set's root its lowest index: chains (a ≈ b ≈ c, a and c further
+    // apart than TOL) are one point.
+    let mut parent: Vec<usize> = (0..d).collect();
+    fn root(parent: &mut [usize], mut i: usize) -> usize {
+        while parent[i] != i {
+            parent[i] = parent[parent[i]];
+            i = parent[i];
+        }
+        i
+    }
     for (n, &i) in order.iter().enumerate() {
         for &j in &order[n + 1..] {
             if u[j][k] - u[i][k] > TOL {
                 break;
             }
-            let close = (0..3).all(|c| (u[i][c] - u[j][c]).abs() <= TOL);
-            if close {
-                let f = first[i].min(first[j]);
-                first[i] = f;
-                first[j] = f;
+            if (0..3).all(|c| (u[i][c] - u[j][c]).abs() <= TOL) {
+                let (a, b) = (root(&mut parent, i), root(&mut parent, j));
+                parent[a.max(b)] = a.min(b);
             }
         }
     }
-    // Chains (a ≈ b ≈ c found in any order) settle on their first point.
-    for i in 0..d {
-        let mut f = first[i];
-        while first[f] != f {
-            f = first[f];
-        }
-        first[i] = f;
-    }
-    first
+    (0..d).map(|i| root(&mut parent, i)).collect()
 }
 
 /// Whether `az` (degrees), wrapped into (min, min + 360], lies in [min, max].
@@ -258,6 +259,24 @@ mod tests {
         // A grid without copies is left as it was.
         let g = ring(8);
         assert_eq!(coincident_first(&g), (0..8).collect::<Vec<_>>());
+        // A chain: 0 and 2 are 1.6e-9 apart, each within 1e-9 of 1; one point.
+        let mut g = ring(4);
+        g.points = vec![
+            [1.0, 1.6e-9, 0.0],
+            [1.0, 0.0, 0.0],
+            [1.0, 0.8e-9, 0.0],
+            [0.0, 1.0, 0.0],
+        ];
+        assert_eq!(coincident_first(&g), vec![0, 0, 0, 3]);
+        // A neighbour listed through two copies counts once (refinement fits each once).
+        let mut g = ring(8);
+        g.points.push(g.points[1]);
+        g.neighbors.push(vec![0, 2]);
+        g.neighbors[0].push(8);
+        let t = PeakTable::new(&g, &cfg).unwrap();
+        let mut nb = t.neighbors_of(0).to_vec();
+        nb.sort();
+        assert_eq!(nb, vec![1, 7]);
     }
 
     #[test]

@@ -610,6 +610,8 @@ fn the_tracker_tells_each_sources_first_sighting_and_the_summary_keeps_it() {
             time_s: 0.05
         }]
     );
+    // Started, not taken, then reset: forgotten with the tracks.
+    hark.update(&result(6, vec![peak(30.0, 0.0, 10.0), peak(-120.0, 0.0, 10.0)]));
     hark.reset();
     assert!(hark.take_started().is_empty());
 }

@@ -108,16 +108,23 @@ fn stdin_is_file() -> bool {
 }
 
 impl InputArgs {
-    /// Headerless PCM from `r` as the `--raw` flags describe it.
+    /// Headerless PCM from `r` as the `--raw` flags describe it; `as_file`: read as a
+    /// file (a NaN is an error), not as a stream (a NaN becomes 0 with a warning).
     fn raw_source(
         &self,
         r: Box<dyn std::io::Read + Send>,
         name: &Path,
+        as_file: bool,
     ) -> anyhow::Result<Box<dyn AudioSource>> {
         let (Some(enc), Some(ch), Some(rate)) = (self.raw, self.raw_channels, self.rate) else {
             bail!("--raw needs --raw-channels and --rate")
         };
-        Ok(Box::new(RawSource::new(r, enc.into(), ch, rate, name)?))
+        let s = RawSource::new(r, enc.into(), ch, rate, name)?;
+        Ok(if as_file {
+            Box::new(s.as_file())
+        } else {
+            Box::new(s)
+        })
     }
 
     /// A stream (stdin, a socket): raw PCM with `--raw`, else WAV/FLAC by its first bytes.
@@ -127,7 +134,7 @@ impl InputArgs {
         name: &Path,
     ) -> anyhow::Result<Box<dyn AudioSource>> {
         if self.raw.is_some() {
-            self.raw_source(r, name)
+            self.raw_source(r, name, false)
         } else {
             Ok(open_stream(r, name)?)
         }
@@ -155,8 +162,14 @@ impl InputArgs {
                      or redirect it: < rec.wav)"
                 );
             }
+            // `< rec.raw` is a file, as its name would be (a NaN in it is an error).
+            let source = if self.raw.is_some() && !live {
+                self.raw_source(Box::new(std::io::stdin()), Path::new("-"), true)?
+            } else {
+                stream(Box::new(std::io::stdin()), Path::new("-"))?
+            };
             return Ok(Input {
-                source: stream(Box::new(std::io::stdin()), Path::new("-"))?,
+                source,
                 live,
                 name: PathBuf::from("standard input"),
             });

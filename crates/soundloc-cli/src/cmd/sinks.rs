@@ -457,6 +457,11 @@ impl Sinks {
                 o.write(&text)?;
             }
         }
+        // The tracker's first sightings come as ids are given, ahead of `--preroll`'s
+        // delayed results: taken in whether or not this output has results.
+        if let Some(s) = &mut self.summary {
+            starts.iter().for_each(|t| s.started(t));
+        }
         if results.is_empty() {
             return Ok(());
         }
@@ -514,7 +519,6 @@ impl Sinks {
             written.with_context(|| format!("{}: writing the source-location log", p.display()))?;
         }
         if let Some(s) = &mut self.summary {
-            starts.iter().for_each(|t| s.started(t));
             results.iter().for_each(|r| s.add(r));
         }
         self.count += results.len();

@@ -145,9 +145,10 @@ fn make(a: MakeArgs) -> anyhow::Result<ExitCode> {
         (None, None) => bail!("give --geometry FILE or --builtin"),
     }
     .direction_frame(a.radius);
-    if !a.quiet {
-        let notes = soundloc::array::freefield::free_field_notes(&geometry, a.radius, a.speed_of_sound);
-        for n in moved.into_iter().chain(notes) {
+    // Warnings print under -q too, as localize's do.
+    let notes = soundloc::array::freefield::free_field_notes(&geometry, a.radius, a.speed_of_sound);
+    for n in moved.into_iter().chain(notes) {
+        if !a.quiet || n.starts_with("warning:") {
             eprintln!("soundloc: {n}");
         }
     }

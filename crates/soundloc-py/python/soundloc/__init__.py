@@ -368,7 +368,8 @@ class _EmptySpectrum:
     np.concatenate as well as with Results.concatenate; None stays for spectrum=False."""
 
     def __init__(self, native, kwargs):
-        self._native, self._want, self._dirs = native, kwargs.get("spectrum", True) is not False, None
+        want = _flag("spectrum", kwargs.get("spectrum", True))
+        self._native, self._want, self._dirs = native, want is None or bool(want), None
 
     def __call__(self, r):
         if r.spectrum_db is None and self._want and len(r) == 0:

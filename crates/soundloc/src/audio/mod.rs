@@ -214,7 +214,11 @@ pub fn read_raw_audio(
     sample_rate_hz: u32,
 ) -> Result<Audio> {
     let path = path.as_ref();
-    read_all(&mut open_raw_file(path, enc, channels, sample_rate_hz)?, path)
+    // Whatever the path is (a FIFO too): read whole, a NaN an error.
+    read_all(
+        &mut open_raw_file(path, enc, channels, sample_rate_hz)?.as_file(),
+        path,
+    )
 }
 
 /// A headerless PCM file opened for reading (the CLI's `--raw` on a path). A regular file

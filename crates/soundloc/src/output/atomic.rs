@@ -95,6 +95,8 @@ pub struct AtomicFile {
     target: PathBuf,
     temp: PathBuf,
     file: Option<BufWriter<File>>,
+    /// The replaced file's permission bits, given to the new one at `commit`.
+    keep_mode: Option<std::fs::Permissions>,
 }
 
 impl AtomicFile {
@@ -107,14 +109,16 @@ impl AtomicFile {
     /// (e.g. `".png"` for a library that picks the format from the extension).
     pub fn create_with_suffix(path: impl AsRef<Path>, suffix: &str) -> Result<Self> {
         let path = path.as_ref();
-        // A file replaced keeps its mode (a private 0600 file stays private, a shared 0664
-        // one group-writable); a new one gets the umask's, as with any tool.
+        // A file replaced keeps its permission bits (a private 0600 file stays private, a
+        // shared 0664 one group-writable; not setuid, setgid or sticky), given at commit so
+        // that writers by path can open the temporary file; a new one gets the umask's, as
+        // with any tool.
         let mut keep_mode = None;
         // The kernel follows links here, magic ones too (/dev/stdout, /dev/fd/N → a pipe,
         // whose link text `pipe:[N]` names no file).
         if let Ok(meta) = std::fs::metadata(path) {
             if meta.is_file() {
-                keep_mode = Some(meta.permissions());
+                keep_mode = Some(permission_bits(meta.permissions()));
             }
             // A rename would replace a file its owner made read-only (even as root): refuse,
             // as `cp` does for other users.
@@ -152,6 +156,7 @@ impl AtomicFile {
                     target: path.to_path_buf(),
                     temp: PathBuf::new(),
                     file: Some(BufWriter::new(f)),
+                    keep_mode: None,
                 });
             }
         }
@@ -178,19 +183,12 @@ impl AtomicFile {
             match OpenOptions::new().write(true).create_new(true).open(&temp) {
                 Ok(f) => {
                     registry.push(temp.clone());
-                    drop(registry);
-                    let file = AtomicFile {
+                    return Ok(AtomicFile {
                         target,
                         temp,
                         file: Some(BufWriter::new(f)),
-                    };
-                    if let (Some(mode), Some(w)) = (keep_mode, &file.file) {
-                        // On failure the temporary file goes with `file`.
-                        w.get_ref()
-                            .set_permissions(mode)
-                            .map_err(|e| Error::io(&file.target, e))?;
-                    }
-                    return Ok(file);
+                        keep_mode,
+                    });
                 }
                 Err(e) if e.kind() == io::ErrorKind::AlreadyExists => last_err = Some(e),
                 Err(e) if e.kind() == io::ErrorKind::NotFound && !dir.is_dir() => {
@@ -252,6 +250,11 @@ impl AtomicFile {
                 f.sync_all().map_err(|e| Error::io(&self.target, e))?;
             }
         }
+        if let Some(mode) = self.keep_mode.take() {
+            // Best effort: a file system that refuses chmod (some network and FAT
+            // mounts) still gets its output, with the default mode.
+            let _ = std::fs::set_permissions(&self.temp, mode);
+        }
         // Under the registry's lock, as a signal's clean-up takes it.
         let mut registry = live();
         std::fs::rename(&self.temp, &self.target).map_err(|e| Error::io(&self.target, e))?;
@@ -295,6 +298,19 @@ impl Drop for AtomicFile {
             let _ = std::fs::remove_file(&self.temp);
             registry.retain(|t| *t != self.temp);
         }
+    }
+}
+
+/// `p` without the setuid, setgid and sticky bits (as `cp` without `-p` leaves them).
+fn permission_bits(p: std::fs::Permissions) -> std::fs::Permissions {
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::PermissionsExt;
+        std::fs::Permissions::from_mode(p.mode() & 0o777)
+    }
+    #[cfg(not(unix))]
+    {
+        p
     }
 }
 

@@ -148,6 +148,15 @@ fn a_replaced_file_keeps_its_mode() {
         f.commit().unwrap();
         assert_eq!(mode(&target), m);
     }
+    // Not the setuid/setgid bits (cp without -p drops them too).
+    let target = d.join("suid.jsonl");
+    std::fs::write(&target, b"old").unwrap();
+    std::fs::set_permissions(&target, std::fs::Permissions::from_mode(0o6750)).unwrap();
+    write_atomically(&target, |f| f.write_all(b"new")).unwrap();
+    assert_eq!(
+        std::fs::metadata(&target).unwrap().permissions().mode() & 0o7777,
+        0o750
+    );
     let fresh = d.join("fresh.jsonl");
     write_atomically(&fresh, |f| f.write_all(b"x")).unwrap();
     let plain = d.join("plain");
