@@ -88,7 +88,7 @@ impl PeakTable {
 /// For every grid point, the first point with the same direction (itself when it is the
 /// first): unit vectors within 1e-9 of each other are one direction. Points are compared
 /// along the coordinate that spreads them most, sorted: O(D log D) for any usual grid.
-fn coincident_first(grid: &Grid) -> Vec<usize> {
+pub(crate) fn coincident_first(grid: &Grid) -> Vec<usize> {
     const TOL: f64 = 1e-9;
     let d = grid.len();
     let u: Vec<[f64; 3]> = (0..d).map(|i| grid.unit(i)).collect();

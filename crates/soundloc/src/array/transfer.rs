@@ -83,6 +83,9 @@ pub struct TfSummary {
     pub radius_max_m: f64,
     /// Microphone positions as stored (metres; possibly placeholders).
     pub mic_positions: Vec<[f64; 3]>,
+    /// Directions that repeat an earlier one (within 1e-9 of its unit vector): the peak
+    /// search takes each such set as one point, the first.
+    pub repeated_directions: usize,
 }
 
 impl std::fmt::Display for TfSummary {
@@ -115,7 +118,15 @@ impl std::fmt::Display for TfSummary {
             f,
             "neighbours       {} (max {:.1}° apart)",
             self.neighbor_relation, self.max_neighbor_angle_deg
-        )
+        )?;
+        if self.repeated_directions > 0 {
+            writeln!(
+                f,
+                "repeated         {} direction(s) given again (one point each for the peaks, the first)",
+                self.repeated_directions
+            )?;
+        }
+        Ok(())
     }
 }
 
@@ -415,6 +426,11 @@ impl TfSummary {
             radius_min_m: if r0.is_finite() { r0 } else { 0.0 },
             radius_max_m: if r1.is_finite() { r1 } else { 0.0 },
             mic_positions: mic_positions.to_vec(),
+            repeated_directions: crate::peaks::coincident_first(grid)
+                .iter()
+                .enumerate()
+                .filter(|&(i, &f)| f != i)
+                .count(),
         }
     }
 }
@@ -513,6 +529,18 @@ mod tests {
         assert!(text.contains("left/right"), "{text}");
         let json = serde_json::to_string(&s).unwrap();
         assert!(json.contains("\"grid_kind\":\"ring\""), "{json}");
+        assert_eq!(s.repeated_directions, 0);
+        assert!(!text.contains("repeated"), "{text}");
+        // A direction given twice (here the last is the first again) is said.
+        let mut tf = small();
+        tf.grid.points[3] = tf.grid.points[0];
+        let s = tf.summary();
+        assert_eq!(s.repeated_directions, 1);
+        assert!(
+            s.to_string()
+                .contains("repeated         1 direction(s) given again"),
+            "{s}"
+        );
     }
 
     #[test]
