@@ -257,19 +257,21 @@ fn fifo_outputs_are_flushed_as_results_come() {
 fn summary_and_logs_equal_the_whole_runs() {
     let (wav, geo) = scene("summary_and_logs");
     let (summary, log) = (tmp("summary_and_logs.json"), tmp("summary_and_logs.log"));
-    let o = bin()
-        .args([
-            "localize",
-            wav.to_str().unwrap(),
-            "--geometry",
-            geo.to_str().unwrap(),
-        ])
-        .args(["--grid", "ring:5", "--period", "5", "--track", "-q", "--summary"])
-        .arg(&summary)
-        .arg("--log-text")
-        .arg(&log)
-        .output()
-        .unwrap();
+    let run = |extra: &[&str]| {
+        bin()
+            .args([
+                "localize",
+                wav.to_str().unwrap(),
+                "--geometry",
+                geo.to_str().unwrap(),
+            ])
+            .args(["--grid", "ring:5", "--period", "5", "--track", "-q", "--summary"])
+            .arg(&summary)
+            .args(extra)
+            .output()
+            .unwrap()
+    };
+    let o = run(&["--log-text", log.to_str().unwrap()]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let results: Vec<soundloc::LocalizationResult> = String::from_utf8(o.stdout)
         .unwrap()
@@ -302,27 +304,7 @@ fn summary_and_logs_equal_the_whole_runs() {
     );
     // With --preroll the results wait PREROLL frames behind the ids given: the first
     // sightings are kept all the same (they were lost where an output had no result yet).
-    let o = bin()
-        .args([
-            "localize",
-            wav.to_str().unwrap(),
-            "--geometry",
-            geo.to_str().unwrap(),
-        ])
-        .args([
-            "--grid",
-            "ring:5",
-            "--period",
-            "5",
-            "--track",
-            "--preroll",
-            "400",
-            "-q",
-            "--summary",
-        ])
-        .arg(&summary)
-        .output()
-        .unwrap();
+    let o = run(&["--preroll", "400"]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let pre: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&summary).unwrap()).unwrap();
     let seen = |v: &serde_json::Value| -> Vec<u64> {

@@ -198,19 +198,22 @@ fn raw_pcm_on_stdin_equals_the_file() {
     // A raw file by path equals the pipe; being a file, a NaN in it or a size that is not
     // whole frames is an error naming it, before any result (a stream's NaN becomes 0
     // with a warning, so that a glitch does not end a live capture).
+    let channels = audio.num_channels();
+    let raw_file = |file: &Path, enc: &str| {
+        bin()
+            .args(["localize", file.to_str().unwrap(), "--raw", enc])
+            .args(["--raw-channels", &channels.to_string(), "--rate", "16000"])
+            .arg("--geometry")
+            .arg(&geo)
+            .args(OPTS)
+            .output()
+            .unwrap()
+    };
     let raw = tmp("raw_pcm_file.s16");
     std::fs::write(&raw, &bytes).unwrap();
-    let o = bin()
-        .args(["localize", raw.to_str().unwrap()])
-        .args(RAW_S16_RING)
-        .arg("--geometry")
-        .arg(&geo)
-        .args(OPTS)
-        .output()
-        .unwrap();
+    let o = raw_file(&raw, "s16le");
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     assert_eq!(String::from_utf8(o.stdout).unwrap(), want);
-    let channels = audio.num_channels();
     let mut f32s: Vec<u8> = (0..audio.num_samples())
         .flat_map(|i| (0..channels).map(move |c| (i, c)))
         .flat_map(|(i, c)| audio.channels[c][i].to_le_bytes())
@@ -224,14 +227,7 @@ fn raw_pcm_on_stdin_equals_the_file() {
         (&nan, "f32le", "NaN"),
         (&cut, "s16le", "not a whole number of sample frames"),
     ] {
-        let o = bin()
-            .args(["localize", file.to_str().unwrap(), "--raw", enc])
-            .args(["--raw-channels", &channels.to_string(), "--rate", "16000"])
-            .arg("--geometry")
-            .arg(&geo)
-            .args(OPTS)
-            .output()
-            .unwrap();
+        let o = raw_file(file, enc);
         let e = String::from_utf8_lossy(&o.stderr);
         assert_eq!(o.status.code(), Some(2), "{want}: {e}");
         assert!(

@@ -362,23 +362,6 @@ def _warn(notes):
             warnings.warn(n[len("warning: "):], UserWarning, stacklevel=3)
 
 
-class _EmptySpectrum:
-    """Gives Results without windows a (0, directions) spectrum_db where the spectrum is
-    kept (spectrum=True, the default), so that the parts of a stream concatenate with
-    np.concatenate as well as with Results.concatenate; None stays for spectrum=False."""
-
-    def __init__(self, native, kwargs):
-        want = _flag("spectrum", kwargs.get("spectrum", True))
-        self._native, self._want, self._dirs = native, want is None or bool(want), None
-
-    def __call__(self, r):
-        if r.spectrum_db is None and self._want and len(r) == 0:
-            if self._dirs is None:
-                self._dirs = len(self._native.directions()["azimuth_deg"])
-            r.spectrum_db = np.zeros((0, self._dirs), dtype=np.float32)
-        return r
-
-
 class Localizer:
     """A stateful localizer; see the module docstring for the arguments."""
 
@@ -386,12 +369,11 @@ class Localizer:
         spec = _spec_of(kwargs)
         self._spec_json = spec.to_json()
         self._n = _Native(spec)
-        self._empty = _EmptySpectrum(self._n, kwargs)
         _warn(self._n.notes)
 
     def localize(self, x, fs=None, channels_first=None) -> Results:
         """Localize a whole recording (the stream is reset first)."""
-        return self._empty(Results(**self._n.localize(_array(x), fs=fs, channels_first=_flag("channels_first", channels_first))))
+        return Results(**self._n.localize(_array(x), fs=fs, channels_first=_flag("channels_first", channels_first)))
 
     def localize_file(self, input, output, format="jsonl") -> int:
         """Localize a WAV/FLAC file and write its results as ``soundloc localize -o`` does
@@ -401,11 +383,11 @@ class Localizer:
     def push(self, block, fs=None, channels_first=None) -> Results:
         """Push a block of any length (at ``fs`` Hz: checked, and named on a stream's
         first push where the rate is open); returns the results it completed."""
-        return self._empty(Results(**self._n.push(_array(block), fs=fs, channels_first=_flag("channels_first", channels_first))))
+        return Results(**self._n.push(_array(block), fs=fs, channels_first=_flag("channels_first", channels_first)))
 
     def flush(self) -> Results:
         """End of input: the results still held."""
-        return self._empty(Results(**self._n.flush()))
+        return Results(**self._n.flush())
 
     def reset(self) -> None:
         """Start a new stream."""
@@ -462,7 +444,6 @@ class StreamGroup:
         if int(streams) < 1:
             raise ValueError(f"streams must be at least 1, got {streams}")
         self._n = _Group(_spec_of(kwargs), int(streams))
-        self._empty = _EmptySpectrum(self._n, kwargs)
         _warn(self._n.notes)
 
     def __len__(self):
@@ -478,15 +459,15 @@ class StreamGroup:
 
     def run(self) -> List[Results]:
         """Run every waiting window; one :class:`Results` per stream."""
-        return [self._empty(Results(**r)) for r in self._n.run()]
+        return [Results(**r) for r in self._n.run()]
 
     def push_all(self, blocks, channels_first=None) -> List[Results]:
         """One block per stream (in stream order), then one run; one :class:`Results` per stream."""
-        return [self._empty(Results(**r)) for r in self._n.push_all([_array(b) for b in blocks], channels_first=_flag("channels_first", channels_first))]
+        return [Results(**r) for r in self._n.push_all([_array(b) for b in blocks], channels_first=_flag("channels_first", channels_first))]
 
     def flush(self, i) -> Results:
         """End stream ``i``'s input: its last results."""
-        return self._empty(Results(**self._n.flush(self._index(i))))
+        return Results(**self._n.flush(self._index(i)))
 
     def reset(self, i) -> None:
         """Start stream ``i`` again."""

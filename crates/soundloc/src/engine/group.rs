@@ -172,6 +172,9 @@ impl<T: Real> StreamGroup<T> {
                 }
             }
             if take.is_empty() {
+                for (s, o) in self.streams.iter().zip(outs.iter_mut()) {
+                    s.keep_spectrum(o);
+                }
                 return Ok(());
             }
             // Onset weighting, each stream's frames by its own state: the streams in

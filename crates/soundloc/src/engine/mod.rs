@@ -366,10 +366,22 @@ impl<T: Real> Engine<T> {
         // a small push then start from inside it, so the caller hands off once per push
         // instead of once per stage, and not at all where it is a worker itself
         // (`crate::pool`; `Backend::runs_on_pool` says why not for devices).
-        if self.backend.as_ref().is_some_and(|b| b.runs_on_pool()) {
+        let r = if self.backend.as_ref().is_some_and(|b| b.runs_on_pool()) {
             rayon::scope(|_| self.push_checked(&block, &idx, len, out))
         } else {
             self.push_checked(&block, &idx, len, out)
+        };
+        self.keep_spectrum(out);
+        r
+    }
+
+    /// Where the stream keeps the spectrum, `out` has a table even when no window ran
+    /// (zero rows), so that every output of the stream has one and they join as they
+    /// are.
+    pub(crate) fn keep_spectrum(&self, out: &mut Output) {
+        if self.options.want_spectrum {
+            out.spectrum
+                .get_or_insert_with(|| SpectrumTable::empty(self.plan.num_dirs, self.plan.num_bins()));
         }
     }
 
@@ -482,6 +494,7 @@ impl<T: Real> Engine<T> {
     /// Second half of [`flush`](Self::flush), once every window ran: the tracker's delayed
     /// results, warnings about the input, an error when no window ran at all.
     fn finish(&mut self, out: &mut Output) -> Result<()> {
+        self.keep_spectrum(out);
         if let Some(e) = &mut self.extender {
             out.results.extend(e.finish());
         }
@@ -567,9 +580,6 @@ impl<T: Real> Engine<T> {
     /// Batch: push planar channels whole, then flush.
     pub fn localize(&mut self, channels: &[Vec<f32>]) -> Result<Localization> {
         let mut out = Output::default();
-        if self.options.want_spectrum {
-            out.spectrum = Some(SpectrumTable::empty(self.plan.num_dirs, self.plan.num_bins()));
-        }
         self.push(Block::Planar(channels), &mut out)?;
         self.flush(&mut out)?;
         Ok(Localization {

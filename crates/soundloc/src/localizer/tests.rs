@@ -137,3 +137,38 @@ fn settings_that_would_silently_do_nothing_are_noted_or_refused() {
         crate::config::SpectrumWeight::Manual((0..nb).map(|i| (i % 2) as f64).collect());
     Localizer::new(&zero).unwrap();
 }
+
+/// Where the spectrum is kept, every output of a stream has a table, with zero rows
+/// where no window ran (a short push, a flush with nothing left), so that the outputs
+/// join as they are; without it none has one.
+#[test]
+fn every_output_of_a_stream_keeping_the_spectrum_has_a_table() {
+    let geo = crate::array::Geometry::circle(8, 0.0365, 0.0);
+    let mut spec = LocalizerSpec::free_field(
+        geo.mics,
+        GridSpec::Ring {
+            step_deg: 5.0,
+            elevation_deg: 0.0,
+        },
+    );
+    spec.device = DeviceChoice::Cpu;
+    spec.analysis.sample_rate_hz = 16000;
+    let short: Vec<Vec<f32>> = (0..8)
+        .map(|c| (0..100).map(|i| ((i * (c + 3)) % 17) as f32).collect())
+        .collect();
+    for keep in [true, false] {
+        spec.spectrum = keep;
+        let mut loc = Localizer::new(&spec).unwrap();
+        let mut out = crate::engine::Output::default();
+        loc.push(crate::input::Block::Planar(&short), &mut out).unwrap();
+        assert!(out.results.is_empty());
+        match &out.spectrum {
+            Some(t) if keep => assert_eq!((t.frames.len(), t.db.len(), t.num_dirs), (0, 0, 72)),
+            None if !keep => {}
+            t => panic!("keep {keep}: {t:?}"),
+        }
+        let mut end = crate::engine::Output::default();
+        let _ = loc.flush(&mut end); // too short for a window: an error, the table all the same
+        assert_eq!(end.spectrum.is_some(), keep);
+    }
+}
